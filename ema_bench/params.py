@@ -1,0 +1,87 @@
+"""The one parameter set of the simulated actuator.
+
+Every physical constant of the reference and monitor models lives here, with its unit and a
+one-line source or reason.  The values follow the validated starting point of DESIGN.md
+section 8 (a flight-control EMA of the Dalla Vedova / Borello family: 270 V HVDC bus, BLDC motor
+with trapezoidal back-EMF, 300:1 reducer, aileron-class surface inertia).
+
+The compiled kernels take the parameters as one flat ``float64`` array; the positions of the
+entries are the module-level ``P_*`` integers below (numba folds them as constants).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+def _p(value: float, unit: str, source: str) -> float:
+    return field(default=value, metadata={"unit": unit, "source": source})
+
+
+@dataclass(frozen=True)
+class EMAParams:
+    """Physical parameters of the EMA (fault parameters excluded: see :mod:`ema_bench.faults`)."""
+
+    # --- power electronics and motor (per phase, star connection) ---
+    V_dc: float = _p(270.0, "V", "aircraft HVDC bus (MIL-STD-704F 270 V DC)")
+    R: float = _p(0.5, "ohm", "phase resistance of a ~1 kW servo BLDC (DESIGN 8)")
+    L: float = _p(0.5e-3, "H", "phase inductance; 2 mH made commutation eat the 60 deg sector")
+    Ke: float = _p(0.05, "V s/rad", "phase back-EMF peak per motor rad/s; 2 Ke = 0.1 N m/A")
+    pole_pairs: float = _p(2.0, "-", "4-pole rotor, typical of small servo BLDCs")
+    hyst_band: float = _p(0.5, "A", "current hysteresis band; above the 1 us per-step overshoot")
+    # --- mechanics (2-DOF: motor rotor + surface, joined by the reducer) ---
+    J_m: float = _p(5e-5, "kg m^2", "motor rotor inertia")
+    J_u: float = _p(1.0, "kg m^2", "surface (aileron-class) inertia about the hinge")
+    tau: float = _p(1.0 / 300.0, "rad/rad", "reducer ratio, surface rad per motor rad")
+    K_s: float = _p(3e5, "N m/rad", "transmission stiffness at the surface; mode above loops")
+    C_s: float = _p(1000.0, "N m s/rad", "contact damping, ratio ~0.9: no impact trains")
+    C_m: float = _p(1e-5, "N m s/rad", "motor viscous friction (bearings, windage)")
+    C_u: float = _p(50.0, "N m s/rad", "surface aerodynamic damping")
+    K_aero: float = _p(800.0, "N m/rad", "hinge-moment spring; keeps the backlash loaded")
+    theta_stop: float = _p(0.45, "rad", "mechanical end stops at the surface, beyond the tests")
+    K_stop: float = _p(1e6, "N m/rad", "end-stop contact stiffness")
+    C_stop: float = _p(2000.0, "N m s/rad", "end-stop contact damping (ratio ~1)")
+    friction_dyn_ratio: float = _p(0.5, "-", "dynamic / static dry friction (F_dyn = 0.5 F_st)")
+    stick_speed: float = _p(1e-3, "rad/s", "Karnopp stick band on motor speed")
+    # --- ACE (actuator control electronics) ---
+    K_GP: float = _p(1e-3, "-", "fixed scaling so K_GP*Gprop = 50..150 1/s at the surface")
+    w_max: float = _p(750.0, "rad/s", "motor speed limit (surface rate 2.5 rad/s)")
+    Kpv: float = _p(0.05, "N m s/rad", "speed-loop proportional gain")
+    Kiv: float = _p(2.0, "N m/rad", "speed-loop integral gain")
+    T_max: float = _p(2.0, "N m", "torque reference limit = 20 A current limit")
+    dt_ctrl: float = _p(5e-5, "s", "controller sample period (20 kHz), zero-order hold")
+    # --- integration steps ---
+    dt_ref: float = _p(1e-6, "s", "reference step; converged (halving changes outputs <<1 %)")
+    dt_mon: float = _p(5e-5, "s", "monitor step = controller period")
+    # --- monitor calibration ---
+    ieq_ripple: float = _p(0.0, "-", "I_eq excess over |I| in the monitor, x hyst_band; "
+                           "measured 0.017 (0.008 A) on the 4 cases, so 0 (DESIGN said 0.4)")
+
+    def to_array(self) -> np.ndarray:
+        """Flat ``float64`` array in ``P_*`` order, as the compiled kernels take it."""
+        return np.array([getattr(self, n) for n in PARAM_NAMES], dtype=np.float64)
+
+    def replace(self, **changes: float) -> EMAParams:
+        """Copy with some values changed (unknown names raise ``TypeError``)."""
+        return dataclasses.replace(self, **changes)
+
+    @staticmethod
+    def describe() -> list[dict[str, object]]:
+        """Table of ``name, value, unit, source`` for docs and ``ema-bench params``."""
+        return [
+            {"name": f.name, "value": f.default, "unit": f.metadata["unit"],
+             "source": f.metadata["source"]}
+            for f in dataclasses.fields(EMAParams)
+        ]
+
+
+PARAM_NAMES: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(EMAParams))
+(P_VDC, P_R, P_L, P_KE, P_PP, P_HYST, P_JM, P_JU, P_TAU, P_KS, P_CS, P_CM, P_CU, P_KAERO,
+ P_THSTOP, P_KSTOP, P_CSTOP, P_FDYN, P_WSTICK, P_KGP, P_WMAX, P_KPV, P_KIV, P_TMAX, P_DTC,
+ P_DTREF, P_DTMON, P_IRIP) = range(len(PARAM_NAMES))
+N_PARAMS = len(PARAM_NAMES)
+
+DEFAULT_PARAMS = EMAParams()

@@ -1,0 +1,331 @@
+"""Tests of ema_bench.traces: the Traces container, its file formats and load validation."""
+
+from __future__ import annotations
+
+import copy
+import json
+import math
+
+import numpy as np
+import pytest
+import scipy.io
+
+from ema_bench.traces import (
+    OUTPUT_DT,
+    SIGNALS,
+    UNITS,
+    Traces,
+    TracesError,
+    load_traces,
+)
+
+HEADER = "time [s],theta_u [rad],theta_m [rad],omega_m [rad/s],i_eq [A]"
+
+
+def make_traces(n: int = 50, seed: int = 0) -> Traces:
+    rng = np.random.default_rng(seed)
+    step = rng.normal(size=(n, 4)) * np.array([0.1, 30.0, 300.0, 5.0])
+    step[0, 0] = -0.0  # sign of zero must survive too
+    step[1, 1] = 1e-300
+    sine = rng.normal(size=(n + 7, 4))
+    meta = {"model": "reference", "case": "nominal", "faults": ["backlash"], "seed": 42}
+    return Traces({"step": step, "sine": sine}, meta=meta)
+
+
+def plain_csv(path, rows, header=HEADER):
+    """Write a plain measured CSV (no comment lines) with ``rows`` of numbers/strings."""
+    lines = [header] + [",".join(str(v) for v in row) for row in rows]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def ramp_rows(n: int = 20, dt: float = OUTPUT_DT):
+    return [[k * dt, 0.01 * k, 0.1 * k, 1.0, 2.0] for k in range(n)]
+
+
+def assert_bit_exact(a: Traces, b: Traces) -> None:
+    assert a.tests == b.tests and a.dt == b.dt
+    for t in a.tests:
+        # compare bit patterns: catches -0.0 vs 0.0 and any last-digit rounding
+        assert np.array_equal(a.data[t].view(np.uint64), b.data[t].view(np.uint64))
+    assert dict(a.meta) == dict(b.meta)
+
+
+# ---- container -------------------------------------------------------------------------------
+
+
+def test_accessors_and_stacked_order():
+    tr = make_traces(n=5)
+    assert tr.tests == ("step", "sine")
+    assert tr.n_samples("step") == 5 and tr.n_samples("sine") == 12
+    np.testing.assert_array_equal(tr.time("step"), (np.arange(5) + 0.5) * OUTPUT_DT)
+    np.testing.assert_array_equal(tr.signal("sine", "omega_m"), tr.data["sine"][:, 2])
+    expected = np.concatenate([tr.data[t][:, j] for t in tr.tests for j in range(4)])
+    np.testing.assert_array_equal(tr.stacked(), expected)
+    assert tr.stacked().shape == (4 * (5 + 12),)
+    assert set(UNITS) == set(SIGNALS)
+
+
+def test_arrays_are_read_only_copies():
+    src = np.zeros((10, 4))
+    tr = Traces({"step": src})
+    src[0, 0] = 1.0
+    assert tr.data["step"][0, 0] == 0.0
+    assert tr.data["step"].dtype == np.float64
+    with pytest.raises(ValueError, match="read-only"):
+        tr.data["step"][0, 0] = 1.0
+    with pytest.raises(ValueError, match="read-only"):
+        tr.signal("step", "i_eq")[0] = 1.0
+    with pytest.raises(TypeError):
+        tr.data["new"] = src  # type: ignore[index]
+    with pytest.raises(AttributeError):
+        tr.dt = 2.0  # type: ignore[misc]
+
+
+def test_with_meta_allclose_and_copy():
+    tr = make_traces()
+    tr2 = tr.with_meta(case="jam", seed=np.int64(7))
+    assert tr2.meta["case"] == "jam" and tr2.meta["seed"] == 7 and tr2.meta["model"] == "reference"
+    assert tr.meta["case"] == "nominal"
+    assert tr.allclose(tr2) and tr.allclose(copy.deepcopy(tr))
+    shifted = Traces({t: tr.data[t] + 1e-9 for t in tr.tests})
+    assert not tr.allclose(shifted)
+    assert tr.allclose(shifted, atol=1e-8)
+    assert not tr.allclose(Traces(dict(tr.data), dt=2e-3))
+    assert not tr.allclose(Traces({"step": tr.data["step"]}))
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"data": {}}, "at least one test"),
+        ({"data": {"step": np.zeros((5, 3))}}, r"step.*shape \(5, 3\)"),
+        ({"data": {"step": np.zeros(5)}}, "step"),
+        ({"data": {"step": np.full((5, 4), "x")}}, "real numbers"),
+        ({"data": {"sine": np.array([[0, 0, math.nan, 0]] * 3)}}, "'sine', signal 'omega_m'.*0"),
+        ({"data": {"step": np.zeros((5, 4))}, "dt": 0.0}, "dt"),
+        ({"data": {"step": np.zeros((5, 4))}, "dt": math.inf}, "dt"),
+        ({"data": {"bad name": np.zeros((5, 4))}}, "bad name"),
+        ({"data": {"time": np.zeros((5, 4))}}, "reserved"),
+        ({"data": {"step": np.zeros((5, 4))}, "meta": {"x": object()}}, "JSON"),
+    ],
+)
+def test_traces_validation(kwargs, match):
+    with pytest.raises(TracesError, match=match):
+        Traces(**kwargs)
+
+
+# ---- round trips -----------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".npz"])
+def test_round_trip_bit_exact(tmp_path, suffix):
+    tr = make_traces()
+    path = tmp_path / f"ref{suffix}"
+    tr.save(path)
+    back = load_traces(path)
+    assert_bit_exact(tr, back)
+    assert back.data["step"].flags.writeable is False
+
+
+def test_csv_layout(tmp_path):
+    tr = make_traces(n=10)
+    path = tmp_path / "ref.csv"
+    tr.save(path)
+    lines = path.read_text().splitlines()
+    assert lines[0] == "# ema-bench traces v1"
+    assert lines[1] == "# dt = 0.001 s"
+    assert json.loads(lines[2].removeprefix("# meta = ")) == dict(tr.meta)
+    assert lines[3] == "test," + HEADER
+    assert lines[4].startswith("step,0.0005,-0.0,")
+    assert len(lines) == 4 + 10 + 17
+
+
+def test_npz_layout(tmp_path):
+    path = tmp_path / "ref.npz"
+    make_traces(n=10).save(path)
+    with np.load(path, allow_pickle=False) as z:
+        assert {"step/theta_u", "time/sine", "units", "dt", "meta_json"} <= set(z.files)
+        assert "omega_m=rad/s" in z["units"].tolist()
+        assert json.loads(str(z["meta_json"]))["model"] == "reference"
+
+
+def test_mat_round_trip_and_plain_layout(tmp_path):
+    tr = make_traces()
+    variables = {"units": np.array([f"{s}={UNITS[s]}" for s in SIGNALS]),
+                 "meta_json": json.dumps(dict(tr.meta)), "dt": tr.dt}
+    for t in tr.tests:
+        variables[f"time_{t}"] = tr.time(t)
+        for s in SIGNALS:
+            variables[f"{t}_{s}"] = tr.signal(t, s)
+    scipy.io.savemat(tmp_path / "ref.mat", variables)
+    assert_bit_exact(tr, load_traces(tmp_path / "ref.mat"))
+
+    plain = {"time": tr.time("step"), "units": variables["units"]}
+    plain.update({s: tr.signal("step", s) for s in SIGNALS})
+    scipy.io.savemat(tmp_path / "plain.mat", plain)
+    back = load_traces(tmp_path / "plain.mat", test="step")
+    np.testing.assert_array_equal(back.data["step"], tr.data["step"])
+    with pytest.raises(TracesError, match="test="):
+        load_traces(tmp_path / "plain.mat")
+
+
+def test_save_unsupported_suffix(tmp_path):
+    with pytest.raises(TracesError, match=r"\.txt"):
+        make_traces().save(tmp_path / "ref.txt")
+
+
+# ---- plain measured files ----------------------------------------------------------------------
+
+
+def test_plain_csv_single_test_and_test_filter(tmp_path):
+    path = plain_csv(tmp_path / "m.csv", ramp_rows())
+    tr = load_traces(path, test="step")
+    assert tr.tests == ("step",) and tr.n_samples("step") == 20
+    np.testing.assert_array_equal(tr.signal("step", "theta_m"), [0.1 * k for k in range(20)])
+    with pytest.raises(TracesError, match="test="):
+        load_traces(path)
+
+    rows = [["step", *r] for r in ramp_rows()] + [["sine", *r] for r in ramp_rows()]
+    both = plain_csv(tmp_path / "both.csv", rows, header="test," + HEADER)
+    assert load_traces(both).tests == ("step", "sine")
+    assert load_traces(both, test="sine").tests == ("sine",)
+    with pytest.raises(TracesError, match="'ramp' not in file"):
+        load_traces(both, test="ramp")
+
+
+def test_unit_conversion(tmp_path):
+    header = "t [ms],theta_u [deg],theta_m [mrad],omega_m [rpm],i_eq [mA]"
+    rows = [[k * 1.0, 90.0, 1000.0, 60.0, 1500.0] for k in range(12)]
+    tr = load_traces(plain_csv(tmp_path / "m.csv", rows, header=header), test="step")
+    np.testing.assert_allclose(tr.data["step"][0], [math.pi / 2, 1.0, 2 * math.pi, 1.5],
+                               rtol=1e-15)
+
+
+def test_resampling_block_average(tmp_path):
+    # 10 kHz ramp x_k = k: each 1 ms window averages samples 10j..10j+9 -> 10j + 4.5
+    n = 205  # the trailing partial window (5 samples) is dropped
+    rows = [[k * 1e-4, k, 2.0 * k, -k, 3.0] for k in range(n)]
+    tr = load_traces(plain_csv(tmp_path / "fast.csv", rows), test="step")
+    expected = 10.0 * np.arange(20) + 4.5
+    assert tr.n_samples("step") == 20 and tr.dt == OUTPUT_DT
+    np.testing.assert_allclose(tr.signal("step", "theta_u"), expected, rtol=1e-14)
+    np.testing.assert_allclose(tr.signal("step", "theta_m"), 2.0 * expected, rtol=1e-14)
+    np.testing.assert_allclose(tr.signal("step", "omega_m"), -expected, rtol=1e-14)
+    np.testing.assert_allclose(tr.signal("step", "i_eq"), 3.0, rtol=1e-14)
+
+
+# ---- load errors -------------------------------------------------------------------------------
+
+
+def bad_rows(row: int, col: int, value) -> list:
+    """Ramp rows with one cell replaced."""
+    rows = ramp_rows()
+    rows[row][col] = value
+    return rows
+
+
+CSV_ERRORS = [
+    # (id, header, rows, match)
+    ("short row", HEADER, ramp_rows()[:3] + [[0.5, 1, 2]] + ramp_rows()[4:], "line 5.*expected 5"),
+    ("non-numeric", HEADER, bad_rows(6, 2, "abc"), r"line 8.*theta_m.*'abc'"),
+    ("missing signal", "time [s],theta_u [rad],theta_m [rad],i_eq [A]",
+     [r[:3] + r[4:] for r in ramp_rows()], "missing signal.*omega_m.*found: time"),
+    ("unknown column", HEADER + ",temp [K]", [[*r, 300] for r in ramp_rows()],
+     r"temp \[K\].*unknown column.*known"),
+    ("no unit", "time [s],theta_u [rad],theta_m [rad],omega_m,i_eq [A]", ramp_rows(),
+     "'omega_m'.*no unit"),
+    ("unknown unit", "time [s],theta_u [rad],theta_m [rad],omega_m [rps],i_eq [A]",
+     ramp_rows(), r"'rps'.*omega_m.*rad/s, rpm, deg/s"),
+    ("unit mismatch", "time [s],theta_u [rad],theta_m [rad],omega_m [rad/s],i_eq [rad]",
+     ramp_rows(), "'rad' not accepted for i_eq"),
+    ("time unit", "time [min],theta_u [rad],theta_m [rad],omega_m [rad/s],i_eq [A]",
+     ramp_rows(), "time unit 'min'"),
+    ("no time", "theta_u [rad],theta_m [rad],omega_m [rad/s],i_eq [A]",
+     [r[1:] for r in ramp_rows()], "missing time column"),
+    ("non-monotonic", HEADER, bad_rows(7, 0, 0.0055), "non-monotonic.*index 7"),
+    ("repeated", HEADER, bad_rows(7, 0, 0.006), "repeated time.*index 7"),
+    ("empty cell", HEADER, bad_rows(9, 3, ""), r"'omega_m'.*NaN gap.*t = 0\.009 s"),
+    ("nan cell", HEADER, bad_rows(4, 4, "nan"), r"'i_eq'.*NaN gap.*t = 0\.004 s"),
+    ("jitter", HEADER, bad_rows(5, 0, 0.00501), "non-uniform.*index"),
+    ("coarse", HEADER, [[2e-3 * k, *r[1:]] for k, r in enumerate(ramp_rows())],
+     "file rate 500 Hz, expected 1000 Hz"),
+    ("non-integer", HEADER, [[4e-4 * k, *r[1:]] for k, r in enumerate(ramp_rows())],
+     "integer multiple.*2500 Hz"),
+    ("too short", HEADER, ramp_rows(9), "too short, 9 sample"),
+    ("header only", HEADER, [], "empty"),
+]
+
+
+@pytest.mark.parametrize(("header", "rows", "match"), [c[1:] for c in CSV_ERRORS],
+                         ids=[c[0] for c in CSV_ERRORS])
+def test_csv_errors(tmp_path, header, rows, match):
+    path = plain_csv(tmp_path / "bad.csv", rows, header=header)
+    with pytest.raises(TracesError, match=match) as info:
+        load_traces(path, test="step")
+    assert "bad.csv" in str(info.value)
+
+
+def test_min_duration(tmp_path):
+    path = plain_csv(tmp_path / "m.csv", ramp_rows(20))
+    assert load_traces(path, test="step", min_duration=0.02).n_samples("step") == 20
+    with pytest.raises(TracesError, match=r"'step'.*0\.02 s.*min_duration is 0\.5 s"):
+        load_traces(path, test="step", min_duration=0.5)
+
+
+def test_file_level_errors(tmp_path):
+    with pytest.raises(TracesError, match="not found"):
+        load_traces(tmp_path / "nope.csv")
+    (tmp_path / "x.txt").write_text(HEADER)
+    with pytest.raises(TracesError, match=r"unsupported.*\.txt"):
+        load_traces(tmp_path / "x.txt")
+    for name in ("empty.csv", "empty.npz", "empty.mat"):
+        (tmp_path / name).write_bytes(b"")
+        with pytest.raises(TracesError, match=f"{name}: file is empty"):
+            load_traces(tmp_path / name)
+    (tmp_path / "comments.csv").write_text("# ema-bench traces v1\n\n")
+    with pytest.raises(TracesError, match="empty"):
+        load_traces(tmp_path / "comments.csv")
+    (tmp_path / "junk.npz").write_bytes(b"not a zip archive at all")
+    with pytest.raises(TracesError, match="junk.npz.*cannot read"):
+        load_traces(tmp_path / "junk.npz")
+    (tmp_path / "latin1.csv").write_bytes(HEADER.encode() + b"\n\xff\xfe\n")
+    with pytest.raises(TracesError, match="cannot read"):
+        load_traces(tmp_path / "latin1.csv")
+    with pytest.raises(TracesError, match="version '2'"):
+        (tmp_path / "v2.csv").write_text("# ema-bench traces v2\n" + HEADER + "\n")
+        load_traces(tmp_path / "v2.csv")
+
+
+def test_npz_object_array_is_refused(tmp_path):
+    path = tmp_path / "evil.npz"
+    arrays = {f"step/{s}": np.zeros(20) for s in SIGNALS}
+    arrays["time/step"] = np.array([{"payload": 1}] * 20, dtype=object)
+    arrays["units"] = np.array([f"{s}={UNITS[s]}" for s in SIGNALS])
+    np.savez(path, **arrays)  # numpy pickles object arrays inside the archive
+    with pytest.raises(TracesError, match="'time/step'.*object array"):
+        load_traces(path)
+
+
+def test_npz_content_errors(tmp_path):
+    units = np.array([f"{s}={UNITS[s]}" for s in SIGNALS])
+    good = {f"step/{s}": np.zeros(20) for s in SIGNALS} | {"time/step": np.arange(20) * 1e-3}
+
+    def load_with(**arrays):
+        np.savez(tmp_path / "f.npz", **arrays)
+        return load_traces(tmp_path / "f.npz")
+
+    assert load_with(**good, units=units).n_samples("step") == 20
+    missing = {k: v for k, v in good.items() if k != "step/omega_m"}
+    with pytest.raises(TracesError, match="'step': missing 'omega_m'"):
+        load_with(**missing, units=units)
+    with pytest.raises(TracesError, match="no 'units'"):
+        load_with(**good)
+    with pytest.raises(TracesError, match="unknown key 'step/foo'"):
+        load_with(**good, units=units, **{"step/foo": np.zeros(20)})
+    with pytest.raises(TracesError, match="rps.*omega_m"):
+        load_with(**good, units=np.array([*units[:2], "omega_m=rps", units[3]]))
+    with pytest.raises(TracesError, match="'step/i_eq' has 19 samples"):
+        load_with(**(good | {"step/i_eq": np.zeros(19)}), units=units)
+    with pytest.raises(TracesError, match=r"'step/theta_u'.*shape \(20, 2\)"):
+        load_with(**(good | {"step/theta_u": np.zeros((20, 2))}), units=units)
