@@ -1,0 +1,71 @@
+"""``ema-bench`` command line.
+
+Each subcommand lives in its own module of this package and is listed in ``COMMANDS``; a module
+provides ``register(subparsers)`` which adds its parser and sets ``func`` to a handler
+``(args) -> int`` (the exit code).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import sys
+from collections.abc import Sequence
+
+from .. import __version__
+
+# subcommand name -> module in this package (the registry the parser is built from)
+COMMANDS: dict[str, str] = {
+    "simulate": "simulate",
+    "bench": "bench",
+    "params": "params",
+}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="ema-bench",
+        description="Model-based fault identification benchmark for aircraft electromechanical "
+                    "actuators: simulate the actuator, fit the monitor model, compare solvers.",
+        epilog="Run 'ema-bench COMMAND --help' for the options of a command.",
+    )
+    parser.add_argument("--version", action="version", version=f"ema-bench {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for module in COMMANDS.values():
+        importlib.import_module(f"{__name__}.{module}").register(sub)
+    return parser
+
+
+class CLIError(Exception):
+    """A user error: printed as one line, exit code 2."""
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except (CLIError, ValueError, FileNotFoundError) as exc:
+        print(f"ema-bench {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+
+
+def print_json(obj: object) -> None:
+    """Machine-readable output on stdout."""
+    json.dump(obj, sys.stdout, indent=2, sort_keys=False, default=_json_default)
+    sys.stdout.write("\n")
+
+
+def _json_default(o: object) -> object:
+    import numpy as np
+
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    raise TypeError(f"not JSON serialisable: {type(o).__name__}")
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(main())

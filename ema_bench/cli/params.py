@@ -1,0 +1,45 @@
+"""``ema-bench params``: the physical parameter set, fault table and effects, with units."""
+
+from __future__ import annotations
+
+import argparse
+
+from ..effects import EFFECTS
+from ..faults import CASES, FAULTS
+from ..params import EMAParams
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("params", help="list physical parameters, faults, cases and effects",
+                       description=__doc__)
+    p.add_argument("--json", action="store_true", help="print JSON instead of tables")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from . import print_json
+
+    table = {
+        "parameters": EMAParams.describe(),
+        "faults": [vars(f) for f in FAULTS],
+        "cases": {n: {"faults": dict(zip([f.name for f in FAULTS], c.faults)),
+                      "description": c.description} for n, c in CASES.items()},
+        "effects": [vars(e) for e in EFFECTS],
+    }
+    if args.json:
+        print_json(table)
+        return 0
+    print("Physical parameters")
+    for row in table["parameters"]:
+        print(f"  {row['name']:<20} {row['value']:<12.6g} {row['unit']:<10} {row['source']}")
+    print("\nFaults (name, unit, lower, upper, nominal)")
+    for f in FAULTS:
+        print(f"  {f.name:<6} {f.unit:<4} {f.lower:<8g} {f.upper:<8g} {f.nominal:<8g} "
+              f"{f.description}")
+    print("\nCases")
+    for n, c in CASES.items():
+        print(f"  {n:<8} {c.faults}  {c.description}")
+    print("\nEffects (off = 0)")
+    for e in EFFECTS:
+        print(f"  {e.name:<17} {e.unit:<10} [{e.lower:g}, {e.upper:g}]  {e.description}")
+    return 0
