@@ -1,0 +1,157 @@
+"""Solver registry: the built-in zoo and third-party solvers register the same way.
+
+A solver is a function ``solve(problem, budget, seed) -> SolveResult`` decorated with
+:func:`register_solver`, in a module named by an entry point of the group
+``ema_bench.solvers``::
+
+    # pyproject.toml of any package
+    [project.entry-points."ema_bench.solvers"]
+    my-solver = "my_package.my_module"
+
+The zoo in ``solvers/`` is registered through ema-bench's own entry points exactly like that.
+"""
+
+from __future__ import annotations
+
+import importlib.metadata
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from .faults import faults_to_dict
+from .seeding import SeedLike, as_seed_sequence
+
+if TYPE_CHECKING:
+    from .problem import Problem
+
+ENTRY_POINT_GROUP = "ema_bench.solvers"
+
+
+@dataclass(frozen=True)
+class SolveResult:
+    """What a solver returns (evaluations are the problem's count, never the solver's)."""
+
+    solver: str
+    x: np.ndarray
+    fitness: float
+    evaluations: int
+    stop_reason: str
+    wall_s: float
+    library: dict[str, str] = field(default_factory=dict)
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def as_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        d["x"] = faults_to_dict(self.x)
+        return d
+
+
+SolveFn = Callable[["Problem", int, np.random.SeedSequence], SolveResult]
+
+
+@dataclass(frozen=True)
+class SolverInfo:
+    name: str
+    func: SolveFn
+    description: str
+    library: str  # distribution(s) the algorithm comes from, e.g. "cma" or "scipy"
+
+
+_REGISTRY: dict[str, SolverInfo] = {}
+_loaded = False
+
+
+class SolverError(LookupError):
+    """Unknown solver name or a broken plugin."""
+
+
+def register_solver(name: str, *, description: str, library: str) -> Callable[[SolveFn],
+                                                                                SolveFn]:
+    """Decorator: make ``func`` available as solver ``name``."""
+    def deco(func: SolveFn) -> SolveFn:
+        if name in _REGISTRY and _REGISTRY[name].func is not func:
+            raise SolverError(f"solver name {name!r} is registered twice "
+                              f"({_REGISTRY[name].func.__module__} and {func.__module__})")
+        _REGISTRY[name] = SolverInfo(name, func, description, library)
+        func.__ema_solver__ = name  # type: ignore[attr-defined]
+        return func
+    return deco
+
+
+def load_plugins() -> None:
+    """Import every module named in the ``ema_bench.solvers`` entry-point group (once)."""
+    global _loaded
+    if _loaded:
+        return
+    _loaded = True
+    for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
+        try:
+            ep.load()
+        except Exception as exc:  # a broken plugin must not take the zoo down
+            import warnings
+            warnings.warn(f"solver plugin {ep.name!r} ({ep.value}) failed to load: {exc}",
+                          RuntimeWarning, stacklevel=2)
+
+
+def available_solvers() -> dict[str, SolverInfo]:
+    """Every registered solver, by name (sorted)."""
+    load_plugins()
+    return dict(sorted(_REGISTRY.items()))
+
+
+def get_solver(name: str) -> SolverInfo:
+    solvers = available_solvers()
+    if name not in solvers:
+        raise SolverError(f"unknown solver {name!r}; registered: {list(solvers)}")
+    return solvers[name]
+
+
+def library_versions(*dists: str) -> dict[str, str]:
+    """Installed versions of the named distributions (plus numpy and ema-bench)."""
+    out = {}
+    for d in ("ema-bench", "numpy", *dists):
+        try:
+            out[d] = importlib.metadata.version(d)
+        except importlib.metadata.PackageNotFoundError:
+            out[d] = "not installed"
+    return out
+
+
+def finish(problem: Problem, solver: str, stop_reason: str, t0: float,
+           libraries: tuple[str, ...] = (), **extra: Any) -> SolveResult:
+    """The result record from the problem's own log: its best vector and its count."""
+    x, f = problem.best
+    return SolveResult(solver=solver, x=x, fitness=f, evaluations=problem.evaluations,
+                       stop_reason=stop_reason, wall_s=time.perf_counter() - t0,
+                       library=library_versions(*libraries), extra=dict(extra))
+
+
+def run_solver(name: str, problem: Problem, budget: int | None = None,
+               seed: SeedLike = 0) -> SolveResult:
+    """Run a registered solver on ``problem`` and return its result.
+
+    The budget is the smaller of ``budget`` and what the problem has left; the problem's
+    own counter enforces it, so a solver that overshoots is stopped, not trusted.  The
+    returned vector is the best the problem has logged (a solver cannot report a vector it
+    never evaluated), and ``evaluations`` is the problem's count.
+    """
+    from .problem import BudgetExhausted
+
+    info = get_solver(name)
+    budget = problem.remaining if budget is None else min(int(budget), problem.remaining)
+    if budget < 1:
+        raise SolverError(f"no budget left on {problem!r}")
+    problem.limit(budget)
+    t0 = time.perf_counter()
+    try:
+        res = info.func(problem, budget, as_seed_sequence(seed))
+        stop, extra, lib = res.stop_reason, res.extra, res.library
+    except BudgetExhausted:
+        stop, extra, lib = "budget", {}, library_versions(*info.library.split(","))
+    x, f = problem.best
+    return SolveResult(solver=name, x=x, fitness=f, evaluations=problem.evaluations,
+                       stop_reason=stop, wall_s=time.perf_counter() - t0, library=lib,
+                       extra=extra)
