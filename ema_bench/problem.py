@@ -334,6 +334,17 @@ class Problem:
                      range_error=dict(zip(FAULT_NAMES, map(float, err))),
                      success=bool(np.all(err <= SUCCESS_RANGE_ERROR)))
 
+    def first_success(self) -> int | None:
+        """Evaluations spent until the first successful vector (1-based count), or None.
+
+        A vector succeeds when every parameter is within 1 % of its range of the truth
+        (scorer-only, like :meth:`score`)."""
+        if self.__truth is None:
+            raise ProblemError("the true faults of measured data are unknown")
+        err = range_error(self._X[:self._count], self.__truth)
+        hits = np.flatnonzero(np.all(err <= SUCCESS_RANGE_ERROR, axis=1))
+        return int(hits[0]) + 1 if hits.size else None
+
     def fitness_at_truth(self) -> float:
         """Fitness of the true vector (not counted; for reports of the model-form bias)."""
         if self.__truth is None:
@@ -402,7 +413,7 @@ def make_problem(
     e = effects_vector(effects)
     if track == "reference":
         measured = _reference_traces(tuple(truth), tuple(e), int(s_noise.entropy),
-                                     tuple(s_noise.spawn_key))
+                                     tuple(s_noise.spawn_key)).with_meta(faults=None)
     else:
         measured = _twin_traces(truth, e, s_noise)
     meta = {"case": label, "track": track, "seed": seed_repr(seed), "effects":

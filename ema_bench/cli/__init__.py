@@ -20,6 +20,7 @@ COMMANDS: dict[str, str] = {
     "simulate": "simulate",
     "bench": "bench",
     "params": "params",
+    "leaderboard": "leaderboard",
 }
 
 

@@ -1,0 +1,126 @@
+"""``ema-bench leaderboard``: run solvers x cases x tracks x seeds and score them COCO-style.
+
+Each run is appended to OUT/runs.jsonl as it finishes; rerunning the same command resumes
+(finished runs are skipped).  Writes leaderboard_<track>.md/.csv, paper_tables.md, convergence,
+ECDF, fit-overlay and Figure 5 plots under OUT.
+
+Examples::
+
+    ema-bench leaderboard --quick --out /tmp/lb              # small, for CI
+    ema-bench leaderboard --seeds 10 --budget 5000           # the committed leaderboard
+    ema-bench leaderboard --executor dask --scheduler tcp://10.0.0.5:8786 --shard 0/4
+    ema-bench leaderboard --quick --check leaderboards/      # non-zero exit on regression
+"""
+
+from __future__ import annotations
+
+import argparse
+import shlex
+import sys
+import tempfile
+from pathlib import Path
+
+QUICK = {"seeds": 2, "budget": 400}
+DEFAULT = {"seeds": 10, "budget": 5000}
+
+
+def _csv(text: str) -> list[str]:
+    return [s.strip() for s in text.split(",") if s.strip()]
+
+
+def _shard(text: str) -> tuple[int, int]:
+    try:
+        i, n = (int(v) for v in text.split("/"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected i/n, got {text!r}") from None
+    return i, n
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    from ..leaderboard.executors import EXECUTORS
+
+    p = sub.add_parser("leaderboard", help="compare solvers on cases x tracks x seeds",
+                       description=__doc__,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--solvers", type=_csv, default=None,
+                   help="comma-separated solver names (default: every registered solver)")
+    p.add_argument("--cases", type=_csv, default=["nominal", "small", "full", "random"],
+                   help="comma-separated cases (default nominal,small,full,random)")
+    p.add_argument("--tracks", type=_csv, default=["reference", "twin"],
+                   help="comma-separated tracks (default reference,twin)")
+    p.add_argument("--seeds", type=int, default=None,
+                   help=f"seeds per (solver, case, track) (default {DEFAULT['seeds']}, "
+                        f"quick {QUICK['seeds']})")
+    p.add_argument("--budget", type=int, default=None,
+                   help=f"evaluations per run (default {DEFAULT['budget']}, "
+                        f"quick {QUICK['budget']})")
+    p.add_argument("--root-seed", type=int, default=0, help="root seed of the sweep")
+    p.add_argument("--out", default=None,
+                   help="output folder (default leaderboards/; with --check a temp folder)")
+    p.add_argument("--executor", choices=EXECUTORS, default="processes",
+                   help="serial, processes (local cores, default) or dask")
+    p.add_argument("--workers", type=int, default=None, help="worker processes (default: cores)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="address of an existing Dask scheduler (default: a LocalCluster)")
+    p.add_argument("--shard", type=_shard, default=(0, 1), metavar="i/n",
+                   help="run only the i-th of n interleaved slices of the tasks (0-based)")
+    p.add_argument("--quick", action="store_true",
+                   help=f"small budget and seeds for CI ({QUICK['seeds']} seeds, "
+                        f"budget {QUICK['budget']})")
+    p.add_argument("--check", default=None, metavar="DIR",
+                   help="compare with the committed leaderboard in DIR; exit 1 on regression")
+    p.add_argument("--no-plots", action="store_true", help="tables only")
+    p.add_argument("--json", action="store_true", help="print a JSON summary")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..leaderboard.check import compare, truncate
+    from ..leaderboard.run import leaderboard, select
+    from ..leaderboard.store import RUNS_FILE, read_records
+    from ..leaderboard.tasks import make_tasks
+    from ..registry import available_solvers
+    from . import CLIError, print_json
+
+    preset = QUICK if args.quick else DEFAULT
+    seeds = args.seeds if args.seeds is not None else preset["seeds"]
+    budget = args.budget if args.budget is not None else preset["budget"]
+    if seeds < 1 or budget < 1:
+        raise CLIError("--seeds and --budget must be >= 1")
+    solvers = args.solvers or list(available_solvers())
+    out = Path(args.out) if args.out else (
+        Path(tempfile.mkdtemp(prefix="ema-lb-")) if args.check else Path("leaderboards"))
+    command = "ema-bench " + " ".join(shlex.quote(a) for a in sys.argv[1:]) \
+        if sys.argv[0].endswith("ema-bench") else None
+    summary = leaderboard(solvers, args.cases, args.tracks, seeds, budget, out,
+                          executor=args.executor, workers=args.workers,
+                          scheduler=args.scheduler, shard=args.shard,
+                          root_seed=args.root_seed, plots=not args.no_plots,
+                          progress=not args.json, command=command)
+    status = 0
+    if args.check:
+        committed_path = Path(args.check) / RUNS_FILE
+        committed = read_records(committed_path)
+        if not committed:
+            raise CLIError(f"no committed runs in {committed_path}")
+        tasks = make_tasks(solvers, args.cases, args.tracks, seeds, budget, args.root_seed,
+                           args.shard)
+        now = select(read_records(out / RUNS_FILE), tasks)
+        regressions = compare(now, truncate(committed, budget, seeds))
+        summary["regressions"] = [str(r) for r in regressions]
+        status = 1 if regressions else 0
+        if not args.json:
+            if regressions:
+                print(f"REGRESSIONS against {committed_path} (budget {budget}, {seeds} seeds):")
+                for r in regressions:
+                    print("  " + str(r))
+            else:
+                print(f"no regression against {committed_path} (budget {budget}, "
+                      f"{seeds} seeds)")
+    if args.json:
+        print_json({"out": str(out), **summary})
+    else:
+        print(f"{summary['runs']} runs ({summary['ran']} new) -> {out}")
+        for f in summary.get("files", []):
+            print(f"  {f}")
+    return status

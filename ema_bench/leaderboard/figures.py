@@ -1,0 +1,145 @@
+"""Leaderboard plots: convergence, ECDF of evaluations to target, a fit's trace overlay, and
+the paper's Figure 5 (the Na/Fst fitness landscape, raw and normalised)."""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+from ..faults import CASES, FAULT_NAMES, NOMINAL, check_faults
+from ..plots import plot_traces, plt
+from ..problem import make_problem
+from ..traces import Traces
+
+
+def _best_at(trace: list[list[float]], grid: np.ndarray) -> np.ndarray:
+    """Best-so-far of a thinned trace evaluated on an evaluation grid (step function)."""
+    ev = np.array([p[0] for p in trace])
+    best = np.array([p[1] for p in trace])
+    idx = np.searchsorted(ev, grid, side="right") - 1
+    out = np.where(idx >= 0, best[np.clip(idx, 0, None)], np.nan)
+    out[grid > ev[-1]] = best[-1]
+    return out
+
+
+def convergence_plot(records: list[dict], track: str, path: Path) -> None:
+    """Best fitness vs evaluations: median and quartiles over seeds, per solver and case."""
+    cases = list(dict.fromkeys(r["case"] for r in records if r["track"] == track))
+    fig, axes = plt.subplots(1, len(cases), figsize=(4.2 * len(cases), 3.8), squeeze=False)
+    budget = max(r["budget"] for r in records)
+    grid = np.unique(np.geomspace(1, budget, 120).astype(int))
+    for ax, case in zip(axes[0], cases):
+        groups = defaultdict(list)
+        for r in records:
+            if r["track"] == track and r["case"] == case and r["trace"]:
+                groups[r["solver"]].append(_best_at(r["trace"], grid))
+        for solver, curves in sorted(groups.items()):
+            c = np.array(curves)
+            med = np.nanmedian(c, axis=0)
+            (line,) = ax.plot(grid, med, lw=1.3, label=solver)
+            ax.fill_between(grid, np.nanpercentile(c, 25, axis=0),
+                            np.nanpercentile(c, 75, axis=0), color=line.get_color(), alpha=0.15)
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_title(f"{case} ({track})")
+        ax.set_xlabel("evaluations")
+        ax.grid(alpha=0.3, which="both")
+    axes[0, 0].set_ylabel("best fitness (median, IQR)")
+    axes[0, -1].legend(fontsize=7, loc="upper right")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def ecdf_plot(records: list[dict], path: Path) -> None:
+    """Fraction of (case, seed) runs solved vs evaluations, per solver, one panel per track."""
+    tracks = list(dict.fromkeys(r["track"] for r in records))
+    fig, axes = plt.subplots(1, len(tracks), figsize=(5.5 * len(tracks), 4), squeeze=False)
+    budget = max(r["budget"] for r in records)
+    grid = np.unique(np.geomspace(1, budget, 200).astype(int))
+    for ax, track in zip(axes[0], tracks):
+        groups = defaultdict(list)
+        for r in records:
+            if r["track"] == track:
+                cost = r["evals_to_success"] if r["success"] else np.inf
+                groups[r["solver"]].append(cost or np.inf)
+        for solver, costs in sorted(groups.items()):
+            c = np.sort(np.array(costs, dtype=float))
+            ax.step(grid, np.searchsorted(c, grid, side="right") / c.size, where="post",
+                    label=solver, lw=1.3)
+        ax.set_xscale("log")
+        ax.set_ylim(0, 1.02)
+        ax.set_xlabel("evaluations")
+        ax.set_title(f"ECDF of evaluations to success ({track} track)")
+        ax.grid(alpha=0.3, which="both")
+    axes[0, 0].set_ylabel("fraction of runs solved")
+    axes[0, -1].legend(fontsize=7, loc="lower right")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def overlay_plot(record: dict, path: Path) -> None:
+    """Measured traces vs the monitor at nominal (before) and at the fitted vector (after)."""
+    from .tasks import Task
+
+    task = Task(record["solver"], record["case"], record["track"], record["seed"],
+                record["budget"], record["root_seed"])
+    problem = make_problem(task.case, track=task.track, seed=task.instance_seed(), budget=1)
+    x = check_faults([record["x"][n] for n in FAULT_NAMES])
+    outs, _ = problem.simulate(np.vstack([NOMINAL, x]))
+    before = Traces({t: v[0] for t, v in outs.items()})
+    after = Traces({t: v[1] for t, v in outs.items()})
+    plot_traces([problem.measured, before, after],
+                ["measured", "monitor at nominal (before)", f"monitor fitted by {task.solver}"],
+                path, title=f"{task.case} case, {task.track} track, seed {task.seed}: fit "
+                            f"fitness {record['fitness']:.3g}")
+
+
+def landscape(n: int = 40, track: str = "reference", seed: int = 0,
+              truth: dict[str, float] | None = None) -> dict[str, np.ndarray]:
+    """The paper's Figure 5: fitness over an ``n x n`` grid of Na and Fst, the other faults
+    at their true values; raw and normalised.  Returns the grid and both fitness arrays."""
+    truth = truth or {"Na": 0.9, "Fst": 0.3378, "BLK": CASES["nominal"].x[2],
+                      "Gprop": CASES["nominal"].x[3]}
+    x_true = check_faults(truth)
+    na = np.linspace(0.8, 1.0, n)
+    fst = np.linspace(0.1689, 0.8445, n)
+    NA, FST = np.meshgrid(na, fst, indexing="ij")
+    X = np.tile(x_true, (n * n, 1))
+    X[:, 0], X[:, 1] = NA.ravel(), FST.ravel()
+    out = {"Na": na, "Fst": fst}
+    for label, normalise in (("raw", False), ("normalised", True)):
+        p = make_problem(x_true, track=track, seed=seed, budget=n * n, normalise=normalise)
+        out[label] = np.asarray(p.evaluate(X)).reshape(n, n)
+    out["truth"] = x_true
+    return out
+
+
+def landscape_plot(data: dict[str, np.ndarray], path: Path) -> None:
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.4))
+    for ax, label in zip(axes, ("raw", "normalised")):
+        f = data[label]
+        im = ax.pcolormesh(data["Fst"], data["Na"], np.log10(f), shading="auto",
+                           cmap="viridis")
+        fig.colorbar(im, ax=ax, label="log10 fitness")
+        # the valley: per Fst column, where Na is best
+        ax.plot(data["Fst"], data["Na"][np.argmin(f, axis=0)], "w.", ms=3,
+                label="best Na per Fst")
+        ax.plot(data["truth"][1], data["truth"][0], "r*", ms=12, label="truth")
+        ax.set_xlabel("Fst [N m]")
+        ax.set_ylabel("Na [-]")
+        ax.set_title(f"{label} fitness (paper Figure 5 grid, {f.shape[0]}x{f.shape[1]})")
+        ax.legend(fontsize=7, loc="lower right")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def valley_rise(f: np.ndarray) -> float:
+    """How well the minimum stands out of its valley: median over Fst columns of the best
+    fitness in the column, divided by the global minimum (near 1: a long valley of near-equal
+    minima, as the paper's raw fitness; large: one clear minimum)."""
+    return float(np.median(f.min(axis=0)) / f.min())

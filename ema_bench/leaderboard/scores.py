@@ -1,0 +1,89 @@
+"""COCO-style scores of run records.
+
+Success: the run's final vector has every parameter within 1 % of its range of the truth.
+ERT (expected running time, Hansen et al., COCO): evaluations summed over all runs, a
+successful run counted until its first successful evaluation and a failed one at its budget,
+divided by the number of successes (infinite without success).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import defaultdict
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from ..faults import FAULT_NAMES
+
+ALL = "all"
+
+
+@dataclass(frozen=True)
+class Score:
+    track: str
+    case: str
+    solver: str
+    runs: int
+    successes: int
+    success_rate: float
+    ert: float                     # evaluations; inf without success
+    median_evals_to_success: float  # nan without success
+    median_fitness: float
+    median_wall_s: float
+    accuracy: dict[str, float]      # median paper accuracy, % (nan where undefined)
+    range_error: dict[str, float]   # median range-normalised error
+
+    def row(self) -> dict[str, object]:
+        d = asdict(self)
+        for n in FAULT_NAMES:
+            d[f"accuracy_{n}"] = d["accuracy"][n]
+            d[f"range_error_{n}"] = d["range_error"][n]
+        del d["accuracy"], d["range_error"]
+        return d
+
+
+def run_cost(rec: dict) -> int:
+    """Evaluations a run counts for ERT: until first success, or its whole budget."""
+    if rec["success"] and rec.get("evals_to_success"):
+        return int(rec["evals_to_success"])
+    return int(rec["budget"])
+
+
+def ert(records: list[dict]) -> float:
+    k = sum(1 for r in records if r["success"])
+    return sum(run_cost(r) for r in records) / k if k else math.inf
+
+
+def _median(values) -> float:
+    v = [x for x in values if x is not None and not (isinstance(x, float) and math.isnan(x))]
+    return float(np.median(v)) if v else math.nan
+
+
+def score_group(track: str, case: str, solver: str, records: list[dict]) -> Score:
+    ok = [r for r in records if r["success"]]
+    return Score(
+        track=track, case=case, solver=solver, runs=len(records), successes=len(ok),
+        success_rate=len(ok) / len(records), ert=ert(records),
+        median_evals_to_success=_median([run_cost(r) for r in ok]),
+        median_fitness=_median([r["fitness"] for r in records]),
+        median_wall_s=_median([r["wall_s"] for r in records]),
+        accuracy={n: _median([r["accuracy"][n] for r in records]) for n in FAULT_NAMES},
+        range_error={n: _median([r["range_error"][n] for r in records]) for n in FAULT_NAMES},
+    )
+
+
+def score_records(records: list[dict]) -> list[Score]:
+    """Scores per (track, case, solver) and per (track, all cases, solver), ranked within
+    each (track, case) by ERT, ties by success rate."""
+    groups: dict[tuple[str, str, str], list[dict]] = defaultdict(list)
+    for r in records:
+        groups[(r["track"], r["case"], r["solver"])].append(r)
+        groups[(r["track"], ALL, r["solver"])].append(r)
+    scores = [score_group(t, c, s, recs) for (t, c, s), recs in groups.items()]
+    return sorted(scores, key=rank_key)
+
+
+def rank_key(s: Score) -> tuple:
+    return (s.track, s.case != ALL, s.case, s.ert, -s.success_rate, s.median_fitness,
+            s.solver)

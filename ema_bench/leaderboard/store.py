@@ -1,0 +1,73 @@
+"""Append-only JSON-lines store of run records: written as runs finish, resumable.
+
+A run killed mid-write leaves at most one partial last line; :func:`open_store` cuts it off
+before appending, so there are neither duplicates nor lost complete rows.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+RUNS_FILE = "runs.jsonl"
+
+
+def _repair(path: Path) -> None:
+    """Drop a trailing partial line (an interrupted write)."""
+    if not path.exists() or path.stat().st_size == 0:
+        return
+    with open(path, "rb+") as fh:
+        data = fh.read()
+        if data.endswith(b"\n"):
+            return
+        cut = data.rfind(b"\n") + 1
+        fh.truncate(cut)
+
+
+def read_records(path: str | os.PathLike) -> list[dict]:
+    """Every complete record in the file (a partial last line is ignored)."""
+    path = Path(path)
+    if not path.exists():
+        return []
+    records = []
+    with open(path, encoding="utf-8") as fh:
+        for lineno, line in enumerate(fh, 1):
+            if not line.endswith("\n"):
+                break  # interrupted write
+            line = line.strip()
+            if not line:
+                continue
+            try:
+                records.append(json.loads(line))
+            except json.JSONDecodeError as exc:
+                raise ValueError(f"{path}:{lineno}: broken record ({exc.msg})") from None
+    return records
+
+
+class RunStore:
+    """Append records one line at a time, flushed and synced so a crash loses nothing."""
+
+    def __init__(self, path: str | os.PathLike) -> None:
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        _repair(self.path)
+        self.done = {r["key"] for r in read_records(self.path)}
+        self._fh = open(self.path, "a", encoding="utf-8")
+
+    def append(self, record: dict) -> None:
+        if record["key"] in self.done:
+            return
+        self._fh.write(json.dumps(record, sort_keys=True, allow_nan=False) + "\n")
+        self._fh.flush()
+        os.fsync(self._fh.fileno())
+        self.done.add(record["key"])
+
+    def close(self) -> None:
+        self._fh.close()
+
+    def __enter__(self) -> RunStore:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
