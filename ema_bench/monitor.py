@@ -31,7 +31,7 @@ from .effects import (
     N_EFFECTS,
 )
 from .faults import check_faults, faults_to_dict
-from .params import DEFAULT_PARAMS, P_DTC, P_HYST, P_IRIP, P_PP, P_VDC, EMAParams
+from .params import DEFAULT_PARAMS, P_DTC, P_HYST, P_IRIP, P_KTF, P_PP, P_VDC, EMAParams
 from .physics.ace import ace_update
 from .physics.bldc import pair_constants
 from .physics.load import hinge_moment
@@ -77,7 +77,7 @@ def monitor_one(p, x, e, cmd, n_out, steps_out, steps_ctrl, dt, out):
             hi = cur + dt * (v_dc - kt * w_m - r_pair * cur) / l_pair
             lo = cur + dt * (-v_dc - kt * w_m - r_pair * cur) / l_pair
             cur = min(max(target, lo), hi)
-            t_m = kt * cur
+            t_m = p[P_KTF] * kt * cur
             if e[E_COG] != 0.0:
                 t_m += e[E_COG] * math.sin(cog_order * th_m)
             t_load = hinge_moment(th_u, w_u, p, e[E_AERO])

@@ -60,6 +60,9 @@ class EMAParams:
     ieq_ripple: float = _p(0.0, "-", "I_eq excess over |I| in the monitor, x hyst_band; "
                            "measured 0.017 (0.008 A) on the 4 cases, so 0 (DESIGN said 0.4)")
 
+    kt_factor: float = _p(0.99713, "-", "monitor torque/ideal pair torque: commutation dip of "
+                          "the 3-phase drive, fitted on the healthy case (ema_bench.calibrate)")
+
     def to_array(self) -> np.ndarray:
         """Flat ``float64`` array in ``P_*`` order, as the compiled kernels take it."""
         return np.array([getattr(self, n) for n in PARAM_NAMES], dtype=np.float64)
@@ -81,7 +84,7 @@ class EMAParams:
 PARAM_NAMES: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(EMAParams))
 (P_VDC, P_R, P_L, P_KE, P_PP, P_HYST, P_JM, P_JU, P_TAU, P_KS, P_CS, P_CM, P_CU, P_KAERO,
  P_THSTOP, P_KSTOP, P_CSTOP, P_FDYN, P_WSTICK, P_KGP, P_WMAX, P_KPV, P_KIV, P_TMAX, P_DTC,
- P_DTREF, P_DTMON, P_IRIP) = range(len(PARAM_NAMES))
+ P_DTREF, P_DTMON, P_IRIP, P_KTF) = range(len(PARAM_NAMES))
 N_PARAMS = len(PARAM_NAMES)
 
 DEFAULT_PARAMS = EMAParams()
