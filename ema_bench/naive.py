@@ -28,6 +28,7 @@ from .params import (
     P_KIV,
     P_KPV,
     P_KS,
+    P_KTF,
     P_TAU,
     P_TMAX,
     P_VDC,
@@ -64,7 +65,7 @@ def _rhs(t, y, x, p, cmd):
     d_cur = min(max(d_cur, (-v - kt * w_m - r_pair * cur) / l_pair),
                 (v - kt * w_m - r_pair * cur) / l_pair)
     t_g = _gear(p[P_TAU] * th_m - th_u, p[P_TAU] * w_m - w_u, blk, p[P_KS], p[P_CS])
-    t_drive = kt * cur - p[P_CM] * w_m - p[P_TAU] * t_g
+    t_drive = p[P_KTF] * kt * cur - p[P_CM] * w_m - p[P_TAU] * t_g
     fdyn = p[P_FDYN] * fst
     if abs(w_m) < p[P_WSTICK] and abs(t_drive) <= fst:
         a_m = 0.0   # Karnopp stick
