@@ -76,6 +76,7 @@ def monitor_one(p, x, e, cmd, n_out, steps_out, steps_ctrl, dt, out):
             target = i_ref / gain
             hi = cur + dt * (v_dc - kt * w_m - r_pair * cur) / l_pair
             lo = cur + dt * (-v_dc - kt * w_m - r_pair * cur) / l_pair
+            cur_old = cur
             cur = min(max(target, lo), hi)
             t_m = p[P_KTF] * kt * cur
             if e[E_COG] != 0.0:
@@ -86,7 +87,13 @@ def monitor_one(p, x, e, cmd, n_out, steps_out, steps_ctrl, dt, out):
             a0 += th_u
             a1 += th_m
             a2 += w_m
-            a3 += abs(cur)
+            # exact step mean of the current: it ramps at the voltage-limited slope until it
+            # reaches its target, then holds (a rise to 20 A takes ~1.5 steps, so end-of-step
+            # samples would bias the window mean)
+            delta = cur - cur_old
+            span = (hi if delta > 0.0 else lo) - cur_old
+            frac = delta / span if span != 0.0 else 1.0
+            a3 += abs(cur - 0.5 * delta * frac)
         out[k, 0] = a0 / steps_out + offset
         out[k, 1] = a1 / steps_out
         out[k, 2] = a2 / steps_out

@@ -63,6 +63,7 @@ def _simulate(x, effects, model, seed, clean):
 
 def summarise(tr) -> dict[str, float]:
     """A few figures a person checks first (per test)."""
+    from ..params import DEFAULT_PARAMS
     from ..protocol import STANDARD_TESTS
 
     out = {}
@@ -78,7 +79,8 @@ def summarise(tr) -> dict[str, float]:
             "final_position_rad": float(y[-1, 0]),
             "peak_speed_rad_s": float(np.abs(y[:, 2]).max()),
             "peak_current_A": float(y[:, 3].max()),
-            "motor_minus_surface_max_rad": float(np.abs(y[:, 1] / 300.0 - y[:, 0]).max()),
+            "motor_minus_surface_max_rad":
+                float(np.abs(y[:, 1] * DEFAULT_PARAMS.tau - y[:, 0]).max()),
         }
     return out
 
