@@ -12,6 +12,7 @@ Importing the package registers the Gymnasium environment ``EMAFault/Identify-v0
 
 __version__ = "0.1.0"
 
+from . import env  # noqa: E402, F401  (registers EMAFault/Identify-v0)
 from .faults import CASES, FAULT_NAMES, FAULTS  # noqa: E402
 from .monitor import monitor_traces, simulate_monitor  # noqa: E402
 from .problem import BudgetExhausted, Problem, ProblemError, make_problem  # noqa: E402

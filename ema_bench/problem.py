@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .effects import N_EFFECTS, effects_to_dict, effects_vector
+from .effects import N_EFFECTS, effects_vector
 from .faults import (
     CASES,
     FAULT_NAMES,
@@ -33,8 +33,8 @@ from .monitor import simulate_monitor
 from .physics.sensors import SENSORS, measure
 from .protocol import HOLDOUT_TESTS, STANDARD_TESTS, TestSpec
 from .reference import SimulationError, simulate_reference
-from .seeding import SeedLike, as_seed_sequence, seed_repr
-from .traces import SIGNALS, Traces
+from .seeding import SeedLike, as_seed_sequence
+from .traces import OUTPUT_DT, SIGNALS, Traces
 
 log = logging.getLogger(__name__)
 
@@ -150,6 +150,10 @@ class Problem:
                  _meta: Mapping[str, object] | None = None) -> None:
         if not isinstance(budget, int | np.integer) or budget < 1:
             raise ProblemError(f"budget must be a positive integer, got {budget!r}")
+        if not np.isclose(measured.dt, OUTPUT_DT, rtol=1e-9, atol=0.0):
+            raise ProblemError(f"measured traces are sampled at {1 / measured.dt:g} Hz; the "
+                               f"monitor model outputs {1 / OUTPUT_DT:g} Hz (load finer data "
+                               f"with load_traces, which block-averages it to that rate)")
         unknown = [t for t in measured.tests if t not in KNOWN_TESTS]
         if unknown:
             raise ProblemError(f"measured traces hold unknown test(s) {unknown}; the monitor "
@@ -210,6 +214,8 @@ class Problem:
 
     def limit(self, n: int) -> None:
         """Allow at most ``n`` more evaluations (the budget can shrink, never grow)."""
+        if int(n) < 0:
+            raise ProblemError(f"limit needs n >= 0, got {n}")
         self.budget = min(self.budget, self._count + int(n))
 
     def _reserve(self, n: int) -> None:
@@ -295,7 +301,10 @@ class Problem:
         for t in self.measured.tests:
             d = outputs[t][0] - self.measured.data[t]
             parts.append((d * np.sqrt(self._weights[t] / d.shape[0])).ravel())
-        return np.concatenate(parts)
+        r = np.concatenate(parts)
+        raw = float(r @ r)
+        # keep sum(r**2) == evaluate(x) where the fitness was capped
+        return r * np.sqrt(f[0] / raw) if raw > f[0] > 0.0 else r
 
     @property
     def n_residuals(self) -> int:
@@ -327,7 +336,10 @@ class Problem:
         """Accuracy of an estimate against the hidden truth (for the scorer)."""
         if self.__truth is None:
             raise ProblemError("the true faults of measured data are unknown: no score")
-        est = check_faults(x)
+        try:
+            est = check_faults(x)
+        except FaultError as exc:
+            raise ProblemError(str(exc)) from None
         err = range_error(est, self.__truth)
         return Score(x=faults_to_dict(est), truth=faults_to_dict(self.__truth),
                      accuracy=dict(zip(FAULT_NAMES, paper_accuracy(est, self.__truth))),
@@ -416,7 +428,7 @@ def make_problem(
                                      tuple(s_noise.spawn_key)).with_meta(faults=None)
     else:
         measured = _twin_traces(truth, e, s_noise)
-    meta = {"case": label, "track": track, "seed": seed_repr(seed), "effects":
-            effects_to_dict(e)}
+    # public: nothing a solver could use to recover the truth (no seed, no effects)
+    meta = {"case": label, "track": track}
     return Problem(measured, budget, normalise=normalise, label=label, track=track,
                    _truth=truth, _meta=meta)

@@ -1,0 +1,380 @@
+"""Gymnasium interface to the identification problem: ``EMAFault/Identify-v0``.
+
+Importing :mod:`ema_bench` registers the environment::
+
+    import gymnasium as gym
+    import ema_bench  # noqa: F401  (registers the id)
+
+    env = gym.make("EMAFault/Identify-v0", case="small", track="reference", budget=500)
+    obs, info = env.reset(seed=0)          # obs: the measured traces, stacked
+    obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
+
+An episode is one :class:`~ema_bench.problem.Problem` (one actuator, one set of measured traces)
+with a hard evaluation budget.  An action is a candidate fault vector in the normalised box
+``[0, 1]^4`` (``FAULT_NAMES`` order, mapped to physical units with
+:func:`~ema_bench.faults.from_unit`); each step costs one evaluation of the problem's budget,
+the reward is minus the fitness, and the episode truncates when the budget is spent.  It never
+terminates: the environment cannot know that the truth was found.
+
+Observation (a float64 vector of ``N = sum over tests of n_samples * 4`` values, laid out as
+:meth:`~ema_bench.traces.Traces.stacked`: test by test, signal by signal, sample by sample):
+
+- on ``reset``: the measured traces;
+- on ``step`` with ``observation="traces"``: the monitor model's traces of the candidate (clean,
+  no noise), clipped to the observation box (each sensor's span widened by 1 %, as a
+  saturating sensor would read them);
+- on ``step`` with ``observation="residuals"``: the weighted residuals of the candidate
+  (:meth:`~ema_bench.problem.Problem.residuals`, rearranged to the same layout, so element
+  ``i`` is always the same test, signal and sample); ``sum(obs**2) == -reward``.
+
+``info`` holds ``evaluations``, ``budget``, ``remaining``, ``best_fitness`` (``inf`` before any
+evaluation), ``best_x`` (physical, ``name -> value``; after the first evaluation), ``case`` (the
+case *label*) and ``track``; never the true faults.  The problem itself, for the scorer after
+the episode, is ``env.unwrapped.problem`` (``problem.score(x)``).
+
+:class:`EMAFaultVectorEnv` (``gymnasium.make_vec(..., vectorization_mode="vector_entry_point")``)
+is the batch-evaluation interface for population methods: its ``num_envs`` "sub-environments"
+are candidates for the *same* problem, and one step evaluates them all in one batched
+:meth:`~ema_bench.problem.Problem.evaluate` call.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from gymnasium.error import ResetNeeded
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from .faults import CASES, FAULT_NAMES, FaultError, check_faults, faults_to_dict, from_unit
+from .physics.sensors import SENSORS
+from .problem import PENALTY, TRACKS, Problem, ProblemError, make_problem, signal_scales
+from .protocol import STANDARD_TESTS
+from .traces import SIGNALS
+
+__all__ = ["ENV_ID", "OBSERVATIONS", "EMAFaultEnv", "EMAFaultVectorEnv", "register"]
+
+ENV_ID = "EMAFault/Identify-v0"
+OBSERVATIONS = ("traces", "residuals")
+_OPTIONS = ("case", "track")
+_SPAN_MARGIN = 0.01  # the traces box is each sensor's span widened by this fraction
+# residual box: every |r| <= sqrt(sum r^2) <= sqrt(PENALTY) for a scored candidate
+_RESIDUAL_BOUND = float(np.sqrt(PENALTY))
+
+
+def _check_config(case: Any, track: str, budget: Any, observation: str,
+                  heterogeneity: float) -> None:
+    """Fail at construction (not at the first reset) on a bad configuration."""
+    if observation not in OBSERVATIONS:
+        raise ValueError(f"unknown observation {observation!r}; known: {list(OBSERVATIONS)}")
+    _check_case_track(case, track)
+    if isinstance(budget, bool) or not isinstance(budget, int | np.integer) or budget < 1:
+        raise ProblemError(f"budget must be a positive integer, got {budget!r}")
+    if not 0.0 <= float(heterogeneity) <= 1.0:
+        raise ProblemError(f"heterogeneity must lie in [0, 1], got {heterogeneity!r}")
+
+
+def _check_case_track(case: Any, track: Any) -> None:
+    if track not in TRACKS:
+        raise ProblemError(f"unknown track {track!r}; known: {list(TRACKS)}")
+    if isinstance(case, str):
+        if case != "seeded" and case not in CASES:
+            raise ProblemError(f"unknown case {case!r}; known: {list(CASES)} or 'seeded'")
+    else:
+        try:
+            check_faults(case)
+        except FaultError as exc:
+            raise ProblemError(f"bad case: {exc}") from None
+
+
+def _layout_sizes() -> list[int]:
+    """Samples per test of the standard protocol (the observation layout)."""
+    return [spec.n_samples() for spec in STANDARD_TESTS]
+
+
+def _observation_space(observation: str) -> spaces.Box:
+    """Finite bounds (check_env warns on infinite ones): sensor spans for traces; for residuals
+    a box that also holds the traces returned by ``reset``."""
+    sizes = _layout_sizes()
+    lo = np.array([s.lo for s in SENSORS])
+    hi = np.array([s.hi for s in SENSORS])
+    margin = _SPAN_MARGIN * (hi - lo)
+    low = np.concatenate([np.repeat(lo - margin, n) for n in sizes])
+    high = np.concatenate([np.repeat(hi + margin, n) for n in sizes])
+    if observation == "residuals":
+        bound = max(_RESIDUAL_BOUND, float(np.abs(low).max()), float(high.max()))
+        low = np.full_like(low, -bound)
+        high = np.full_like(high, bound)
+    return spaces.Box(low=low, high=high, dtype=np.float64)
+
+
+def _action_space() -> spaces.Box:
+    return spaces.Box(low=0.0, high=1.0, shape=(len(FAULT_NAMES),), dtype=np.float64)
+
+
+def _actions_to_physical(actions: Any, n: int | None) -> np.ndarray:
+    """Unit-box actions -> physical fault vectors (clipped to the box first).
+
+    ``n=None``: one action of shape (4,); else a batch (n, 4)."""
+    a = np.asarray(actions, dtype=np.float64)
+    shape = (len(FAULT_NAMES),) if n is None else (n, len(FAULT_NAMES))
+    if a.shape != shape:
+        raise ValueError(f"action must have shape {shape} (unit box [0, 1] per fault "
+                         f"{', '.join(FAULT_NAMES)}), got {a.shape}")
+    bad = ~np.isfinite(a)
+    if bad.any():
+        idx = np.argwhere(bad.reshape(-1, len(FAULT_NAMES)))[0]
+        row, j = int(idx[0]), int(idx[1])
+        where = "" if n is None else f" in row {row}"
+        raise ValueError(f"action for fault {FAULT_NAMES[j]} is not finite "
+                         f"({a.reshape(-1, len(FAULT_NAMES))[row, j]}){where}; actions must be "
+                         "numbers in [0, 1]")
+    return from_unit(np.clip(a, 0.0, 1.0))
+
+
+def _stack_outputs(problem: Problem, outputs: Mapping[str, np.ndarray]) -> np.ndarray:
+    """Monitor outputs ``test -> (n, n_samples, 4)`` -> (n, N) in ``Traces.stacked`` layout."""
+    blocks = [np.asarray(outputs[t]).transpose(0, 2, 1) for t in problem.measured.tests]
+    n = blocks[0].shape[0]
+    return np.concatenate([b.reshape(n, -1) for b in blocks], axis=1)
+
+
+def _residual_layout(problem: Problem, r: np.ndarray) -> np.ndarray:
+    """Problem residuals (test by test, sample by sample, signal by signal) -> stacked layout
+    (test by test, signal by signal, sample by sample)."""
+    parts, i = [], 0
+    for t in problem.measured.tests:
+        n = problem.measured.n_samples(t)
+        parts.append(r[i:i + n * len(SIGNALS)].reshape(n, len(SIGNALS)).T.ravel())
+        i += n * len(SIGNALS)
+    return np.concatenate(parts)
+
+
+def _residual_factors(problem: Problem) -> np.ndarray:
+    """Per-element factor ``sqrt(weight / n_samples)`` in stacked layout (the weights that
+    :meth:`Problem.evaluate` uses: 1 / signal-scale^2, or 1 with ``normalise=False``)."""
+    scales = signal_scales(problem.measured)
+    parts = []
+    for t in problem.measured.tests:
+        n = problem.measured.n_samples(t)
+        w = 1.0 / scales[t] ** 2 if problem.normalise else np.ones(len(SIGNALS))
+        parts.append(np.repeat(np.sqrt(w / n), n))
+    return np.concatenate(parts)
+
+
+class _EpisodeMixin:
+    """Problem building and info shared by the single and the vector environment."""
+
+    case: Any
+    track: str
+    budget: int
+    observation: str
+    normalise: bool
+    heterogeneity: float
+    _problem: Problem | None
+
+    def _new_problem(self, rng: np.random.Generator, options: Mapping[str, Any] | None) -> None:
+        options = dict(options or {})
+        unknown = sorted(set(options) - set(_OPTIONS))
+        if unknown:
+            raise ValueError(f"unknown reset option(s) {unknown}; known: {list(_OPTIONS)}")
+        case = options.get("case", self.case)
+        track = options.get("track", self.track)
+        _check_case_track(case, track)
+        # the instance seed comes from the env's RNG: reset(seed=s) -> same instance and noise
+        seed = int(rng.integers(0, 2**63 - 1))
+        problem = make_problem(case, track=track, seed=seed, budget=self.budget,
+                               normalise=self.normalise, heterogeneity=self.heterogeneity)
+        if problem.measured.stacked().shape != (sum(_layout_sizes()) * len(SIGNALS),):
+            raise ProblemError("the problem's traces do not follow the standard test protocol")
+        self._problem = problem
+
+    def _require_problem(self) -> Problem:
+        if self._problem is None:
+            raise ResetNeeded("call reset() before step()")
+        return self._problem
+
+    def _info(self) -> dict[str, Any]:
+        p = self._require_problem()
+        info: dict[str, Any] = {"evaluations": p.evaluations, "budget": p.budget,
+                                "remaining": p.remaining, "best_fitness": float("inf"),
+                                "case": p.label, "track": p.track}
+        if p.evaluations:
+            x, f = p.best
+            info["best_fitness"], info["best_x"] = f, faults_to_dict(x)
+        return info
+
+    @property
+    def problem(self) -> Problem:
+        """The current episode's problem (for the scorer: ``problem.score(x)``)."""
+        return self._require_problem()
+
+
+class EMAFaultEnv(_EpisodeMixin, gym.Env):
+    """Fault identification as an episodic Gymnasium environment (see the module docstring).
+
+    Parameters
+    ----------
+    case : str, mapping or array
+        Paper case (``nominal``, ``small``, ``full``, ``random``), ``"seeded"`` (a random
+        instance per episode, drawn from the reset seed with ``heterogeneity``) or explicit
+        true faults.  ``reset(options={"case": ...})`` overrides it for one episode.
+    track : {"reference", "twin"}
+        Where the measured traces come from (``options={"track": ...}`` overrides it).
+    budget : int
+        Evaluations (steps) per episode.
+    observation : {"traces", "residuals"}
+        What ``step`` observes.
+    normalise : bool
+        Normalised (default) or raw fitness.
+    """
+
+    metadata: dict[str, Any] = {"render_modes": []}
+
+    def __init__(self, case: Any = "small", track: str = "reference", budget: int = 1000,
+                 observation: str = "traces", normalise: bool = True,
+                 heterogeneity: float = 1.0, render_mode: str | None = None) -> None:
+        if render_mode is not None:
+            raise ValueError(f"render_mode {render_mode!r} is not supported (no rendering)")
+        _check_config(case, track, budget, observation, heterogeneity)
+        self.case, self.track, self.budget = case, track, int(budget)
+        self.observation, self.normalise = observation, bool(normalise)
+        self.heterogeneity = float(heterogeneity)
+        self.render_mode = None
+        self.observation_space = _observation_space(observation)
+        self.action_space = _action_space()
+        self._problem = None
+
+    def reset(self, *, seed: int | None = None,
+              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+        super().reset(seed=seed)
+        self._new_problem(self.np_random, options)
+        return self._problem.measured.stacked(), self._info()
+
+    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        p = self._require_problem()
+        if p.remaining <= 0:
+            raise ResetNeeded(f"the episode's budget of {p.budget} evaluations is spent "
+                              "(truncated); call reset() to start a new episode")
+        x = _actions_to_physical(action, None)
+        if self.observation == "residuals":
+            r = p.residuals(x)                              # counts one evaluation
+            fitness = float(p.history()["fitness"][-1])     # the recorded (scored) value
+            obs = _residual_layout(p, r)
+        else:
+            fitness = float(p.evaluate(x))                  # counts one evaluation
+            outputs, _ = p.simulate(x[None, :])             # not counted: same candidate
+            obs = _stack_outputs(p, outputs)[0]
+        obs = self._clip(obs)
+        return obs, -fitness, False, p.remaining == 0, self._info()
+
+    def _clip(self, obs: np.ndarray) -> np.ndarray:
+        space = self.observation_space
+        obs = np.nan_to_num(obs, nan=0.0, posinf=space.high, neginf=space.low)
+        return np.clip(obs, space.low, space.high)
+
+    def render(self) -> None:
+        return None
+
+
+class EMAFaultVectorEnv(_EpisodeMixin, VectorEnv):
+    """``num_envs`` candidates for one shared problem, evaluated in one batched call per step.
+
+    ``step(actions)`` takes actions of shape ``(num_envs, 4)`` in the unit box, evaluates them
+    with a single :meth:`Problem.evaluate` (``num_envs`` evaluations) and returns observations
+    ``(num_envs, N)``, rewards ``-fitness`` ``(num_envs,)``, terminations (always False) and
+    truncations (all True once the budget cannot take another full batch).  All
+    sub-environments share the problem, so they truncate together; the next ``step`` then
+    resets them together to a new instance drawn from the environment's RNG (``NEXT_STEP``
+    autoreset: that step ignores its actions and returns zero rewards).
+
+    Takes the keyword arguments of :class:`EMAFaultEnv`; ``budget`` must be at least
+    ``num_envs``.
+    """
+
+    metadata: dict[str, Any] = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
+
+    def __init__(self, num_envs: int = 1, case: Any = "small", track: str = "reference",
+                 budget: int = 1000, observation: str = "traces", normalise: bool = True,
+                 heterogeneity: float = 1.0, render_mode: str | None = None) -> None:
+        if render_mode is not None:
+            raise ValueError(f"render_mode {render_mode!r} is not supported (no rendering)")
+        if isinstance(num_envs, bool) or not isinstance(num_envs, int | np.integer) \
+                or num_envs < 1:
+            raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
+        _check_config(case, track, budget, observation, heterogeneity)
+        if budget < num_envs:
+            raise ProblemError(f"budget {budget} cannot take one batch of {num_envs} candidates")
+        self.num_envs = int(num_envs)
+        self.case, self.track, self.budget = case, track, int(budget)
+        self.observation, self.normalise = observation, bool(normalise)
+        self.heterogeneity = float(heterogeneity)
+        self.render_mode = None
+        self.single_observation_space = _observation_space(observation)
+        self.single_action_space = _action_space()
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self._problem = None
+        self._factors: np.ndarray | None = None
+        self._autoreset = False
+
+    def reset(self, *, seed: int | None = None,
+              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+        super().reset(seed=seed)
+        return self._reset(options)
+
+    def _reset(self, options: Mapping[str, Any] | None) -> tuple[np.ndarray, dict[str, Any]]:
+        self._new_problem(self.np_random, options)
+        self._factors = (_residual_factors(self._problem)
+                         if self.observation == "residuals" else None)
+        self._autoreset = False
+        obs = np.tile(self._problem.measured.stacked(), (self.num_envs, 1))
+        return obs, self._vector_info(self._info())
+
+    def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                          dict[str, Any]]:
+        p = self._require_problem()
+        n = self.num_envs
+        if self._autoreset:
+            obs, info = self._reset(None)
+            return obs, np.zeros(n), np.zeros(n, dtype=np.bool_), np.zeros(n, dtype=np.bool_), \
+                info
+        X = _actions_to_physical(actions, n)
+        fitness = np.asarray(p.evaluate(X), dtype=np.float64)  # one call, n evaluations
+        outputs, _ = p.simulate(X)                              # not counted: same candidates
+        obs = _stack_outputs(p, outputs)
+        if self.observation == "residuals":
+            obs = (obs - p.measured.stacked()[None, :]) * self._factors[None, :]
+            failed = fitness >= PENALTY
+            obs[failed] = np.sqrt(PENALTY / obs.shape[1])
+        space = self.single_observation_space
+        obs = np.clip(np.nan_to_num(obs, nan=0.0, posinf=space.high, neginf=space.low),
+                      space.low, space.high)
+        truncated = p.remaining < n
+        self._autoreset = truncated
+        return (obs, -fitness, np.zeros(n, dtype=np.bool_), np.full(n, truncated),
+                self._vector_info(self._info()))
+
+    def _vector_info(self, info: dict[str, Any]) -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        for i in range(self.num_envs):
+            out = self._add_info(out, info, i)
+        return out
+
+    def render(self) -> None:
+        return None
+
+
+def register() -> None:
+    """Register ``EMAFault/Identify-v0`` with Gymnasium (idempotent)."""
+    if ENV_ID in gym.registry:
+        return
+    gym.register(id=ENV_ID, entry_point="ema_bench.env:EMAFaultEnv",
+                 vector_entry_point="ema_bench.env:EMAFaultVectorEnv")
+
+
+register()

@@ -1,0 +1,354 @@
+"""Tests of ema_bench.problem: budget, evaluation, residuals, scoring and the hidden truth."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+
+import numpy as np
+import pytest
+
+import ema_bench.problem as problem_module
+from ema_bench.faults import CASES, FAULT_NAMES, LOWER, NOMINAL, UPPER, random_faults
+from ema_bench.physics.sensors import SENSORS
+from ema_bench.problem import (
+    PENALTY,
+    BudgetExhausted,
+    Problem,
+    ProblemError,
+    Score,
+    make_problem,
+    signal_scales,
+)
+from ema_bench.traces import Traces
+
+DAMAGED = ("small", "full", "random")
+
+
+def truth_of(problem: Problem) -> np.ndarray:
+    """The hidden truth, through the scorer's door."""
+    return np.array(list(problem.score(problem.nominal).truth.values()))
+
+
+def candidates(n: int, seed: int = 0) -> np.ndarray:
+    return LOWER + np.random.default_rng(seed).random((n, 4)) * (UPPER - LOWER)
+
+
+# ---- budget --------------------------------------------------------------------------------------
+
+
+def test_budget_is_exact_across_batch_single_and_residual_calls():
+    p = make_problem("small", track="twin", seed=0, budget=10)
+    X = candidates(20)
+    returned = list(p.evaluate(X[:3]))
+    returned.append(p.evaluate(X[3]))
+    returned.append(float(np.sum(p.residuals(X[4]) ** 2)))
+    returned.extend(p.evaluate(X[5:9]))
+    assert p.evaluations == 9 and p.remaining == 1
+    with pytest.raises(BudgetExhausted, match="2 evaluation"):
+        p.evaluate(X[9:11])  # would exceed: nothing scored
+    assert p.evaluations == 9
+    returned.append(p.evaluate(X[9]))  # the last one fits
+    assert p.evaluations == p.budget == 10 and p.remaining == 0
+    for call in (lambda: p.evaluate(X[10]), lambda: p.evaluate(X[10:12]),
+                 lambda: p.residuals(X[10])):
+        with pytest.raises(BudgetExhausted):
+            call()
+    assert p.evaluations == 10
+    h = p.history()
+    assert len(h["index"]) == len(h["fitness"]) == len(h["wall_s"]) == 10
+    np.testing.assert_array_equal(h["index"], np.arange(10))
+    np.testing.assert_array_equal(h["x"], X[:10])
+    np.testing.assert_allclose(h["fitness"], returned, rtol=1e-10)
+    np.testing.assert_array_equal(h["best"], np.minimum.accumulate(h["fitness"]))
+    assert np.all(np.diff(h["wall_s"]) >= 0)
+    best_x, best_f = p.best
+    assert best_f == h["fitness"].min()
+    np.testing.assert_array_equal(best_x, X[int(np.argmin(h["fitness"]))])
+
+
+def test_empty_batch_costs_nothing_and_best_starts_at_nominal():
+    p = make_problem("small", track="twin", seed=0, budget=2)
+    assert p.evaluate(np.empty((0, 4))).shape == (0,)
+    assert p.evaluations == 0
+    x, f = p.best
+    np.testing.assert_array_equal(x, NOMINAL)
+    assert f == float("inf")
+    assert p.history()["fitness"].shape == (0,)
+
+
+def test_limit_shrinks_the_budget_and_never_grows_it():
+    p = make_problem("small", track="twin", seed=0, budget=10)
+    X = candidates(10)
+    p.evaluate(X[:3])
+    p.limit(4)
+    assert p.budget == 7 and p.remaining == 4
+    p.limit(100)
+    assert p.budget == 7
+    p.evaluate(X[3:7])
+    with pytest.raises(BudgetExhausted):
+        p.evaluate(X[7])
+    assert len(p.history()["fitness"]) == 7
+
+
+# ---- evaluation ----------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("normalise", [True, False])
+def test_batch_single_and_residuals_agree(normalise):
+    X = candidates(6, seed=1)
+    batch = make_problem("small", seed=0, budget=6, normalise=normalise).evaluate(X)
+    single_p = make_problem("small", seed=0, budget=6, normalise=normalise)
+    single = np.array([single_p.evaluate(x) for x in X])
+    np.testing.assert_allclose(batch, single, rtol=1e-12, atol=0)
+    resid_p = make_problem("small", seed=0, budget=6, normalise=normalise)
+    for x, f in zip(X, batch):
+        r = resid_p.residuals(x)
+        assert r.shape == (resid_p.n_residuals,) == ((300 + 1000) * 4,)
+        np.testing.assert_allclose(np.sum(r**2), f, rtol=1e-10)
+    np.testing.assert_allclose(resid_p.history()["fitness"], batch, rtol=1e-12)
+
+
+def test_twin_truth_is_at_noise_level_and_beats_random_vectors():
+    p = make_problem("small", track="twin", seed=4, budget=1001)
+    truth = truth_of(p)
+    f_true = p.evaluate(truth)
+    scales = signal_scales(p.measured)
+    noise = sum((s.noise_std**2 + s.lsb**2 / 12.0) / scales[t][k] ** 2
+                for t in p.measured.tests for k, s in enumerate(SENSORS))
+    assert 0.7 * noise < f_true < 1.4 * noise
+    f_random = p.evaluate(random_faults(4, n=1000))
+    assert f_true < f_random.min()
+
+
+@pytest.mark.parametrize("case", DAMAGED)
+def test_reference_truth_beats_nominal(case):
+    p = make_problem(case, seed=0, budget=2)
+    f_true, f_nominal = p.evaluate(np.stack([CASES[case].x, NOMINAL]))
+    assert f_true < f_nominal
+    assert f_true == pytest.approx(p.fitness_at_truth(), rel=1e-12)
+
+
+def test_normalise_false_gives_the_raw_fitness_dominated_by_motor_signals():
+    x = NOMINAL
+    raw_p = make_problem("small", seed=0, budget=1, normalise=False)
+    f_raw = raw_p.evaluate(x)
+    f_norm = make_problem("small", seed=0, budget=1).evaluate(x)
+    assert f_raw > 100 * f_norm
+    outputs, ok = raw_p.simulate(x)
+    assert ok[0]
+    mse = np.zeros(4)  # per signal, summed over tests
+    for t in raw_p.measured.tests:
+        mse += np.mean((outputs[t][0] - raw_p.measured.data[t]) ** 2, axis=0)
+    assert f_raw == pytest.approx(mse.sum(), rel=1e-10)
+    assert (mse[1] + mse[2]) / mse.sum() > 0.99  # motor angle and speed
+    assert raw_p.evaluations == 1  # simulate() is not counted
+
+
+def test_simulation_failure_scores_penalty_and_is_counted(monkeypatch):
+    real = problem_module.simulate_monitor
+
+    def flaky(X, *args, **kwargs):
+        outputs, ok = real(X, *args, **kwargs)
+        ok = ok.copy()
+        ok[::2] = False
+        return outputs, ok
+
+    p = make_problem("small", track="twin", seed=0, budget=6)
+    monkeypatch.setattr(problem_module, "simulate_monitor", flaky)
+    X = candidates(4)
+    f = p.evaluate(X)  # must not raise
+    np.testing.assert_array_equal(f[[0, 2]], PENALTY)
+    assert np.all(f[[1, 3]] < PENALTY)
+    assert p.failures == 2 and p.evaluations == 4
+    assert p.best[1] == min(f[1], f[3])
+    assert p.evaluate(X[0]) == PENALTY and p.failures == 3
+    r = p.residuals(X[2])
+    np.testing.assert_allclose(np.sum(r**2), PENALTY, rtol=1e-10)
+    assert p.failures == 4 and p.evaluations == 6
+
+
+def test_non_finite_outputs_score_penalty(monkeypatch):
+    real = problem_module.simulate_monitor
+
+    def nan_outputs(X, *args, **kwargs):
+        outputs, ok = real(X, *args, **kwargs)
+        for v in outputs.values():
+            v[1, 5, 2] = np.nan  # ok stays True: the fitness check must catch it
+        return outputs, ok
+
+    p = make_problem("small", track="twin", seed=0, budget=3)
+    monkeypatch.setattr(problem_module, "simulate_monitor", nan_outputs)
+    f = p.evaluate(candidates(3))
+    assert f[1] == PENALTY and np.all(f[[0, 2]] < PENALTY) and p.failures == 1
+
+
+# ---- bad input -----------------------------------------------------------------------------------
+
+
+def test_bad_vectors_raise_problem_error_naming_the_fault():
+    p = make_problem("small", track="twin", seed=0, budget=5)
+    for bad in (np.zeros(3), np.zeros((2, 3)), np.zeros((2, 2, 4))):
+        with pytest.raises(ProblemError, match="shape"):
+            p.evaluate(bad)
+    x = NOMINAL.copy()
+    x[1] = np.nan
+    with pytest.raises(ProblemError, match="Fst"):
+        p.evaluate(x)
+    with pytest.raises(ProblemError, match="Fst"):
+        p.residuals(x)
+    x = NOMINAL.copy()
+    x[2] = 0.05
+    with pytest.raises(ProblemError, match=r"BLK.*outside its bounds"):
+        p.evaluate(x)
+    X = np.stack([NOMINAL, NOMINAL])
+    X[1, 3] = 2e5
+    with pytest.raises(ProblemError, match=r"Gprop.*row 1"):
+        p.evaluate(X)
+    assert p.evaluations == 0  # nothing scored
+
+
+def test_unknown_case_track_or_budget_raise_problem_error():
+    with pytest.raises(ProblemError, match="unknown case"):
+        make_problem("huge")
+    with pytest.raises(ProblemError, match="unknown track"):
+        make_problem("small", track="lab")
+    with pytest.raises(ProblemError, match="budget"):
+        make_problem("small", track="twin", budget=0)
+    with pytest.raises(ProblemError):
+        make_problem(None)
+    with pytest.raises(ProblemError, match="Xa"):
+        make_problem({"Xa": 1.0}, track="twin")
+
+
+# ---- the hidden truth ----------------------------------------------------------------------------
+
+
+def _holds(obj, truth: np.ndarray, depth: int = 0, seen: set | None = None) -> bool:
+    """Does ``obj`` hold the true vector, as an array/sequence or a name -> value mapping,
+    anywhere in its public contents (mappings, sequences, dataclasses, Traces)?"""
+    seen = set() if seen is None else seen
+    if depth > 6 or id(obj) in seen:
+        return False
+    seen.add(id(obj))
+    if isinstance(obj, Mapping):
+        if set(obj) == set(FAULT_NAMES):
+            try:
+                if np.allclose([float(obj[n]) for n in FAULT_NAMES], truth, rtol=1e-9, atol=0):
+                    return True
+            except (TypeError, ValueError):
+                pass
+        return any(_holds(v, truth, depth + 1, seen) for v in obj.values())
+    if isinstance(obj, str | bytes | int | float | bool | type(None)):
+        return False
+    if isinstance(obj, list | tuple | np.ndarray):
+        try:
+            num = np.asarray(obj, dtype=float)
+        except (TypeError, ValueError):
+            return any(_holds(v, truth, depth + 1, seen) for v in obj)
+        if num.ndim >= 1 and num.shape[-1] == 4:
+            return bool(np.any(np.all(np.isclose(num.reshape(-1, 4), truth, rtol=1e-9, atol=0),
+                                      axis=1)))
+        return False
+    if isinstance(obj, Traces):
+        return _holds(dict(obj.meta), truth, depth + 1, seen)
+    if dataclasses.is_dataclass(obj):
+        return any(_holds(getattr(obj, f.name), truth, depth + 1, seen)
+                   for f in dataclasses.fields(obj))
+    return False
+
+
+@pytest.mark.parametrize(("case", "track"), [("small", "reference"), ("full", "reference"),
+                                             ("random", "twin"), ("seeded", "reference"),
+                                             ("seeded", "twin")])
+def test_truth_is_not_reachable_through_public_attributes(case, track):
+    p = make_problem(case, track=track, seed=3, budget=2)
+    truth = truth_of(p)
+    assert not np.allclose(truth, NOMINAL)
+    public = {k: v for k, v in vars(p).items() if not k.startswith("_")}
+    for name in dir(p):
+        if not name.startswith("_"):
+            value = getattr(p, name)
+            if not callable(value):
+                public[name] = value
+    assert "measured" in public and "meta" in public and "best" in public
+    for name, value in public.items():
+        assert not _holds(value, truth), f"problem.{name} holds the true vector"
+    assert _holds({"x": {"a": dict(zip(FAULT_NAMES, truth))}}, truth)  # the search works
+    assert p.has_truth
+
+
+# ---- scoring -------------------------------------------------------------------------------------
+
+
+def test_score_paper_accuracy_and_range_error():
+    p = make_problem("small", track="twin", seed=0, budget=1)
+    est = np.array([0.9, 0.3378 * 1.1, 0.012, 1.05e5])
+    s = p.score(est)
+    assert isinstance(s, Score)
+    assert s.truth == dict(zip(FAULT_NAMES, CASES["small"].faults))
+    assert s.x == dict(zip(FAULT_NAMES, est.tolist()))
+    expected_acc = {"Na": 100 * (1 - 0.05 / 0.95), "Fst": 90.0, "BLK": 80.0, "Gprop": 95.0}
+    expected_err = {"Na": 0.25, "Fst": 0.05, "BLK": 0.05, "Gprop": 0.05}
+    for n in FAULT_NAMES:
+        assert s.accuracy[n] == pytest.approx(expected_acc[n], rel=1e-12)
+        assert s.range_error[n] == pytest.approx(expected_err[n], rel=1e-12)
+    assert s.success is False
+    assert set(s.as_dict()) == {"x", "truth", "accuracy", "range_error", "success"}
+    perfect = p.score(CASES["small"].x)
+    assert perfect.success and all(a == 100.0 for a in perfect.accuracy.values())
+
+
+def test_score_zero_truth_uses_the_range_error():
+    p = make_problem("nominal", track="twin", seed=0, budget=1)
+    assert p.score(NOMINAL).accuracy["BLK"] == 100.0
+    s = p.score(NOMINAL + np.array([0, 0, 0.001, 0]))
+    assert s.accuracy["BLK"] is None
+    assert s.range_error["BLK"] == pytest.approx(0.025)
+
+
+def test_success_threshold_is_one_percent_of_the_range():
+    p = make_problem("small", track="twin", seed=0, budget=1)
+    truth = CASES["small"].x
+    width = UPPER - LOWER
+    assert p.score(truth + 0.0099 * width * np.array([-1, 1, 1, -1])).success
+    for j in range(4):
+        step = np.zeros(4)
+        step[j] = 0.0101 * width[j] * (-1 if j == 0 else 1)
+        assert not p.score(truth + step).success, FAULT_NAMES[j]
+
+
+# ---- seeded instances ----------------------------------------------------------------------------
+
+
+def test_seeded_instances_are_reproducible_and_inside_bounds():
+    truths = []
+    for seed in range(20):
+        a = make_problem("seeded", track="twin", seed=seed, budget=1)
+        b = make_problem("seeded", track="twin", seed=seed, budget=1)
+        ta, tb = truth_of(a), truth_of(b)
+        np.testing.assert_array_equal(ta, tb)
+        np.testing.assert_array_equal(a.measured.stacked(), b.measured.stacked())
+        assert np.all(ta >= LOWER) and np.all(ta <= UPPER)
+        assert a.label == "seeded(h=1)"
+        truths.append(ta)
+    assert len({tuple(t) for t in truths}) == 20
+    flat = make_problem("seeded", track="twin", seed=0, budget=1, heterogeneity=0.0)
+    np.testing.assert_array_equal(truth_of(flat), NOMINAL)
+    ref_a = make_problem("seeded", seed=2, budget=1)
+    ref_b = make_problem("seeded", seed=2, budget=1)
+    np.testing.assert_array_equal(ref_a.measured.stacked(), ref_b.measured.stacked())
+    np.testing.assert_array_equal(truth_of(ref_a), truths[2])
+
+
+def test_limit_refuses_negative_and_score_rejects_bad_estimates():
+    p = make_problem("small", track="twin", seed=0, budget=10)
+    with pytest.raises(ProblemError, match="n >= 0"):
+        p.limit(-1)
+    with pytest.raises(ProblemError, match="Na"):
+        p.score([2.0, 0.3, 0.01, 1e5])
+
+
+def test_public_meta_reveals_neither_seed_nor_effects():
+    p = make_problem("seeded", track="twin", seed=7, budget=1, effects={"eccentricity": 0.05})
+    assert set(p.meta) == {"case", "track"}
