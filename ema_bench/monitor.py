@@ -17,7 +17,6 @@ import numpy as np
 from numba import njit, prange
 
 from .effects import (
-    E_AERO,
     E_COG,
     E_DELAY,
     E_ECC,
@@ -81,7 +80,7 @@ def monitor_one(p, x, e, cmd, n_out, steps_out, steps_ctrl, dt, out):
             t_m = p[P_KTF] * kt * cur
             if e[E_COG] != 0.0:
                 t_m += e[E_COG] * math.sin(cog_order * th_m)
-            t_load = hinge_moment(th_u, w_u, p, e[E_AERO])
+            t_load = hinge_moment(th_u, w_u, p, e)
             th_m, w_m, th_u, w_u, _ = mech_step(th_m, w_m, th_u, w_u, t_m, t_load, fst, blk,
                                                 e[E_VISC], ks_scale, p, dt)
             a0 += th_u
@@ -97,7 +96,7 @@ def monitor_one(p, x, e, cmd, n_out, steps_out, steps_ctrl, dt, out):
         out[k, 0] = a0 / steps_out + offset
         out[k, 1] = a1 / steps_out
         out[k, 2] = a2 / steps_out
-        out[k, 3] = a3 / steps_out + ripple
+        out[k, 3] = gain * a3 / steps_out + ripple
         if not (math.isfinite(a0) and math.isfinite(a2) and math.isfinite(a3)):
             return False
     return True

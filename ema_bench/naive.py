@@ -14,6 +14,7 @@ import math
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from .effects import N_EFFECTS
 from .faults import check_faults
 from .params import (
     DEFAULT_PARAMS,
@@ -47,6 +48,7 @@ _pair = pair_constants.py_func
 _cmd = command_value.py_func
 _hinge = hinge_moment.py_func
 _gear = gear_torque.py_func
+_NO_EFFECTS = np.zeros(N_EFFECTS)
 
 
 def _rhs(t, y, x, p, cmd):
@@ -72,7 +74,7 @@ def _rhs(t, y, x, p, cmd):
     else:
         s = math.copysign(1.0, w_m if abs(w_m) >= p[P_WSTICK] else t_drive)
         a_m = (t_drive - s * fdyn) / p[P_JM]
-    a_u = (t_g + _hinge(th_u, w_u, p, 0.0)) / p[P_JU]
+    a_u = (t_g + _hinge(th_u, w_u, p, _NO_EFFECTS)) / p[P_JU]
     # the last 4 states integrate the outputs: window means without dense output
     return [w_m, a_m, w_u, a_u, d_cur, d_integ, th_u, th_m, w_m, abs(cur)]
 

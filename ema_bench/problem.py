@@ -11,12 +11,12 @@ from __future__ import annotations
 import functools
 import logging
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from .effects import N_EFFECTS, effects_vector
+from .effects import EFFECT_NAMES, EFFECTS, LIBRARY, N_EFFECTS, effects_vector
 from .faults import (
     CASES,
     FAULT_NAMES,
@@ -33,7 +33,7 @@ from .monitor import simulate_monitor
 from .physics.sensors import SENSORS, measure
 from .protocol import HOLDOUT_TESTS, STANDARD_TESTS, TestSpec
 from .reference import SimulationError, simulate_reference
-from .seeding import SeedLike, as_seed_sequence
+from .seeding import SeedLike, as_seed_sequence, children
 from .traces import OUTPUT_DT, SIGNALS, Traces
 
 log = logging.getLogger(__name__)
@@ -109,18 +109,19 @@ def fitness_from_outputs(outputs: Mapping[str, np.ndarray], measured: Traces,
 
 
 @functools.lru_cache(maxsize=32)
-def _reference_traces(x: tuple, e: tuple, seed_entropy: int, spawn_key: tuple) -> Traces:
+def _reference_traces(x: tuple, e: tuple, seed_entropy: int, spawn_key: tuple,
+                      tests: tuple[TestSpec, ...]) -> Traces:
     ss = np.random.SeedSequence(seed_entropy, spawn_key=spawn_key)
-    return simulate_reference(np.array(x), np.array(e), seed=ss)
+    return simulate_reference(np.array(x), np.array(e), seed=ss, tests=tests)
 
 
-def _twin_traces(x: np.ndarray, e: np.ndarray, seed: np.random.SeedSequence) -> Traces:
-    outputs, ok = simulate_monitor(x[None, :], e[None, :])
+def _twin_traces(x: np.ndarray, e: np.ndarray, seed: np.random.SeedSequence,
+                 tests: tuple[TestSpec, ...]) -> Traces:
+    outputs, ok = simulate_monitor(x[None, :], e[None, :], tests=tests)
     if not ok[0]:
         raise SimulationError(f"monitor model diverged at the true faults {faults_to_dict(x)}")
-    children = seed.spawn(len(outputs))
     data = {t: measure(v[0], np.random.default_rng(c))
-            for (t, v), c in zip(outputs.items(), children)}
+            for (t, v), c in zip(outputs.items(), children(seed, len(outputs)))}
     return Traces(data=data, meta={"model": "monitor", "noise": True, "adc": True})
 
 
@@ -141,11 +142,15 @@ class Problem:
         Per-output normalised fitness (default) or the raw sum of squared errors, which
         reproduces the paper's Na/Fst valley (Figure 5).
     effects : array (N_EFFECTS,), optional
-        Effects switched on in the monitor model for every candidate (an augmented monitor).
+        Effects switched on in the monitor model for every candidate.
+    augment : sequence of str
+        Library effects whose parameters become extra search dimensions after the four
+        faults (an augmented monitor: zero = off, so it contains the base model).
     """
 
     def __init__(self, measured: Traces, budget: int, *, normalise: bool = True,
-                 effects: np.ndarray | None = None, label: str = "measured",
+                 effects: np.ndarray | None = None, augment: Sequence[str] = (),
+                 label: str = "measured",
                  track: str = "measured", _truth: np.ndarray | None = None,
                  _meta: Mapping[str, object] | None = None) -> None:
         if not isinstance(budget, int | np.integer) or budget < 1:
@@ -163,14 +168,22 @@ class Problem:
             if measured.n_samples(t) != expected:
                 raise ProblemError(f"test {t!r} has {measured.n_samples(t)} samples at "
                                    f"{1 / measured.dt:g} Hz, the protocol expects {expected}")
-        self.names: tuple[str, ...] = FAULT_NAMES
-        self.units: dict[str, str] = dict(FAULT_UNITS)
-        self.lower = LOWER.copy()
-        self.upper = UPPER.copy()
-        self.nominal = NOMINAL.copy()
+        augment = tuple(augment)
+        bad = [n for n in augment if n not in LIBRARY]
+        if bad or len(set(augment)) != len(augment):
+            raise ProblemError(f"augment takes distinct library effects {list(LIBRARY)}, "
+                               f"got {list(augment)}")
+        specs = [EFFECTS[EFFECT_NAMES.index(n)] for n in augment]
+        self.names: tuple[str, ...] = FAULT_NAMES + augment
+        self.units: dict[str, str] = {**FAULT_UNITS, **{e.name: e.unit for e in specs}}
+        self.lower = np.r_[LOWER, [e.lower for e in specs]]
+        self.upper = np.r_[UPPER, [e.upper for e in specs]]
+        self.nominal = np.r_[NOMINAL, np.zeros(len(specs))]
         for a in (self.lower, self.upper, self.nominal):
             a.flags.writeable = False
-        self.dim = len(FAULT_NAMES)
+        self.dim = len(self.names)
+        self.augment = augment
+        self._aug_idx = np.array([EFFECT_NAMES.index(n) for n in augment], dtype=int)
         self.budget = int(budget)
         self.normalise = bool(normalise)
         self.label = label
@@ -225,19 +238,49 @@ class Problem:
 
     # --- evaluation ---------------------------------------------------------------------
     def _check_batch(self, X: np.ndarray) -> np.ndarray:
+        X = np.asarray(X, dtype=float)
+        if X.ndim != 2 or X.shape[1] != self.dim:
+            raise ProblemError(f"expected a batch of shape (n, {self.dim}) for parameters "
+                               f"{list(self.names)}, got {X.shape}")
         try:
-            return check_faults(X, batch=True)
+            faults = check_faults(X[:, :4], batch=True)
         except FaultError as exc:
             raise ProblemError(str(exc)) from None
+        extra = X[:, 4:]
+        slack = 1e-9 * (self.upper[4:] - self.lower[4:])
+        bad = ~np.isfinite(extra) | (extra < self.lower[4:] - slack) | \
+            (extra > self.upper[4:] + slack)
+        if bad.any():
+            i, j = np.argwhere(bad)[0]
+            raise ProblemError(f"effect {self.augment[j]}={extra[i, j]:g} in row {i} is not "
+                               f"finite or outside [{self.lower[4 + j]:g}, "
+                               f"{self.upper[4 + j]:g}]")
+        return np.hstack([faults, np.clip(extra, self.lower[4:], self.upper[4:])])
+
+    def _effects_for(self, X: np.ndarray) -> np.ndarray:
+        """Effects vector of every candidate: the fixed ones plus the augmented columns."""
+        E = np.tile(self._effects, (X.shape[0], 1))
+        E[:, self._aug_idx] = X[:, 4:]
+        return E
+
+    def to_unit(self, X: np.ndarray) -> np.ndarray:
+        """Physical vector(s) -> the normalised box [0, 1]^dim of this problem."""
+        return (np.asarray(X, dtype=float) - self.lower) / (self.upper - self.lower)
+
+    def from_unit(self, U: np.ndarray) -> np.ndarray:
+        """Normalised box [0, 1]^dim -> physical vector(s) of this problem."""
+        return self.lower + np.asarray(U, dtype=float) * (self.upper - self.lower)
 
     def simulate(self, X: np.ndarray) -> tuple[dict[str, np.ndarray], np.ndarray]:
         """Monitor outputs for a batch, without counting (for plots and reports, never for
         search: solvers must go through :meth:`evaluate` or :meth:`residuals`)."""
         X = self._check_batch(np.atleast_2d(np.asarray(X, dtype=float)))
-        return simulate_monitor(X, self._effects, tests=self._tests, check=False)
+        return simulate_monitor(X[:, :4], self._effects_for(X), tests=self._tests,
+                                check=False)
 
     def _fitness(self, X: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-        outputs, ok = simulate_monitor(X, self._effects, tests=self._tests, check=False)
+        outputs, ok = simulate_monitor(X[:, :4], self._effects_for(X), tests=self._tests,
+                                       check=False)
         with np.errstate(over="ignore", invalid="ignore"):
             f = fitness_from_outputs(outputs, self.measured, self._weights)
         bad = ~ok | ~np.isfinite(f)
@@ -337,7 +380,7 @@ class Problem:
         if self.__truth is None:
             raise ProblemError("the true faults of measured data are unknown: no score")
         try:
-            est = check_faults(x)
+            est = check_faults(np.asarray(x, dtype=float)[:4])
         except FaultError as exc:
             raise ProblemError(str(exc)) from None
         err = range_error(est, self.__truth)
@@ -353,7 +396,7 @@ class Problem:
         (scorer-only, like :meth:`score`)."""
         if self.__truth is None:
             raise ProblemError("the true faults of measured data are unknown")
-        err = range_error(self._X[:self._count], self.__truth)
+        err = range_error(self._X[:self._count, :4], self.__truth)
         hits = np.flatnonzero(np.all(err <= SUCCESS_RANGE_ERROR, axis=1))
         return int(hits[0]) + 1 if hits.size else None
 
@@ -361,7 +404,8 @@ class Problem:
         """Fitness of the true vector (not counted; for reports of the model-form bias)."""
         if self.__truth is None:
             raise ProblemError("the true faults of measured data are unknown")
-        f, _ = self._fitness(self.__truth[None, :])
+        x = np.r_[self.__truth, np.zeros(self.dim - 4)]
+        f, _ = self._fitness(x[None, :])
         return float(f[0])
 
 
@@ -375,6 +419,8 @@ def make_problem(
     heterogeneity: float = 1.0,
     effects: Mapping[str, float] | None = None,
     measured: Traces | None = None,
+    augment: Sequence[str] = (),
+    tests: Sequence[str] | None = None,
 ) -> Problem:
     """Build an identification problem.
 
@@ -398,17 +444,22 @@ def make_problem(
     measured : Traces, optional
         Fit these traces instead (file data); ``case`` and ``track`` are then ignored and
         there is no truth to score against.
+    augment : sequence of str
+        Library effects fitted with the faults (see :class:`Problem`).
+    tests : sequence of str, optional
+        Protocol tests that make the data (default: the standard step and sine; add
+        ``"sine2"`` for held-out validation).
     """
     if measured is not None:
         if not isinstance(measured, Traces):
             raise ProblemError("measured must be a Traces (see ema_bench.load_traces)")
-        return Problem(measured, budget, normalise=normalise,
+        return Problem(measured, budget, normalise=normalise, augment=augment,
                        label=str(measured.meta.get("source", "measured")), track="measured",
                        _meta={"source": measured.meta.get("source")})
     if track not in TRACKS:
         raise ProblemError(f"unknown track {track!r}; known: {list(TRACKS)}")
     ss = as_seed_sequence(seed)
-    s_instance, s_noise = ss.spawn(2)
+    s_instance, s_noise = children(ss, 2)
     if isinstance(case, str) and case == "seeded":
         truth, label = random_faults(s_instance, heterogeneity), f"seeded(h={heterogeneity:g})"
     elif isinstance(case, str):
@@ -423,12 +474,17 @@ def make_problem(
         except FaultError as exc:
             raise ProblemError(str(exc)) from None
     e = effects_vector(effects)
+    names = tuple(tests) if tests is not None else tuple(s.name for s in STANDARD_TESTS)
+    unknown = [n for n in names if n not in KNOWN_TESTS]
+    if unknown or not names:
+        raise ProblemError(f"unknown test(s) {unknown}; known: {list(KNOWN_TESTS)}")
+    specs = tuple(KNOWN_TESTS[n] for n in names)
     if track == "reference":
         measured = _reference_traces(tuple(truth), tuple(e), int(s_noise.entropy),
-                                     tuple(s_noise.spawn_key)).with_meta(faults=None)
+                                     tuple(s_noise.spawn_key), specs).with_meta(faults=None)
     else:
-        measured = _twin_traces(truth, e, s_noise)
+        measured = _twin_traces(truth, e, s_noise, specs)
     # public: nothing a solver could use to recover the truth (no seed, no effects)
     meta = {"case": label, "track": track}
     return Problem(measured, budget, normalise=normalise, label=label, track=track,
-                   _truth=truth, _meta=meta)
+                   augment=augment, _truth=truth, _meta=meta)

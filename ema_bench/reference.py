@@ -14,7 +14,6 @@ import numpy as np
 from numba import njit
 
 from .effects import (
-    E_AERO,
     E_COG,
     E_DELAY,
     E_ECC,
@@ -37,7 +36,7 @@ from .physics.load import hinge_moment
 from .physics.mechanics import mech_step
 from .physics.sensors import measure
 from .protocol import STANDARD_TESTS, TestSpec, steps_per
-from .seeding import SeedLike, as_seed_sequence, seed_repr
+from .seeding import SeedLike, children, seed_repr
 from .traces import OUTPUT_DT, Traces
 
 
@@ -87,7 +86,7 @@ def reference_kernel(p, x, e, cmd, n_out, steps_out, steps_ctrl, dt, out):
                                                     na, e[E_ECC], r_scale, v_dc, gain, p, dt)
             if e[E_COG] != 0.0:
                 t_m += e[E_COG] * math.sin(cog_order * th_m)
-            t_load = hinge_moment(th_u, w_u, p, e[E_AERO])
+            t_load = hinge_moment(th_u, w_u, p, e)
             th_m, w_m, th_u, w_u, _ = mech_step(th_m, w_m, th_u, w_u, t_m, t_load, fst, blk,
                                                 e[E_VISC], ks_scale, p, dt)
             a0 += th_u
@@ -97,7 +96,7 @@ def reference_kernel(p, x, e, cmd, n_out, steps_out, steps_ctrl, dt, out):
         out[k, 0] = a0 / steps_out + offset
         out[k, 1] = a1 / steps_out
         out[k, 2] = a2 / steps_out
-        out[k, 3] = 0.5 * a3 / steps_out
+        out[k, 3] = gain * 0.5 * a3 / steps_out
         if not (math.isfinite(a0) and math.isfinite(a2) and math.isfinite(a3)):
             return False
     return True
@@ -149,16 +148,16 @@ def simulate_reference(
     dt = params.dt_ref if dt is None else float(dt)
     steps_out = steps_per(OUTPUT_DT, dt)
     steps_ctrl = steps_per(params.dt_ctrl, dt)
-    children = as_seed_sequence(seed).spawn(len(tests)) if noise else [None] * len(tests)
+    kids = children(seed, len(tests)) if noise else [None] * len(tests)
     data = {}
-    for spec, child in zip(tests, children):
+    for spec, kid in zip(tests, kids):
         out = np.empty((spec.n_samples(), 4))
         cmd = spec.command_at_samples(params.dt_ctrl)
         ok = reference_kernel(p, x, e, cmd, out.shape[0], steps_out, steps_ctrl, dt, out)
         if not ok:
             raise SimulationError(f"reference model diverged on test {spec.name!r} at "
                                   f"faults {faults_to_dict(x)}")
-        rng = np.random.default_rng(child) if child is not None else None
+        rng = np.random.default_rng(kid) if kid is not None else None
         data[spec.name] = measure(out, rng, noise=noise, adc=adc)
     meta = {"model": "reference", "faults": faults_to_dict(x),
             "effects": effects_to_dict(e),

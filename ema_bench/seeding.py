@@ -21,3 +21,16 @@ def seed_repr(seed: SeedLike) -> int | dict | None:
     if isinstance(seed, np.random.SeedSequence):
         return {"entropy": str(seed.entropy), "spawn_key": list(seed.spawn_key)}
     return None if seed is None else int(seed)
+
+
+def child(seed: SeedLike, i: int) -> np.random.SeedSequence:
+    """The ``i``-th child of ``seed``, without mutating it (``SeedSequence.spawn`` counts its
+    calls, so spawning twice from one object would give different streams)."""
+    ss = as_seed_sequence(seed)
+    return np.random.SeedSequence(ss.entropy, spawn_key=(*ss.spawn_key, int(i)),
+                                  pool_size=ss.pool_size)
+
+
+def children(seed: SeedLike, n: int) -> list[np.random.SeedSequence]:
+    """The first ``n`` children of ``seed`` (the same as a first ``spawn(n)``)."""
+    return [child(seed, i) for i in range(n)]

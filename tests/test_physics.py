@@ -12,6 +12,7 @@ import math
 import numpy as np
 import pytest
 
+from ema_bench.effects import effects_vector
 from ema_bench.params import (
     DEFAULT_PARAMS,
     P_JM,
@@ -382,8 +383,15 @@ def test_end_stop_pushes_back():
 
 
 def test_hinge_moment():
-    assert hinge_moment(0.1, 0.2, P, 0.0) == pytest.approx(-800.0 * 0.1 - 50.0 * 0.2)
-    assert hinge_moment(0.1, 0.0, P, 200.0) == pytest.approx(-1000.0 * 0.1)
+    off = effects_vector()
+    assert hinge_moment(0.1, 0.2, P, off) == pytest.approx(-800.0 * 0.1 - 50.0 * 0.2)
+    spring = effects_vector({"aero_spring": 200.0})
+    assert hinge_moment(0.1, 0.0, P, spring) == pytest.approx(-1000.0 * 0.1)
+    # decoys: quadratic damping -c w|w| and hinge friction opposing the motion
+    quad = effects_vector({"quadratic_damping": 100.0})
+    assert hinge_moment(0.0, -0.5, P, quad) == pytest.approx(50.0 * 0.5 + 100.0 * 0.25)
+    fric = effects_vector({"hinge_friction": 10.0})
+    assert hinge_moment(0.0, 1.0, P, fric) == pytest.approx(-50.0 - 10.0, rel=1e-6)
 
 
 # --------------------------------------------------------------------------------------------

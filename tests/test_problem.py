@@ -352,3 +352,29 @@ def test_limit_refuses_negative_and_score_rejects_bad_estimates():
 def test_public_meta_reveals_neither_seed_nor_effects():
     p = make_problem("seeded", track="twin", seed=7, budget=1, effects={"eccentricity": 0.05})
     assert set(p.meta) == {"case", "track"}
+
+
+def test_augmented_problem_fits_effects_beside_the_faults():
+    p = make_problem("small", track="twin", seed=0, budget=10,
+                     effects={"eccentricity": 0.1}, augment=("eccentricity", "delay"))
+    assert p.names == FAULT_NAMES + ("eccentricity", "delay") and p.dim == 6
+    assert p.nominal[4:].tolist() == [0.0, 0.0]
+    x_true = np.r_[CASES["small"].x, 0.1, 0.0]
+    # the augmented model at the true effect explains the data; at zero it does not
+    f_true, f_off = p.evaluate(np.vstack([x_true, np.r_[CASES["small"].x, 0.0, 0.0]]))
+    assert f_true < 0.2 * f_off
+    np.testing.assert_allclose(p.from_unit(p.to_unit(x_true)), x_true)
+    with pytest.raises(ProblemError, match="eccentricity"):
+        p.evaluate(np.r_[CASES["small"].x, 5.0, 0.0])
+    with pytest.raises(ProblemError, match="shape"):
+        p.evaluate(CASES["small"].x)
+    assert p.score(x_true).success
+    with pytest.raises(ProblemError, match="library"):
+        make_problem("small", budget=1, augment=("quadratic_damping",))
+
+
+def test_same_seed_sequence_object_gives_the_same_instance_twice():
+    ss = np.random.SeedSequence(42)
+    a = make_problem("small", track="twin", seed=ss, budget=1)
+    b = make_problem("small", track="twin", seed=ss, budget=1)
+    assert a.measured.allclose(b.measured)
