@@ -7,6 +7,7 @@ missing-physics workflow looks for them.  An effects vector is a ``float64`` arr
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -23,27 +24,53 @@ class Effect:
     upper: float
     description: str
     library: bool = True  # False: a decoy, outside the missing-physics library
+    trivial: float = 0.0  # |value| below this is physically negligible
+    detect: float = 0.0   # |value| the workflow reliably detects and names (inf: it cannot)
+    signature: str = ""   # where it shows in the residuals
 
 
 EFFECTS: tuple[Effect, ...] = (
     Effect("eccentricity", "-", 0.0, 0.2,
-           "static rotor eccentricity zeta: ke_x *= 1 + zeta cos(th_m - phi_x)"),
+           "static rotor eccentricity zeta: ke_x *= 1 + zeta cos(th_m - phi_x)",
+           trivial=0.005, detect=0.05,
+           signature="once-per-revolution ripple of current and speed against rotor angle"),
     Effect("sensor_offset", "rad", -0.02, 0.02,
-           "surface-position sensor offset (in the loop and in the record)"),
-    Effect("viscous_friction", "N m s/rad", 0.0, 2e-3, "extra viscous friction at the motor"),
-    Effect("aero_spring", "N m/rad", -400.0, 2000.0, "extra aerodynamic hinge-moment spring"),
-    Effect("delay", "s", 0.0, 2e-3, "position-feedback transport delay in the controller"),
+           "surface-position sensor offset (in the loop and in the record)",
+           trivial=2.5e-4, detect=1e-3,
+           signature="motor angle shifted by -offset/tau at hold; position bias hidden by loop"),
+    Effect("viscous_friction", "N m s/rad", 0.0, 2e-3, "extra viscous friction at the motor",
+           trivial=2e-6, detect=5e-5,
+           signature="current excess growing with |speed|, odd in speed"),
+    Effect("aero_spring", "N m/rad", -400.0, 2000.0, "extra aerodynamic hinge-moment spring",
+           trivial=5.0, detect=50.0,
+           signature="current residual proportional to surface position"),
+    Effect("delay", "s", 0.0, 2e-3, "position-feedback transport delay in the controller",
+           trivial=5e-5, detect=4e-4,
+           signature="lag in the residual's cross-correlation with the command; overshoot"),
     Effect("current_gain", "-", -0.2, 0.2,
-           "current-sensor gain error: loop and record see (1+g) i"),
-    Effect("resistance_rise", "-", 0.0, 0.6, "winding resistance rise with temperature, R*(1+x)"),
-    Effect("cogging", "N m", 0.0, 0.1, "cogging torque amplitude, 12 periods per revolution"),
-    Effect("voltage_sag", "-", 0.0, 0.5, "DC bus voltage sag, V_dc*(1-x)"),
-    Effect("gear_stiffness", "-", 0.0, 0.9, "transmission stiffness loss, K_s*(1-x)"),
+           "gain error of the recorded current channel (1+g); the drive's own sensor is fine",
+           trivial=0.005, detect=0.03,
+           signature="current residual proportional to current, same in every sector"),
+    Effect("resistance_rise", "-", 0.0, 0.6, "winding resistance rise with temperature, R*(1+x)",
+           trivial=0.05, detect=math.inf,
+           signature="none while the current loop has voltage headroom (unobservable here)"),
+    Effect("cogging", "N m", 0.0, 0.1, "cogging torque amplitude, 12 periods per revolution",
+           trivial=0.003, detect=0.03,
+           signature="order-12 ripple of speed and current against rotor angle at low speed"),
+    Effect("voltage_sag", "-", 0.0, 0.6, "DC bus voltage sag, V_dc*(1-x)",
+           trivial=0.02, detect=math.inf,
+           signature="slower current rise at step onset once the sag leaves no voltage "
+                     "headroom (> ~40 %): detected there, but too weak to size"),
+    Effect("gear_stiffness", "-", 0.0, 0.9, "transmission stiffness loss, K_s*(1-x)",
+           trivial=0.05, detect=0.5,
+           signature="motor-to-surface angle difference growing with hinge load"),
     # decoys: physics outside the library, for blind tests of the workflow
-    Effect("quadratic_damping", "N m s^2/rad^2", 0.0, 200.0,
-           "quadratic aerodynamic damping of the surface, -c w_u |w_u|", library=False),
+    Effect("quadratic_damping", "N m s^2/rad^2", 0.0, 100.0,
+           "quadratic aerodynamic damping of the surface, -c w_u |w_u|", library=False,
+           trivial=0.5, detect=5.0, signature="current excess growing with surface speed^2"),
     Effect("hinge_friction", "N m", 0.0, 20.0,
-           "dry friction in the surface hinge bearing (smoothed Coulomb)", library=False),
+           "dry friction in the surface hinge bearing (smoothed Coulomb)", library=False,
+           trivial=0.1, detect=1.0, signature="current step at each surface speed reversal"),
 )
 EFFECT_NAMES: tuple[str, ...] = tuple(e.name for e in EFFECTS)
 (E_ECC, E_OFFSET, E_VISC, E_AERO, E_DELAY, E_IGAIN, E_RRISE, E_COG, E_VSAG,

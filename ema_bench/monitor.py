@@ -31,12 +31,12 @@ from .effects import (
 )
 from .faults import check_faults, faults_to_dict
 from .params import DEFAULT_PARAMS, P_DTC, P_HYST, P_IRIP, P_KTF, P_PP, P_VDC, EMAParams
-from .physics.ace import ace_update
+from .physics.ace import ace_update, delayed_feedback
 from .physics.bldc import pair_constants
 from .physics.load import hinge_moment
 from .physics.mechanics import mech_step
 from .protocol import STANDARD_TESTS, TestSpec, steps_per
-from .reference import SimulationError, delayed_feedback
+from .reference import SimulationError
 from .traces import OUTPUT_DT, Traces
 
 
@@ -53,7 +53,7 @@ def monitor_one(p, x, e, cmd, n_out, steps_out, steps_ctrl, dt, out):
     ks_scale = 1.0 - e[E_GEAR]
     cog_order = 6.0 * p[P_PP]
     ripple = p[P_IRIP] * p[P_HYST]
-    n_delay = int(round(e[E_DELAY] / p[P_DTC]))
+    n_delay = e[E_DELAY] / p[P_DTC]  # controller samples, fractional
     buf = np.zeros(MAX_DELAY_SAMPLES + 1)
     th_m = w_m = th_u = w_u = 0.0
     cur = 0.0
@@ -71,8 +71,8 @@ def monitor_one(p, x, e, cmd, n_out, steps_out, steps_ctrl, dt, out):
             countdown -= 1
             kt, r_pair, l_pair = pair_constants(th_m, na, e[E_ECC], p)
             r_pair *= r_scale
-            # ideal current loop (it regulates gain * I to i_ref), limited by the bus voltage
-            target = i_ref / gain
+            # ideal current loop, limited by the bus voltage
+            target = i_ref
             hi = cur + dt * (v_dc - kt * w_m - r_pair * cur) / l_pair
             lo = cur + dt * (-v_dc - kt * w_m - r_pair * cur) / l_pair
             cur_old = cur

@@ -30,7 +30,7 @@ from .effects import (
 )
 from .faults import check_faults, faults_to_dict
 from .params import DEFAULT_PARAMS, P_DTC, P_PP, P_VDC, EMAParams
-from .physics.ace import ace_update
+from .physics.ace import ace_update, delayed_feedback
 from .physics.bldc import bldc_step
 from .physics.load import hinge_moment
 from .physics.mechanics import mech_step
@@ -38,19 +38,6 @@ from .physics.sensors import measure
 from .protocol import STANDARD_TESTS, TestSpec, steps_per
 from .seeding import SeedLike, children, seed_repr
 from .traces import OUTPUT_DT, Traces
-
-
-@njit(cache=True)
-def delayed_feedback(buf, k_ctrl, value, n_delay):
-    """Store ``value`` as controller sample ``k_ctrl`` and return the one ``n_delay`` earlier
-    (the first sample stands in before the record starts)."""
-    size = buf.shape[0]
-    buf[k_ctrl % size] = value
-    if n_delay == 0:
-        return value
-    if k_ctrl < n_delay:
-        return buf[0]
-    return buf[(k_ctrl - n_delay) % size]
 
 
 @njit(cache=True)
@@ -65,7 +52,7 @@ def reference_kernel(p, x, e, cmd, n_out, steps_out, steps_ctrl, dt, out):
     r_scale = 1.0 + e[E_RRISE]
     ks_scale = 1.0 - e[E_GEAR]
     cog_order = 6.0 * p[P_PP]
-    n_delay = int(round(e[E_DELAY] / p[P_DTC]))
+    n_delay = e[E_DELAY] / p[P_DTC]  # controller samples, fractional
     buf = np.zeros(MAX_DELAY_SAMPLES + 1)
     th_m = w_m = th_u = w_u = 0.0
     ia = ib = ic = 0.0
@@ -83,7 +70,7 @@ def reference_kernel(p, x, e, cmd, n_out, steps_out, steps_ctrl, dt, out):
                 countdown = steps_ctrl
             countdown -= 1
             ia, ib, ic, sa, sb, sc, t_m = bldc_step(ia, ib, ic, sa, sb, sc, i_ref, th_m, w_m,
-                                                    na, e[E_ECC], r_scale, v_dc, gain, p, dt)
+                                                    na, e[E_ECC], r_scale, v_dc, p, dt)
             if e[E_COG] != 0.0:
                 t_m += e[E_COG] * math.sin(cog_order * th_m)
             t_load = hinge_moment(th_u, w_u, p, e)

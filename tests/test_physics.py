@@ -62,7 +62,7 @@ def run_locked(i_ref: float, th_m: float, n: int, na: float = 1.0):
     torque = np.empty(n)
     for k in range(n):
         ia, ib, ic, sa, sb, sc, t = bldc_step(ia, ib, ic, sa, sb, sc, i_ref, th_m, 0.0, na, 0.0,
-                                              1.0, V_DC, 1.0, P, DT)
+                                              1.0, V_DC, P, DT)
         cur[k] = ia, ib, ic
         torque[k] = t
     return cur, torque
@@ -138,7 +138,7 @@ def test_no_load_speed_approaches_bus_over_pair_back_emf():
     speeds = np.empty(n)
     for k in range(n):
         ia, ib, ic, sa, sb, sc, t = bldc_step(ia, ib, ic, sa, sb, sc, 1e3, th, w, 1.0, 0.0, 1.0,
-                                              V_DC, 1.0, P, DT)
+                                              V_DC, P, DT)
         w += DT * t / P[P_JM]
         th += DT * w
         speeds[k] = w

@@ -33,6 +33,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="switch on an effect in the model (repeatable); see 'ema-bench params'")
     p.add_argument("--model", choices=MODELS, default="reference",
                    help="reference (detailed, 1 us step) or monitor (cheap) (default reference)")
+    p.add_argument("--tests", default="step,sine",
+                   help="comma-separated protocol tests: step, sine, and the held-out sine2 "
+                        "that 'ema-bench diagnose' needs (default step,sine)")
     p.add_argument("--seed", type=int, default=0, help="root seed of the sensor noise")
     p.add_argument("--no-noise", action="store_true",
                    help="clean outputs: no sensor noise, no ADC quantisation")
@@ -43,21 +46,21 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def _simulate(x, effects, model, seed, clean):
+def _simulate(x, effects, model, seed, clean, tests):
     from ..monitor import monitor_traces
     from ..physics.sensors import measure
     from ..reference import simulate_reference
-    from ..seeding import as_seed_sequence
+    from ..seeding import children
     from ..traces import Traces
 
     if model == "reference":
         return simulate_reference(x, effects, seed=None if clean else seed, noise=not clean,
-                                  adc=not clean)
-    tr = monitor_traces(x, effects)
+                                  adc=not clean, tests=tests)
+    tr = monitor_traces(x, effects, tests=tests)
     if clean:
         return tr
-    children = as_seed_sequence(seed).spawn(len(tr.tests))
-    data = {t: measure(tr.data[t], np.random.default_rng(c)) for t, c in zip(tr.tests, children)}
+    data = {t: measure(tr.data[t], np.random.default_rng(c))
+            for t, c in zip(tr.tests, children(seed, len(tr.tests)))}
     return Traces(data=data, dt=tr.dt, meta={**tr.meta, "seed": seed, "noise": True})
 
 
@@ -91,10 +94,17 @@ def run(args: argparse.Namespace) -> int:
     from ..effects import effects_vector
     from ..faults import CASES, check_faults, faults_to_dict, get_case, parse_assignments
     from ..plots import plot_traces
-    from . import print_json
+    from ..protocol import HOLDOUT_TESTS, STANDARD_TESTS
+    from . import CLIError, print_json
 
     effects = effects_vector(
         {k: v for item in args.effect for k, v in parse_assignments(item).items()})
+    known = {t.name: t for t in STANDARD_TESTS + HOLDOUT_TESTS}
+    names = [t.strip() for t in args.tests.split(",") if t.strip()]
+    bad = [t for t in names if t not in known]
+    if bad or not names:
+        raise CLIError(f"unknown test(s) {bad}; known: {list(known)}")
+    tests = tuple(known[t] for t in names)
     if args.faults:
         runs = {"custom": check_faults(parse_assignments(args.faults))}
     elif args.case == "all":
@@ -105,7 +115,7 @@ def run(args: argparse.Namespace) -> int:
     results, traces = {}, {}
     for name, x in runs.items():
         t0 = time.perf_counter()
-        tr = _simulate(x, effects, args.model, args.seed, args.no_noise)
+        tr = _simulate(x, effects, args.model, args.seed, args.no_noise, tests)
         tr = tr.with_meta(case=name)
         traces[name] = tr
         results[name] = {"faults": faults_to_dict(x), "wall_s": time.perf_counter() - t0,
@@ -126,7 +136,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"{'case':<8} {'test':<5} {'rms err rad':>11} {'final rad':>9} {'peak w rad/s':>12} "
           f"{'peak I A':>8} {'max |th_m tau - th_u| rad':>25} {'wall s':>7}")
     for name, r in results.items():
-        for test in ("step", "sine"):
+        for test in (t for t in ("step", "sine") if t in r):
             s = r[test]
             print(f"{name:<8} {test:<5} {s['rms_tracking_error_rad']:11.4f} "
                   f"{s['final_position_rad']:9.4f} {s['peak_speed_rad_s']:12.1f} "

@@ -6,6 +6,8 @@ controller sample with the same arguments, so the control law exists once.
 
 from __future__ import annotations
 
+import math
+
 from numba import njit
 
 from ..params import P_DTC, P_KE, P_KGP, P_KIV, P_KPV, P_TAU, P_TMAX, P_WMAX
@@ -51,3 +53,24 @@ def ace_update(theta_cmd, theta_u_meas, w_m_meas, integ, gprop, p):
     if t_ref == t_unsat or (t_unsat > t_max and ew < 0.0) or (t_unsat < -t_max and ew > 0.0):
         integ += ew * p[P_DTC]
     return t_ref / (2.0 * p[P_KE]), integ
+
+
+@njit(cache=True)
+def _stored(buf, k):
+    return buf[0] if k < 0 else buf[k % buf.shape[0]]
+
+
+@njit(cache=True)
+def delayed_feedback(buf, k_ctrl, value, delay):
+    """Store ``value`` as controller sample ``k_ctrl`` and return it ``delay`` samples ago.
+
+    ``delay`` (controller samples, >= 0) may be fractional: linear interpolation between
+    stored samples keeps the outputs smooth in the delay, which fitting and intervals need.
+    Before the record starts, the first sample stands in.  ``buf`` must hold more than
+    ``delay + 1`` samples."""
+    buf[k_ctrl % buf.shape[0]] = value
+    if delay <= 0.0:
+        return value
+    d0 = int(math.floor(delay))
+    frac = delay - d0
+    return (1.0 - frac) * _stored(buf, k_ctrl - d0) + frac * _stored(buf, k_ctrl - d0 - 1)

@@ -114,7 +114,7 @@ def emf_constants(th_m, na, zeta, p):
 
 
 @njit(cache=True)
-def bldc_step(ia, ib, ic, sa, sb, sc, i_ref, th_m, w_m, na, zeta, r_scale, v_dc, gain, p, dt):
+def bldc_step(ia, ib, ic, sa, sb, sc, i_ref, th_m, w_m, na, zeta, r_scale, v_dc, p, dt):
     """Advance the three phase currents by one step (explicit Euler).
 
     Parameters
@@ -135,8 +135,6 @@ def bldc_step(ia, ib, ic, sa, sb, sc, i_ref, th_m, w_m, na, zeta, r_scale, v_dc,
         multiplier of the winding resistance (``resistance_rise`` effect; 1 = cold).
     v_dc : float
         V, DC bus voltage seen by the bridge.
-    gain : float
-        current-sensor gain (``1 + current_gain`` effect): the comparators see ``gain * i``.
 
     Returns
     -------
@@ -147,9 +145,9 @@ def bldc_step(ia, ib, ic, sa, sb, sc, i_ref, th_m, w_m, na, zeta, r_scale, v_dc,
     ka, kb, kc = emf_constants(th_m, na, zeta, p)
     band = p[P_HYST]
     ca, cb, cc = commutation(th_e)
-    sa = hysteresis_leg(sa, gain * ia, ca * i_ref, ca, band)
-    sb = hysteresis_leg(sb, gain * ib, cb * i_ref, cb, band)
-    sc = hysteresis_leg(sc, gain * ic, cc * i_ref, cc, band)
+    sa = hysteresis_leg(sa, ia, ca * i_ref, ca, band)
+    sb = hysteresis_leg(sb, ib, cb * i_ref, cb, band)
+    sc = hysteresis_leg(sc, ic, cc * i_ref, cc, band)
     r = p[P_R] * r_scale
     ra, la = na * r, na * na * p[P_L]
     rb = rc = r

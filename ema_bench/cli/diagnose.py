@@ -1,0 +1,71 @@
+"""``ema-bench diagnose``: does the fitted model miss physics in these traces, and what?
+
+The traces must hold the step and sine tests (fitted) and the held-out sine ``sine2``
+(never fitted, used to judge candidates), e.g. from
+``ema-bench simulate --tests step,sine,sine2 --out traces.csv``.  Any format load_traces reads
+(CSV, NPZ, MAT).  Verdicts: none, effect (named, with its value and interval), unexplained
+(the gap left open, and the nearest library effect if it explains part of it).
+
+Examples::
+
+    ema-bench simulate --case small --effect delay=6e-4 --tests step,sine,sine2 --out d.csv
+    ema-bench diagnose d.csv --report report/ --json
+"""
+
+from __future__ import annotations
+
+import argparse
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    from ..diagnosis.workflow import Settings
+
+    d = Settings()
+    p = sub.add_parser("diagnose", help="find and name physics the monitor model misses",
+                       description=__doc__,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("traces", help="measured traces (.csv, .npz, .mat) with step, sine, sine2")
+    p.add_argument("--report", default=None, metavar="DIR",
+                   help="write report.md, diagnosis.json and plots to DIR")
+    p.add_argument("--solver", default=d.solver, help=f"fitting solver (default {d.solver})")
+    p.add_argument("--budget", type=int, default=d.budget,
+                   help=f"evaluations per fit (default {d.budget})")
+    p.add_argument("--bootstrap", type=int, default=d.n_boot,
+                   help=f"bootstrap replicates (default {d.n_boot})")
+    p.add_argument("--seed", type=int, default=0, help="root seed (default 0)")
+    p.add_argument("--json", action="store_true", help="print the diagnosis as JSON")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..diagnosis.report import write_report
+    from ..diagnosis.workflow import Settings, diagnose
+    from ..registry import get_solver
+    from ..traces import load_traces
+    from . import CLIError, print_json
+
+    if args.budget < 100 or args.bootstrap < 10:
+        raise CLIError("--budget must be >= 100 and --bootstrap >= 10")
+    get_solver(args.solver)
+    measured = load_traces(args.traces)
+    d = diagnose(measured, Settings(solver=args.solver, budget=args.budget,
+                                    n_boot=args.bootstrap), seed=args.seed)
+    if args.report:
+        write_report(d, measured, args.report, source=str(args.traces))
+    if args.json:
+        out = d.as_dict()
+        out["effects"] = [{k: e[k] for k in ("name", "params", "interval", "gap_before",
+                                              "gap_after", "gap_closed")} for e in out["effects"]]
+        print_json(out)
+        return 0
+    print(f"verdict: {d.verdict}. {d.message}")
+    for e in d.effects:
+        (name, v), = e.params.items()
+        print(f"  {name} = {v:.4g} (95 % interval {e.interval[0]:.4g} .. {e.interval[1]:.4g}); "
+              f"held-out gap {e.gap_before:.3g} -> {e.gap_after:.3g} "
+              f"({100 * e.gap_closed:.0f} % closed)")
+    print("faults before -> after: " + ", ".join(
+        f"{n} {v['before']:.4g} -> {v['after']:.4g}" for n, v in d.faults.items()))
+    if args.report:
+        print(f"report written to {args.report}/report.md")
+    return 0
