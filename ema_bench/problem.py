@@ -146,10 +146,14 @@ class Problem:
     augment : sequence of str
         Library effects whose parameters become extra search dimensions after the four
         faults (an augmented monitor: zero = off, so it contains the base model).
+    start : array (dim,), optional
+        Where solvers begin (their first point): a warm start, e.g. a previous fit.
+        Default: the nominal (healthy) vector.
     """
 
     def __init__(self, measured: Traces, budget: int, *, normalise: bool = True,
                  effects: np.ndarray | None = None, augment: Sequence[str] = (),
+                 start: np.ndarray | None = None,
                  label: str = "measured",
                  track: str = "measured", _truth: np.ndarray | None = None,
                  _meta: Mapping[str, object] | None = None) -> None:
@@ -183,6 +187,9 @@ class Problem:
             a.flags.writeable = False
         self.dim = len(self.names)
         self.augment = augment
+        self.start = self.nominal if start is None else self._check_batch(
+            np.asarray(start, dtype=float)[None, :])[0]
+        self.start.flags.writeable = False
         self._aug_idx = np.array([EFFECT_NAMES.index(n) for n in augment], dtype=int)
         self.budget = int(budget)
         self.normalise = bool(normalise)
@@ -421,6 +428,7 @@ def make_problem(
     measured: Traces | None = None,
     augment: Sequence[str] = (),
     tests: Sequence[str] | None = None,
+    start: np.ndarray | None = None,
 ) -> Problem:
     """Build an identification problem.
 
@@ -449,11 +457,13 @@ def make_problem(
     tests : sequence of str, optional
         Protocol tests that make the data (default: the standard step and sine; add
         ``"sine2"`` for held-out validation).
+    start : array, optional
+        Warm start for solvers (see :class:`Problem`).
     """
     if measured is not None:
         if not isinstance(measured, Traces):
             raise ProblemError("measured must be a Traces (see ema_bench.load_traces)")
-        return Problem(measured, budget, normalise=normalise, augment=augment,
+        return Problem(measured, budget, normalise=normalise, augment=augment, start=start,
                        label=str(measured.meta.get("source", "measured")), track="measured",
                        _meta={"source": measured.meta.get("source")})
     if track not in TRACKS:
@@ -487,4 +497,4 @@ def make_problem(
     # public: nothing a solver could use to recover the truth (no seed, no effects)
     meta = {"case": label, "track": track}
     return Problem(measured, budget, normalise=normalise, label=label, track=track,
-                   augment=augment, _truth=truth, _meta=meta)
+                   augment=augment, start=start, _truth=truth, _meta=meta)

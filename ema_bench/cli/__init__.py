@@ -20,7 +20,11 @@ COMMANDS: dict[str, str] = {
     "simulate": "simulate",
     "bench": "bench",
     "params": "params",
+    "solve": "solve",
+    "solvers": "solve",  # solve.register adds both commands, once
     "leaderboard": "leaderboard",
+    "diagnose": "diagnose",
+    "blind": "blind",
 }
 
 

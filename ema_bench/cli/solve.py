@@ -1,0 +1,233 @@
+"""``ema-bench solve``: identify the faults of one episode with a registered solver;
+``ema-bench solvers``: list the registered solvers.
+
+Examples::
+
+    ema-bench solve --case small --track reference --solver cmaes --budget 2000 --seed 0
+    ema-bench solve --case seeded --heterogeneity 0.5 --seed 3 --solver de --json
+    ema-bench solve --case full --effect eccentricity=0.05 --solver least-squares
+    ema-bench solve --measured traces.csv --solver cmaes --plot fit.png
+    ema-bench solvers
+
+Twin track: the data come from the monitor model itself plus sensor noise (the optimum is the
+truth); reference track: from the detailed reference model (model-form mismatch, as in the
+paper).  With ``--measured`` the traces come from a file and there is no truth to score.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+_SOLVE_EPILOG = "Run 'ema-bench solvers' for the registered solvers."
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add ``solve`` and ``solvers`` (whichever is not there yet: COMMANDS names this module
+    for both, so it is called twice)."""
+    if "solve" not in sub.choices:
+        _register_solve(sub)
+    if "solvers" not in sub.choices:
+        p = sub.add_parser("solvers", help="list the registered solvers",
+                           description="List every registered solver (the built-in zoo and "
+                                       "plugins of the 'ema_bench.solvers' entry-point group).")
+        p.add_argument("--json", action="store_true", help="print JSON")
+        p.set_defaults(func=run_solvers)
+
+
+def _register_solve(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("solve", help="identify the faults of one episode with a solver",
+                       description=__doc__, epilog=_SOLVE_EPILOG,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    src = p.add_mutually_exclusive_group()
+    src.add_argument("--case", default=None,
+                     help="paper case (nominal, small, full, random) or 'seeded' for a random "
+                          "instance drawn from --seed (default small)")
+    src.add_argument("--measured", default=None, metavar="FILE",
+                     help="fit measured traces from a .csv, .npz or .mat file (no truth)")
+    p.add_argument("--heterogeneity", type=float, default=1.0,
+                   help="with --case seeded: how far faults may move from nominal, 0..1 "
+                        "(default 1)")
+    p.add_argument("--track", choices=("reference", "twin"), default="reference",
+                   help="where the data come from: reference model or monitor twin "
+                        "(default reference)")
+    p.add_argument("--solver", default="cmaes", help="registered solver name (default cmaes)")
+    p.add_argument("--budget", type=int, default=2000,
+                   help="evaluation budget, counted by the problem (default 2000)")
+    p.add_argument("--seed", type=int, default=0,
+                   help="root seed: the instance, the sensor noise and the solver (default 0)")
+    p.add_argument("--effect", action="append", default=[], metavar="NAME=VALUE",
+                   help="switch on an effect in the model that makes the data (repeatable); "
+                        "see 'ema-bench params'")
+    p.add_argument("--raw", action="store_true",
+                   help="raw sum of squared errors instead of the normalised fitness")
+    p.add_argument("--plot", default=None, metavar="PNG",
+                   help="draw measured vs fitted monitor traces to a PNG")
+    p.add_argument("--json", action="store_true", help="print the result as JSON")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    p.set_defaults(func=run)
+
+
+def _check_args(args: argparse.Namespace) -> None:
+    from ..registry import available_solvers
+    from . import CLIError
+
+    if args.budget < 1:
+        raise CLIError(f"--budget must be a positive integer, got {args.budget}")
+    if args.seed < 0:
+        raise CLIError(f"--seed must be a non-negative integer, got {args.seed}")
+    if not 0.0 <= args.heterogeneity <= 1.0:
+        raise CLIError(f"--heterogeneity must lie in [0, 1], got {args.heterogeneity:g}")
+    solvers = available_solvers()
+    if args.solver not in solvers:
+        raise CLIError(f"unknown solver {args.solver!r}; registered: {', '.join(solvers)}")
+    if args.measured is not None and args.effect:
+        raise CLIError("--effect changes the simulated data; it cannot apply to --measured "
+                       "traces")
+
+
+def _effects(args: argparse.Namespace) -> dict[str, float]:
+    from ..faults import parse_assignments
+
+    return {k: v for item in args.effect for k, v in parse_assignments(item).items()}
+
+
+def _make_problem(args: argparse.Namespace):
+    from ..problem import make_problem
+    from ..traces import load_traces
+
+    if args.measured is not None:
+        return make_problem(measured=load_traces(args.measured), budget=args.budget,
+                            normalise=not args.raw)
+    effects = _effects(args)
+    return make_problem(args.case or "small", track=args.track, seed=args.seed,
+                        budget=args.budget, normalise=not args.raw,
+                        heterogeneity=args.heterogeneity, effects=effects or None)
+
+
+@contextmanager
+def _progress(problem, enabled: bool) -> Iterator[None]:
+    """A tqdm bar on stderr that follows the problem's own evaluation count (a polling
+    thread: solvers know nothing of it)."""
+    if not enabled:
+        yield
+        return
+    from tqdm import tqdm
+
+    done = threading.Event()
+    bar = tqdm(total=problem.budget, unit="eval", file=sys.stderr, leave=False,
+               dynamic_ncols=True)
+
+    def poll() -> None:
+        while not done.wait(0.2):
+            n = problem.evaluations
+            if n != bar.n:
+                bar.update(n - bar.n)
+
+    t = threading.Thread(target=poll, daemon=True)
+    t.start()
+    try:
+        yield
+    finally:
+        done.set()
+        t.join()
+        bar.close()
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..faults import FAULTS, faults_to_dict
+    from ..registry import run_solver
+    from . import print_json
+
+    _check_args(args)
+    problem = _make_problem(args)
+    show_bar = not (args.json or args.no_progress) and sys.stderr.isatty()
+    with _progress(problem, show_bar):
+        res = run_solver(args.solver, problem, budget=args.budget, seed=args.seed)
+
+    out = {"solver": res.solver,
+           "case": problem.meta.get("case", problem.label),
+           "track": problem.track,
+           "seed": args.seed,
+           "x": faults_to_dict(res.x),
+           "fitness": res.fitness,
+           "evaluations": res.evaluations,
+           "budget": args.budget,
+           "failures": problem.failures,
+           "wall_s": res.wall_s,
+           "stop_reason": res.stop_reason,
+           "library": res.library,
+           "normalised": problem.normalise,
+           "extra": res.extra}
+    if args.measured is not None:
+        out["measured"] = args.measured
+    if problem.has_truth:
+        score = problem.score(res.x)
+        out.update(accuracy=score.accuracy, range_error=score.range_error,
+                   success=score.success, truth=score.truth,
+                   fitness_at_truth=problem.fitness_at_truth())
+        if args.effect:
+            out["effects"] = _effects(args)
+    if args.plot:
+        _plot(problem, res, args)
+        out["plot"] = args.plot
+    if args.json:
+        print_json(out)
+        return 0
+
+    units = {f.name: f.unit for f in FAULTS}
+    print(f"{res.solver} on {out['case']} ({out['track']} track, seed {args.seed}): "
+          f"fitness {res.fitness:.6g} after {res.evaluations} of {args.budget} evaluations, "
+          f"{res.wall_s:.2f} s, stopped: {res.stop_reason}")
+    if problem.has_truth:
+        print(f"{'fault':<6} {'unit':<4} {'estimate':>12} {'truth':>12} {'accuracy %':>11} "
+              f"{'range err %':>11}")
+        for name, v in out["x"].items():
+            acc = out["accuracy"][name]
+            acc_s = "-" if acc is None else f"{acc:.2f}"
+            print(f"{name:<6} {units[name]:<4} {v:12.6g} {out['truth'][name]:12.6g} "
+                  f"{acc_s:>11} {100 * out['range_error'][name]:11.3f}")
+        print(f"fitness at the truth {out['fitness_at_truth']:.6g}; success (every range "
+              f"error <= 1 %): {'yes' if out['success'] else 'no'}")
+    else:
+        print(f"{'fault':<6} {'unit':<4} {'estimate':>12}")
+        for name, v in out["x"].items():
+            print(f"{name:<6} {units[name]:<4} {v:12.6g}")
+    if args.plot:
+        print(f"plot written to {args.plot}")
+    return 0
+
+
+def _plot(problem, res, args: argparse.Namespace) -> None:
+    from ..monitor import monitor_traces
+    from ..plots import plot_traces
+    from ..problem import KNOWN_TESTS
+    from ..reference import SimulationError
+    from . import CLIError
+
+    tests = tuple(KNOWN_TESTS[t] for t in problem.measured.tests)
+    try:
+        fitted = monitor_traces(res.x[:4], tests=tests)
+    except SimulationError as exc:
+        raise CLIError(f"cannot plot: {exc}") from None
+    plot_traces([problem.measured, fitted], ["measured", f"fitted ({res.solver})"], args.plot,
+                title=f"{res.solver} on {problem.label}: fitness {res.fitness:.4g}")
+
+
+def run_solvers(args: argparse.Namespace) -> int:
+    from ..registry import available_solvers
+    from . import print_json
+
+    solvers = available_solvers()
+    if args.json:
+        print_json([{"name": s.name, "description": s.description, "library": s.library,
+                     "module": s.func.__module__} for s in solvers.values()])
+        return 0
+    width = max((len(n) for n in solvers), default=4)
+    lib_w = max((len(s.library) for s in solvers.values()), default=7)
+    for s in solvers.values():
+        print(f"{s.name:<{width}}  {s.library:<{lib_w}}  {s.description}")
+    return 0

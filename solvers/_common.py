@@ -1,0 +1,116 @@
+"""Helpers shared by the zoo solvers (not part of the solver API).
+
+Every zoo solver searches the normalised box ``[0, 1]^dim`` (the physical fault scales differ
+by five orders of magnitude; ``dim`` is 4, more for a problem augmented with effect
+parameters) and maps candidates back with :meth:`Problem.from_unit` just before
+:meth:`Problem.evaluate`.  Every random number comes from the ``SeedSequence`` the
+solver was given, through :func:`child` (which, unlike ``SeedSequence.spawn``, does not
+depend on how often the sequence was spawned before, so one seed object always gives one run,
+and never replays the streams ``make_problem`` drew the instance and the noise from).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import warnings
+from collections.abc import Iterator
+
+import numpy as np
+from scipy.stats import qmc
+
+from ema_bench.problem import Problem
+from ema_bench.seeding import child as _seed_child
+
+
+class StopSolver(Exception):
+    """Private signal: the budget is spent; unwind out of a library's optimisation loop."""
+
+
+# Solver streams live under their own spawn-key branch: a solver given the same root seed
+# as ``make_problem`` (the documented ``run_solver(name, problem, seed=0)``) must not replay
+# the streams that drew the instance and the sensor noise (the root's children 0 and 1).
+_SOLVER_BRANCH = 0x736F6C76  # "solv"
+
+
+def child(seed: np.random.SeedSequence, i: int) -> np.random.SeedSequence:
+    """Solver stream ``i`` of ``seed``: the same whatever ``seed`` spawned before, and
+    disjoint from ``seed``'s plain children (which the problem uses)."""
+    return _seed_child(_seed_child(seed, _SOLVER_BRANCH), i)
+
+
+def children(seed: np.random.SeedSequence, n: int) -> list[np.random.SeedSequence]:
+    """The first ``n`` children of ``seed`` (see :func:`child`)."""
+    return [child(seed, i) for i in range(n)]
+
+
+def int_seed(seed: np.random.SeedSequence) -> int:
+    """A positive 31-bit integer seed for libraries that take one (pycma treats 0 as
+    'seed from the clock', so 0 is never returned)."""
+    return int(seed.generate_state(1, dtype=np.uint32)[0] % (2**31 - 2)) + 1
+
+
+def nominal_unit(problem: Problem) -> np.ndarray:
+    """The first point to try, in the normalised box: the problem's start (the nominal,
+    healthy vector unless the caller gave a warm start)."""
+    return np.clip(problem.to_unit(problem.start), 0.0, 1.0)
+
+
+def evaluate_unit(problem: Problem, U: np.ndarray) -> np.ndarray:
+    """Fitness of a batch ``U`` (n, dim) of normalised candidates, in one problem call.
+
+    Candidates are clipped into the box first (library round-off can leave them 1 ulp out).
+    The caller keeps ``n <= problem.remaining``."""
+    U = np.clip(np.atleast_2d(np.asarray(U, dtype=float)), 0.0, 1.0)
+    return np.asarray(problem.evaluate(problem.from_unit(U)), dtype=float)
+
+
+def scalar_objective(problem: Problem):
+    """``f(u) -> float`` for one-at-a-time methods; raises :class:`StopSolver` instead of
+    evaluating once the budget is spent."""
+    def f(u: np.ndarray) -> float:
+        if problem.remaining < 1:
+            raise StopSolver
+        return float(evaluate_unit(problem, np.asarray(u, dtype=float).reshape(1, -1))[0])
+    return f
+
+
+def lhs(seed: np.random.SeedSequence, n: int, dim: int) -> np.ndarray:
+    """``n`` Latin-hypercube points in ``[0, 1]^dim``, seeded."""
+    return qmc.LatinHypercube(d=dim, rng=np.random.default_rng(seed)).random(n)
+
+
+def start_points(problem: Problem, seed: np.random.SeedSequence,
+                 batch: int = 32) -> Iterator[np.ndarray]:
+    """Multi-start points: the nominal vector, then Latin-hypercube points (batches of
+    ``batch``, each a fresh Latin hypercube), without end."""
+    yield nominal_unit(problem)
+    for i in range(1_000_000):
+        yield from lhs(child(seed, i), batch, problem.dim)
+
+
+def spend_rest(problem: Problem, seed: np.random.SeedSequence) -> int:
+    """Spend a budget remainder too small for one more local start on Latin-hypercube probes
+    (one batched call).  Returns the number of evaluations made."""
+    k = problem.remaining
+    if k > 0:
+        evaluate_unit(problem, lhs(seed, k, problem.dim))
+    return k
+
+
+@contextlib.contextmanager
+def global_numpy_rng() -> Iterator[None]:
+    """Restore numpy's global RNG state afterwards (pycma seeds and draws from it)."""
+    state = np.random.get_state()  # noqa: NPY002 (the legacy global state is the point)
+    try:
+        yield
+    finally:
+        np.random.set_state(state)  # noqa: NPY002
+
+
+@contextlib.contextmanager
+def quiet(*categories: type[Warning]) -> Iterator[None]:
+    """Silence the given warning categories (library chatter that would spill to stderr)."""
+    with warnings.catch_warnings():
+        for c in categories:
+            warnings.simplefilter("ignore", c)
+        yield
