@@ -51,7 +51,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         return int(args.func(args) or 0)
-    except (CLIError, ValueError, FileNotFoundError) as exc:
+    except (CLIError, ValueError, LookupError, FileNotFoundError) as exc:
         print(f"ema-bench {args.command}: error: {exc}", file=sys.stderr)
         return 2
 

@@ -1,0 +1,136 @@
+"""Leaderboards: files, COCO scores recomputed by hand, resume after a kill, executors agree,
+and the regression check."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import shutil
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from ema_bench.leaderboard.store import read_records
+
+CLI = [sys.executable, "-m", "ema_bench.cli", "leaderboard"]
+QUICK = ["--solvers", "random,cmaes", "--cases", "small,full", "--seeds", "2",
+         "--budget", "60"]
+VOLATILE = {"wall_s", "solver_wall_s"}
+
+
+def run(args, **kw):
+    return subprocess.run(CLI + args, capture_output=True, text=True, timeout=600, **kw)
+
+
+def stable(records):
+    """Records without wall times, by key."""
+    return {r["key"]: {k: v for k, v in r.items() if k not in VOLATILE} for r in records}
+
+
+@pytest.fixture(scope="module")
+def quick(tmp_path_factory):
+    out = tmp_path_factory.mktemp("lb") / "quick"
+    res = run(QUICK + ["--executor", "serial", "--out", str(out)])
+    assert res.returncode == 0, res.stderr
+    return out
+
+
+def test_quick_leaderboard_writes_every_file(quick):
+    for name in ("runs.jsonl", "leaderboard_reference.md", "leaderboard_reference.csv",
+                 "leaderboard_twin.md", "leaderboard_twin.csv", "paper_tables.md",
+                 "convergence_reference.png", "convergence_twin.png", "ecdf.png",
+                 "fit_overlay.png", "figure5_landscape.png", "summary.json"):
+        path = quick / name
+        assert path.is_file() and path.stat().st_size > 0, name
+    assert (quick / "ecdf.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    records = read_records(quick / "runs.jsonl")
+    assert len(records) == 2 * 2 * 2 * 2
+    assert all(r["evaluations"] <= 60 for r in records)
+    assert "Produced by `" in (quick / "leaderboard_twin.md").read_text()
+    summary = json.loads((quick / "summary.json").read_text())
+    # Figure 5: normalising removes the valley (its minimum stands out far more)
+    rise = summary["figure5_valley_rise"]
+    assert rise["normalised"] > 3 * rise["raw"]
+
+
+def test_ert_and_success_recomputed_by_hand(quick):
+    records = read_records(quick / "runs.jsonl")
+    with open(quick / "leaderboard_twin.csv") as fh:
+        rows = {(r["case"], r["solver"]): r for r in csv.DictReader(fh)}
+    for (case, solver), row in rows.items():
+        group = [r for r in records if r["track"] == "twin" and r["solver"] == solver
+                 and (case == "all" or r["case"] == case)]
+        wins = [r for r in group if r["success"]]
+        cost = sum(r["evals_to_success"] if r["success"] else r["budget"] for r in group)
+        ert = cost / len(wins) if wins else math.inf
+        assert int(row["runs"]) == len(group)
+        assert float(row["success_rate"]) == pytest.approx(len(wins) / len(group))
+        assert float(row["ert"]) == pytest.approx(ert)
+
+
+def test_interrupted_run_resumes_without_duplicates(quick, tmp_path):
+    out = tmp_path / "killed"
+    proc = subprocess.Popen(CLI + QUICK + ["--executor", "serial", "--no-plots", "--out",
+                                           str(out)],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    runs = out / "runs.jsonl"
+    deadline = time.time() + 300
+    while time.time() < deadline:
+        if runs.exists() and len(runs.read_text().splitlines()) >= 3:
+            break
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    partial = len(read_records(runs))
+    assert 3 <= partial < 16
+    res = run(QUICK + ["--executor", "serial", "--no-plots", "--out", str(out)])
+    assert res.returncode == 0, res.stderr
+    records = read_records(runs)
+    keys = [r["key"] for r in records]
+    assert len(keys) == len(set(keys)) == 16
+    assert stable(records) == stable(read_records(quick / "runs.jsonl"))
+    strip = lambda p: [row for row in csv.reader(open(p))]  # noqa: E731
+    a, b = strip(out / "leaderboard_twin.csv"), strip(quick / "leaderboard_twin.csv")
+    wall = a[0].index("median_wall_s")
+    assert [r[:wall] + r[wall + 1:] for r in a] == [r[:wall] + r[wall + 1:] for r in b]
+
+
+@pytest.mark.parametrize("executor", ["processes", "dask"])
+def test_executors_give_identical_records(quick, tmp_path, executor):
+    pytest.importorskip("dask.distributed")
+    out = tmp_path / executor
+    res = run(QUICK + ["--executor", executor, "--workers", "2", "--no-plots", "--out",
+                       str(out)])
+    assert res.returncode == 0, res.stderr
+    assert stable(read_records(out / "runs.jsonl")) == stable(read_records(quick /
+                                                                          "runs.jsonl"))
+
+
+def test_check_passes_on_committed_and_fails_on_doctored(quick, tmp_path):
+    committed = tmp_path / "committed"
+    committed.mkdir()
+    shutil.copy(quick / "runs.jsonl", committed / "runs.jsonl")
+    ok = run(QUICK + ["--executor", "serial", "--no-plots", "--check", str(committed)])
+    assert ok.returncode == 0, ok.stdout + ok.stderr
+    assert "no regression" in ok.stdout
+    # doctor the committed results: every run a quick success, so today's look worse
+    doctored = tmp_path / "doctored"
+    doctored.mkdir()
+    with open(doctored / "runs.jsonl", "w") as fh:
+        for r in read_records(quick / "runs.jsonl"):
+            r.update(success=True, evals_to_success=1)
+            fh.write(json.dumps(r) + "\n")
+    bad = run(QUICK + ["--executor", "serial", "--no-plots", "--check", str(doctored)])
+    assert bad.returncode == 1
+    assert "REGRESSIONS" in bad.stdout and "success" in bad.stdout
+
+
+def test_bad_arguments_exit_2(tmp_path):
+    for args in (["--solvers", "nope"], ["--shard", "3/2"], ["--budget", "0"]):
+        res = run(args + ["--out", str(tmp_path / "x")])
+        assert res.returncode == 2, args
+        assert "error" in res.stderr
