@@ -47,7 +47,7 @@ def draw_cases(n: int, seed: SeedLike) -> list[BlindCase]:
     rng = np.random.default_rng(child(seed, 0))
     rng.shuffle(kinds)
     cases, k_eff, k_dec = [], 0, 0
-    order = list(rng.permutation(DRAWABLE))
+    order = [str(n) for n in rng.permutation(DRAWABLE)]
     for i, kind in enumerate(kinds):
         faults = faults_to_dict(random_faults(child(seed, 1000 + i), 1.0))
         name, value = None, 0.0

@@ -329,8 +329,9 @@ def diagnose(measured: Traces, settings: Settings | None = None, seed: SeedLike 
             if closed < settings.accept_closed:
                 reasons.append(f"closes {100 * closed:.0f} % of the held-out gap "
                                f"(< {100 * settings.accept_closed:.0f} %)")
-            elif ho_after > status.holdout_threshold:
-                reasons.append("held-out fitness still above the bootstrap threshold")
+            elif status.holdout_fitness - ho_after <= status.holdout_threshold - floor:
+                # the improvement must beat what noise alone moves the held-out fitness
+                reasons.append("held-out improvement within the bootstrap spread")
             if f.fitness >= current.fitness:
                 reasons.append("does not improve the training fit")
             if abs(value) <= spec.trivial:
