@@ -49,7 +49,7 @@ def int_seed(seed: np.random.SeedSequence) -> int:
     return int(seed.generate_state(1, dtype=np.uint32)[0] % (2**31 - 2)) + 1
 
 
-def nominal_unit(problem: Problem) -> np.ndarray:
+def start_unit(problem: Problem) -> np.ndarray:
     """The first point to try, in the normalised box: the problem's start (the nominal,
     healthy vector unless the caller gave a warm start)."""
     return np.clip(problem.to_unit(problem.start), 0.0, 1.0)
@@ -58,9 +58,10 @@ def nominal_unit(problem: Problem) -> np.ndarray:
 def evaluate_unit(problem: Problem, U: np.ndarray) -> np.ndarray:
     """Fitness of a batch ``U`` (n, dim) of normalised candidates, in one problem call.
 
-    Candidates are clipped into the box first (library round-off can leave them 1 ulp out).
-    The caller keeps ``n <= problem.remaining``."""
-    U = np.clip(np.atleast_2d(np.asarray(U, dtype=float)), 0.0, 1.0)
+    Candidates are clipped into the box first (library round-off can leave them 1 ulp out;
+    a NaN coordinate, which no library should propose, becomes the middle of the box rather
+    than an error).  The caller keeps ``n <= problem.remaining``."""
+    U = np.clip(np.nan_to_num(np.atleast_2d(np.asarray(U, dtype=float)), nan=0.5), 0.0, 1.0)
     return np.asarray(problem.evaluate(problem.from_unit(U)), dtype=float)
 
 
@@ -81,9 +82,9 @@ def lhs(seed: np.random.SeedSequence, n: int, dim: int) -> np.ndarray:
 
 def start_points(problem: Problem, seed: np.random.SeedSequence,
                  batch: int = 32) -> Iterator[np.ndarray]:
-    """Multi-start points: the nominal vector, then Latin-hypercube points (batches of
+    """Multi-start points: the problem's start, then Latin-hypercube points (batches of
     ``batch``, each a fresh Latin hypercube), without end."""
-    yield nominal_unit(problem)
+    yield start_unit(problem)
     for i in range(1_000_000):
         yield from lhs(child(seed, i), batch, problem.dim)
 

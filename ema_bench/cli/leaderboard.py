@@ -70,6 +70,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--check", default=None, metavar="DIR",
                    help="compare with the committed leaderboard in DIR; exit 1 on regression")
     p.add_argument("--no-plots", action="store_true", help="tables only")
+    p.add_argument("--report-only", action="store_true",
+                   help="run nothing: rebuild tables and plots from the records already in "
+                        "OUT (e.g. after merging shards or to publish a partial sweep)")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
     p.set_defaults(func=run)
 
@@ -96,7 +99,8 @@ def run(args: argparse.Namespace) -> int:
                           executor=args.executor, workers=args.workers,
                           scheduler=args.scheduler, shard=args.shard,
                           root_seed=args.root_seed, plots=not args.no_plots,
-                          progress=not args.json, command=command)
+                          progress=not args.json, command=command,
+                          run=not args.report_only)
     status = 0
     if args.check:
         committed_path = Path(args.check) / RUNS_FILE

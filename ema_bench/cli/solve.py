@@ -168,7 +168,8 @@ def run(args: argparse.Namespace) -> int:
         score = problem.score(res.x)
         out.update(accuracy=score.accuracy, range_error=score.range_error,
                    success=score.success, truth=score.truth,
-                   fitness_at_truth=problem.fitness_at_truth())
+                   fitness_at_truth=problem.fitness_at_truth(),
+                   evaluations_to_success=problem.first_success())
         if args.effect:
             out["effects"] = _effects(args)
     if args.plot:
@@ -190,8 +191,10 @@ def run(args: argparse.Namespace) -> int:
             acc_s = "-" if acc is None else f"{acc:.2f}"
             print(f"{name:<6} {units[name]:<4} {v:12.6g} {out['truth'][name]:12.6g} "
                   f"{acc_s:>11} {100 * out['range_error'][name]:11.3f}")
+        first = out["evaluations_to_success"]
         print(f"fitness at the truth {out['fitness_at_truth']:.6g}; success (every range "
-              f"error <= 1 %): {'yes' if out['success'] else 'no'}")
+              f"error <= 1 %): {'yes' if out['success'] else 'no'}"
+              + ("" if first is None else f"; first successful vector at evaluation {first}"))
     else:
         print(f"{'fault':<6} {'unit':<4} {'estimate':>12}")
         for name, v in out["x"].items():

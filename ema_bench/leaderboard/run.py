@@ -44,9 +44,11 @@ def select(records: list[dict], tasks: list[Task]) -> list[dict]:
 
 
 def write_outputs(records: list[dict], out: Path, command: str, plots: bool = True,
-                  landscape_n: int = 40) -> dict[str, object]:
+                  landscape_n: int = 40, expected: int | None = None) -> dict[str, object]:
     """Tables and plots of ``records`` under ``out``; returns a summary."""
-    header = (f"Produced by `{command}`: {len(records)} runs. "
+    partial = (f" **PARTIAL: {len(records)} of the sweep's {expected} runs are done; rerun "
+               f"the command to resume.**" if expected and len(records) < expected else "")
+    header = (f"Produced by `{command}`: {len(records)} runs.{partial} "
               "Success = every parameter within 1 % of its range of the truth; "
               "ERT = evaluations summed over runs (failures at their budget) / successes.")
     scores = score_records(records)
@@ -85,13 +87,20 @@ def leaderboard(solvers, cases, tracks, seeds: int, budget: int, out: Path,
                 executor: str = "processes", workers: int | None = None,
                 scheduler: str | None = None, shard: tuple[int, int] = (0, 1),
                 root_seed: int = 0, plots: bool = True, progress: bool = True,
-                command: str | None = None, landscape_n: int = 40) -> dict[str, object]:
-    """Run (or resume) a leaderboard and write its outputs.  See ``ema-bench leaderboard``."""
+                command: str | None = None, landscape_n: int = 40,
+                run: bool = True) -> dict[str, object]:
+    """Run (or resume) a leaderboard and write its outputs.  See ``ema-bench leaderboard``.
+
+    With ``run=False`` nothing runs: the outputs are rebuilt from the records on disk, and
+    the header says how many of the sweep's runs they cover."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     tasks = make_tasks(solvers, cases, tracks, seeds, budget, root_seed, shard)
-    ran = run_tasks(tasks, out, executor, workers, scheduler, progress)
+    ran = run_tasks(tasks, out, executor, workers, scheduler, progress) if run else 0
     records = select(read_records(out / RUNS_FILE), tasks)
+    if not records:
+        raise ValueError(f"no records of this sweep in {out / RUNS_FILE}")
     command = command or "ema-bench " + " ".join(shlex.quote(a) for a in sys.argv[1:])
-    summary = write_outputs(records, out, command, plots=plots, landscape_n=landscape_n)
+    summary = write_outputs(records, out, command, plots=plots, landscape_n=landscape_n,
+                            expected=len(tasks))
     return {"ran": ran, "runs": len(records), **summary}

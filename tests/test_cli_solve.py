@@ -1,0 +1,122 @@
+"""``ema-bench solve`` and ``ema-bench solvers``, run as real subprocesses."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ZOO = ("random", "cmaes", "de", "ngopt", "ng-de", "ng-pso", "least-squares", "nelder-mead",
+       "lbfgsb", "powell")
+RESULT_KEYS = {"solver", "case", "track", "seed", "x", "fitness", "evaluations", "wall_s",
+               "stop_reason", "library"}
+TRUTH_KEYS = {"accuracy", "range_error", "success", "truth", "fitness_at_truth",
+              "evaluations_to_success"}
+FAULTS = {"Na", "Fst", "BLK", "Gprop"}
+
+
+def cli(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
+    script = Path(sys.executable).with_name("ema-bench")
+    cmd = [str(script)] if script.exists() else [sys.executable, "-m", "ema_bench.cli"]
+    return subprocess.run([*cmd, *args], capture_output=True, text=True, cwd=cwd, timeout=300)
+
+
+def solve_json(*args: str) -> dict:
+    r = cli("solve", *args, "--json")
+    assert r.returncode == 0, r.stderr
+    assert r.stderr == ""  # no progress bar with --json, no library chatter
+    return json.loads(r.stdout)
+
+
+def test_solve_json_twin():
+    out = solve_json("--case", "small", "--track", "twin", "--solver", "random", "--budget",
+                     "50", "--seed", "0")
+    assert RESULT_KEYS | TRUTH_KEYS <= set(out)
+    assert out["solver"] == "random" and out["case"] == "small" and out["track"] == "twin"
+    assert out["seed"] == 0
+    assert 0 < out["evaluations"] <= 50
+    assert set(out["x"]) == set(out["truth"]) == set(out["accuracy"]) == FAULTS
+    assert out["truth"] == {"Na": 0.95, "Fst": 0.3378, "BLK": 0.01, "Gprop": 1e5}
+    assert isinstance(out["success"], bool)
+    first = out["evaluations_to_success"]
+    assert first is None or 1 <= first <= out["evaluations"]
+    assert out["fitness"] >= 0 and out["fitness_at_truth"] >= 0
+    assert "scipy" in out["library"] and "ema-bench" in out["library"]
+
+
+def test_solve_json_reference_with_effect_and_raw():
+    out = solve_json("--case", "full", "--solver", "cmaes", "--budget", "30", "--seed", "2",
+                     "--effect", "eccentricity=0.05", "--raw")
+    assert out["track"] == "reference" and out["case"] == "full"
+    assert out["evaluations"] <= 30
+    assert out["normalised"] is False
+    assert out["effects"] == {"eccentricity": 0.05}
+    assert TRUTH_KEYS <= set(out)
+
+
+def test_solve_is_reproducible():
+    args = ("--case", "seeded", "--heterogeneity", "0.5", "--track", "twin", "--solver", "de",
+            "--budget", "40", "--seed", "7")
+    a, b = solve_json(*args), solve_json(*args)
+    assert a["x"] == b["x"] and a["fitness"] == b["fitness"] and a["truth"] == b["truth"]
+    assert a["case"].startswith("seeded")
+
+
+def test_solve_human_table():
+    r = cli("solve", "--case", "small", "--track", "twin", "--solver", "random", "--budget",
+            "20")
+    assert r.returncode == 0, r.stderr
+    assert r.stderr == ""  # stderr is not a TTY here: no progress bar
+    for word in ("estimate", "truth", "accuracy %", "Na", "Gprop", "success"):
+        assert word in r.stdout
+
+
+def test_solve_measured_file_and_plot(tmp_path):
+    traces = tmp_path / "traces.csv"
+    r = cli("simulate", "--case", "small", "--model", "monitor", "--seed", "1", "--out",
+            str(traces))
+    assert r.returncode == 0, r.stderr
+    png = tmp_path / "fit.png"
+    out = solve_json("--measured", str(traces), "--solver", "nelder-mead", "--budget", "30",
+                     "--plot", str(png))
+    assert RESULT_KEYS <= set(out)
+    assert not TRUTH_KEYS & set(out)  # measured data: nothing to score against
+    assert out["track"] == "measured" and out["measured"] == str(traces)
+    assert out["evaluations"] <= 30
+    assert png.stat().st_size > 10_000
+    r = cli("solve", "--measured", str(traces), "--solver", "random", "--budget", "10")
+    assert r.returncode == 0, r.stderr
+    assert "estimate" in r.stdout and "truth" not in r.stdout
+
+
+def test_solvers_json_and_table():
+    r = cli("solvers", "--json")
+    assert r.returncode == 0, r.stderr
+    listed = {s["name"]: s for s in json.loads(r.stdout)}
+    assert set(ZOO) <= set(listed)
+    for s in listed.values():
+        assert s["description"] and s["library"]
+    r = cli("solvers")
+    assert r.returncode == 0
+    for name in ZOO:
+        assert name in r.stdout
+
+
+@pytest.mark.parametrize("args, message", [
+    (("--solver", "no-such-solver"), "unknown solver 'no-such-solver'"),
+    (("--case", "huge"), "unknown case 'huge'"),
+    (("--budget", "0"), "--budget must be a positive integer"),
+    (("--budget", "-5"), "--budget must be a positive integer"),
+    (("--measured", "missing.csv"), "file not found"),
+    (("--effect", "warp=1"), "unknown effect 'warp'"),
+])
+def test_bad_input_exits_2_with_one_line(args, message, tmp_path):
+    r = cli("solve", *args, "--json", cwd=tmp_path)
+    assert r.returncode == 2
+    assert r.stdout == ""
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1, r.stderr
+    assert lines[0].startswith("ema-bench solve: error:") and message in lines[0]

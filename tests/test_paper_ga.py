@@ -1,0 +1,295 @@
+"""Tests of the paper's GA (solver ``paper-ga``) and its MATLAB ``ga`` operators.
+
+Each operator is checked against a hand-computed case; the solver loop against the problem's
+own counter (budget, one batch per generation), its seed, and its accuracy on the twin track.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import solvers.paper_ga  # noqa: F401  (registers "paper-ga" until the entry point is installed)
+from ema_bench import available_solvers, make_problem, run_solver
+from ema_bench.faults import to_unit
+from solvers.ga_operators import (
+    MIN_STEP,
+    active_bound_directions,
+    adapt_step,
+    adaptive_feasible_mutation,
+    default_elite_count,
+    heuristic_crossover,
+    mads_basis,
+    max_feasible_length,
+    offspring_counts,
+    parents_needed,
+    rank_scaling,
+    stalled,
+    stochastic_uniform,
+)
+from solvers.paper_ga import run_paper_ga
+
+
+# --- population split ---------------------------------------------------------------------
+@pytest.mark.parametrize("n, counts", [(100, (5, 76, 19)), (50, (3, 38, 9)), (20, (1, 15, 4)),
+                                       (10, (1, 7, 2))])
+def test_elite_crossover_mutant_counts(n, counts):
+    assert offspring_counts(n) == counts
+    assert default_elite_count(n) == math.ceil(0.05 * n)
+    e, x, m = counts
+    assert e + x + m == n
+    assert parents_needed(x, m) == 2 * x + m
+
+
+def test_counts_reject_bad_settings():
+    with pytest.raises(ValueError):
+        offspring_counts(10, elite_count=11)
+    with pytest.raises(ValueError):
+        offspring_counts(10, crossover_fraction=1.5)
+
+
+# --- rank scaling -------------------------------------------------------------------------
+def test_rank_scaling_hand_case():
+    e = rank_scaling(np.array([3.0, 1.0, 2.0]), n_parents=6)
+    raw = np.array([1 / math.sqrt(3), 1.0, 1 / math.sqrt(2)])
+    np.testing.assert_allclose(e, 6 * raw / raw.sum())
+    assert e.sum() == pytest.approx(6.0)
+    assert e[1] > e[2] > e[0]  # the lowest score (best, minimising) expects the most
+
+
+def test_rank_scaling_ignores_score_values_and_breaks_ties_in_order():
+    a = rank_scaling(np.array([1e-9, 5.0, 1e12]), 3)
+    b = rank_scaling(np.array([-7.0, 0.0, 0.1]), 3)
+    np.testing.assert_allclose(a, b)  # only ranks matter (negative scores too)
+    tie = rank_scaling(np.array([2.0, 2.0, 1.0]), 3)
+    raw = np.array([1 / math.sqrt(2), 1 / math.sqrt(3), 1.0])
+    np.testing.assert_allclose(tie, 3 * raw / raw.sum())
+
+
+# --- stochastic uniform selection ---------------------------------------------------------
+def test_stochastic_uniform_hand_case():
+    # segments [0, 1.5) [1.5, 2) [2, 3) [3, 4); step = 4/4 = 1; pointers 0.4, 1.4, 2.4, 3.4
+    e = np.array([1.5, 0.5, 1.0, 1.0])
+    np.testing.assert_array_equal(stochastic_uniform(e, 4, start=0.4), [0, 0, 2, 3])
+    # pointers 0.6, 1.6, 2.6, 3.6: the second falls in the small segment
+    np.testing.assert_array_equal(stochastic_uniform(e, 4, start=0.6), [0, 1, 2, 3])
+    # pointers on segment boundaries belong to the next segment (position < cumsum)
+    np.testing.assert_array_equal(stochastic_uniform(e, 4, start=0.0), [0, 0, 2, 3])
+    # 3 parents from expectations summing to 4: step 4/3, pointers 0.5, 1.833, 3.167
+    np.testing.assert_array_equal(stochastic_uniform(e, 3, start=0.5), [0, 1, 3])
+    with pytest.raises(ValueError):
+        stochastic_uniform(e, 4, start=1.0)  # start must lie in [0, step)
+
+
+def test_stochastic_uniform_picks_each_floor_or_ceil_of_its_expectation():
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        scores = rng.random(30)
+        e = rank_scaling(scores, 44)
+        idx = stochastic_uniform(e, 44, rng=rng)
+        counts = np.bincount(idx, minlength=30)
+        assert counts.sum() == 44
+        assert np.all(counts >= np.floor(e - 1e-9)) and np.all(counts <= np.ceil(e + 1e-9))
+
+
+# --- heuristic crossover ------------------------------------------------------------------
+def test_heuristic_crossover_hand_case():
+    worse = np.array([0.2, 0.4, 0.5, 0.5])
+    better = np.array([0.4, 0.5, 0.5, 0.6])
+    expected = [0.44, 0.52, 0.5, 0.62]  # worse + 1.2 (better - worse)
+    np.testing.assert_allclose(heuristic_crossover(worse, better, 1.0, 0.5), expected)
+    np.testing.assert_allclose(heuristic_crossover(better, worse, 0.5, 1.0), expected)
+    # tie: MATLAB takes parent 2 as the better one
+    np.testing.assert_allclose(heuristic_crossover(worse, better, 1.0, 1.0), expected)
+    # batched pairs
+    kids = heuristic_crossover(np.array([worse, better]), np.array([better, worse]),
+                               [1.0, 0.5], [0.5, 1.0])
+    np.testing.assert_allclose(kids, [expected, expected])
+
+
+def test_heuristic_crossover_feasible_fallback():
+    worse = np.array([0.1, 0.5, 0.5, 0.5])
+    better = np.array([0.95, 0.5, 0.5, 0.5])  # 0.1 + 1.2 * 0.85 = 1.12: out of the box
+    # MATLAB: a random convex combination alpha p1 + (1 - alpha) p2 of the parents
+    kid = heuristic_crossover(worse, better, 1.0, 0.5, alpha=np.array([0.25]))
+    np.testing.assert_allclose(kid, 0.25 * worse + 0.75 * better)
+    kid = heuristic_crossover(worse, better, 1.0, 0.5, rng=np.random.default_rng(0))
+    assert np.all((kid >= 0) & (kid <= 1)) and worse[0] <= kid[0] <= better[0]
+    # documented alternative: clip to the box
+    kid = heuristic_crossover(worse, better, 1.0, 0.5, fallback="clip")
+    np.testing.assert_allclose(kid, [1.0, 0.5, 0.5, 0.5])
+    # a feasible child is never touched by the fallback
+    kids = heuristic_crossover(np.array([worse, [0.2, 0.4, 0.5, 0.5]]),
+                               np.array([better, [0.4, 0.5, 0.5, 0.6]]), [1.0, 1.0],
+                               [0.5, 0.5], alpha=np.array([0.25, 0.25]))
+    np.testing.assert_allclose(kids[1], [0.44, 0.52, 0.5, 0.62])
+
+
+# --- adaptive feasible mutation -----------------------------------------------------------
+def test_adaptive_step_grows_and_shrinks_four_times():
+    assert adapt_step(1 / 16, improved=True) == pytest.approx(1 / 4)
+    assert adapt_step(1 / 4, improved=False) == pytest.approx(1 / 16)
+    assert adapt_step(0.5, improved=True) == 1.0          # capped at the box size
+    assert adapt_step(MIN_STEP, improved=False) == MIN_STEP  # floored at sqrt(eps)
+    assert MIN_STEP == pytest.approx(math.sqrt(np.finfo(float).eps))
+
+
+def test_mads_basis_is_a_permuted_lower_triangular_basis():
+    rng = np.random.default_rng(1)
+    for step in (1.0, 1 / 4, 1 / 16, 1e-4):
+        B = mads_basis(4, step, rng)
+        p = 1 / math.sqrt(step)
+        assert np.linalg.matrix_rank(B) == 4
+        big = np.abs(np.abs(B) - p) < 1e-9 * p
+        assert np.all(big.sum(axis=0) >= 1)  # one +-p (diagonal) entry per column
+        off = B[~big]
+        assert np.all(off == np.round(off)) and np.all((off >= 0) & (off < p + 1))
+
+
+def test_active_bound_directions_and_reach():
+    T = active_bound_directions(np.array([0.0, 0.5, 1.0, 0.9995]))
+    np.testing.assert_array_equal(T, np.eye(4)[:, [0, 2, 3]])
+    x = np.array([0.2, 0.5, 1.0, 0.0])
+    D = np.array([[1.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, 0.0]])
+    np.testing.assert_allclose(max_feasible_length(x, D, 0.0, 1.0), [0.5, 0.2, 0.0])
+
+
+@pytest.mark.parametrize("step", [1.0, 0.25, 1e-2, 1e-6, MIN_STEP])
+def test_mutation_keeps_children_inside_the_box(step):
+    rng = np.random.default_rng(7)
+    parents = np.concatenate([rng.random((40, 4)), np.eye(4), 1 - np.eye(4), np.zeros((1, 4)),
+                              np.ones((1, 4)), [[0.0, 1.0, 0.0, 1.0], [1e-4, 0.5, 1.0, 0.3]]])
+    kids = adaptive_feasible_mutation(parents, step, rng)
+    assert kids.shape == parents.shape
+    assert np.all((kids >= 0.0) & (kids <= 1.0))
+    moved = np.abs(kids - parents).max(axis=1)
+    assert np.all(moved > 0)  # the shrink fallback always moves
+    # a step moves at most step * (p + 1) per coordinate, p = 1/sqrt(step)
+    assert np.all(moved <= step * (1 / math.sqrt(step) + 1) + 1e-12)
+
+
+def test_mutation_small_step_uses_the_full_step_and_matlab_copy_fallback():
+    rng = np.random.default_rng(2)
+    x = np.full((1, 4), 0.5)
+    for _ in range(10):
+        # p = 4: the diagonal entry moves 4/16 = 0.25, the others k/16, k = 0..4
+        d = np.abs(adaptive_feasible_mutation(x, 1 / 16, rng) - x)[0]
+        assert d.max() == pytest.approx(0.25) and np.allclose(d * 16, np.round(d * 16))
+    # at step 1 no direction fits from the centre: MATLAB copies the parent
+    np.testing.assert_array_equal(adaptive_feasible_mutation(x, 1.0, rng, fallback="copy"), x)
+
+
+# --- stall test -----------------------------------------------------------------------------
+def test_stall_test_hand_cases():
+    flat = np.full(51, 2e-4)
+    assert stalled(flat, 50)
+    assert not stalled(flat[:50], 50)  # needs 50 generations after generation 0
+    falling = np.linspace(1e-4, 0.9e-4, 51)
+    # change 1e-5 over 50 generations: relative 1e-5 / (50 * 0.9e-4) = 2.2e-3 > 1e-6
+    assert not stalled(falling, 50)
+    # MATLAB's max(1, |f|) makes it absolute: 1e-5 / 50 = 2e-7 <= 1e-6
+    assert stalled(falling, 50, floor=1.0)
+    assert stalled(np.zeros(6), 5)
+
+
+# --- the solver on real problems ----------------------------------------------------------
+def test_registered():
+    info = available_solvers()["paper-ga"]
+    assert info.library == "deap"
+
+
+def _spy_on_evaluate(monkeypatch, p):
+    sizes = []
+    real = p.evaluate
+
+    def spy(X):
+        assert len(X) <= p.remaining
+        sizes.append(len(X))
+        return real(X)
+
+    monkeypatch.setattr(p, "evaluate", spy)
+    return sizes
+
+
+def test_never_exceeds_the_budget_and_one_batch_per_generation(monkeypatch):
+    p = make_problem("small", track="twin", seed=0, budget=10_000)
+    sizes = _spy_on_evaluate(monkeypatch, p)
+    p.limit(250)
+    run = run_paper_ga(p, seed=0, population=100)
+    assert p.evaluations == 250
+    assert sizes == [100, 95, 55]  # 5 elites kept; the last generation truncated to what is left
+    assert run.stop_reason == "budget" and run.generations == 2
+
+
+def test_run_solver_budget_and_record(monkeypatch):
+    p = make_problem("small", track="twin", seed=0, budget=10_000)
+    sizes = _spy_on_evaluate(monkeypatch, p)
+    res = run_solver("paper-ga", p, budget=250, seed=0)
+    assert res.evaluations == p.evaluations == 250
+    assert sizes == [80, 76, 76, 18]  # default N = 80: 4 elites
+    assert res.stop_reason == "budget"
+    assert res.extra["population"] == 80 and res.extra["generations"] == 3
+    assert "deap" in res.library
+
+
+def test_budget_smaller_than_the_population():
+    p = make_problem("nominal", track="twin", seed=0, budget=30)
+    res = run_solver("paper-ga", p, seed=0)
+    assert res.evaluations == 30 and res.stop_reason == "budget"
+
+
+def test_nominal_vector_in_initial_population():
+    p = make_problem("full", track="twin", seed=0, budget=100)
+    run_solver("paper-ga", p, seed=5)
+    X = p.history()["x"]
+    assert any(np.allclose(x, p.nominal) for x in X)
+    # the rest is uniform over the bounds (initial range = bounds)
+    U = to_unit(X)
+    assert np.all((U >= 0) & (U <= 1)) and U.min(axis=0).max() < 0.2 and U.max(axis=0).min() > 0.8
+
+
+def test_augmented_problem_searches_every_dimension():
+    p = make_problem("small", track="twin", seed=0, budget=150, augment=("viscous_friction",))
+    res = run_solver("paper-ga", p, seed=0)
+    assert res.evaluations == 150 and p.dim == 5 and res.x.shape == (5,)
+    X = p.history()["x"]
+    assert np.allclose(X[0], p.nominal) and np.ptp(X[:, 4]) > 0
+
+
+def test_max_generations_stop():
+    p = make_problem("small", track="twin", seed=0, budget=2000)
+    run = run_paper_ga(p, seed=0, population=20, max_generations=3)
+    assert run.stop_reason == "max_generations" and run.generations == 3
+    assert p.evaluations == 20 + 3 * 19
+    assert [r["gen"] for r in run.logbook] == [0, 1, 2, 3]
+
+
+def test_stall_stop():
+    p = make_problem("nominal", track="twin", seed=0, budget=2000)
+    run = run_paper_ga(p, seed=0, population=10, stall_generations=3, function_tolerance=1.0)
+    assert run.stop_reason == "stall" and run.generations == 3
+    assert p.evaluations == 10 + 3 * 9
+
+
+def test_same_seed_same_result():
+    def go(seed):
+        p = make_problem("random", track="twin", seed=0, budget=600)
+        r = run_solver("paper-ga", p, seed=seed)
+        return r, p.history()
+
+    (r1, h1), (r2, h2), (_, h3) = go(4), go(4), go(5)
+    np.testing.assert_array_equal(h1["x"], h2["x"])
+    np.testing.assert_array_equal(r1.x, r2.x)
+    assert r1.fitness == r2.fitness and r1.evaluations == r2.evaluations
+    assert not np.array_equal(h1["x"][1:], h3["x"][1:])
+
+
+@pytest.mark.parametrize("case", ["small", "full"])
+def test_identifies_the_faults_on_the_twin_track(case):
+    p = make_problem(case, track="twin", seed=0, budget=5000)
+    res = run_solver("paper-ga", p, seed=0)
+    assert res.evaluations <= 5000
+    score = p.score(res.x)
+    assert score.success, score.range_error
