@@ -17,22 +17,16 @@ import numpy as np
 from numba import njit, prange
 
 from .effects import (
-    E_COG,
-    E_DELAY,
     E_ECC,
-    E_GEAR,
-    E_IGAIN,
-    E_OFFSET,
-    E_RRISE,
     E_VISC,
-    E_VSAG,
     MAX_DELAY_SAMPLES,
     N_EFFECTS,
 )
 from .faults import check_faults, faults_to_dict
-from .params import DEFAULT_PARAMS, P_DTC, P_HYST, P_IRIP, P_KTF, P_PP, P_VDC, EMAParams
+from .params import DEFAULT_PARAMS, P_HYST, P_IRIP, P_KTF, EMAParams
 from .physics.ace import ace_update, delayed_feedback
 from .physics.bldc import pair_constants
+from .physics.effect_terms import cogging_torque, effect_terms
 from .physics.load import hinge_moment
 from .physics.mechanics import mech_step
 from .protocol import STANDARD_TESTS, TestSpec, steps_per
@@ -46,14 +40,8 @@ def monitor_one(p, x, e, cmd, n_out, steps_out, steps_ctrl, dt, out):
 
     Returns False if the state became non-finite."""
     na, fst, blk, gprop = x[0], x[1], x[2], x[3]
-    offset = e[E_OFFSET]
-    gain = 1.0 + e[E_IGAIN]
-    v_dc = p[P_VDC] * (1.0 - e[E_VSAG])
-    r_scale = 1.0 + e[E_RRISE]
-    ks_scale = 1.0 - e[E_GEAR]
-    cog_order = 6.0 * p[P_PP]
+    offset, gain, v_dc, r_scale, ks_scale, n_delay = effect_terms(e, p)
     ripple = p[P_IRIP] * p[P_HYST]
-    n_delay = e[E_DELAY] / p[P_DTC]  # controller samples, fractional
     buf = np.zeros(MAX_DELAY_SAMPLES + 1)
     th_m = w_m = th_u = w_u = 0.0
     cur = 0.0
@@ -78,8 +66,7 @@ def monitor_one(p, x, e, cmd, n_out, steps_out, steps_ctrl, dt, out):
             cur_old = cur
             cur = min(max(target, lo), hi)
             t_m = p[P_KTF] * kt * cur
-            if e[E_COG] != 0.0:
-                t_m += e[E_COG] * math.sin(cog_order * th_m)
+            t_m += cogging_torque(e, th_m, p)
             t_load = hinge_moment(th_u, w_u, p, e)
             th_m, w_m, th_u, w_u, _ = mech_step(th_m, w_m, th_u, w_u, t_m, t_load, fst, blk,
                                                 e[E_VISC], ks_scale, p, dt)

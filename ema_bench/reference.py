@@ -14,24 +14,18 @@ import numpy as np
 from numba import njit
 
 from .effects import (
-    E_COG,
-    E_DELAY,
     E_ECC,
-    E_GEAR,
-    E_IGAIN,
-    E_OFFSET,
-    E_RRISE,
     E_VISC,
-    E_VSAG,
     MAX_DELAY_SAMPLES,
     N_EFFECTS,
     effects_to_dict,
     effects_vector,
 )
 from .faults import check_faults, faults_to_dict
-from .params import DEFAULT_PARAMS, P_DTC, P_PP, P_VDC, EMAParams
+from .params import DEFAULT_PARAMS, EMAParams
 from .physics.ace import ace_update, delayed_feedback
 from .physics.bldc import bldc_step
+from .physics.effect_terms import cogging_torque, effect_terms
 from .physics.load import hinge_moment
 from .physics.mechanics import mech_step
 from .physics.sensors import measure
@@ -46,13 +40,7 @@ def reference_kernel(p, x, e, cmd, n_out, steps_out, steps_ctrl, dt, out):
 
     Returns False if the state became non-finite (the caller scores that as a failure)."""
     na, fst, blk, gprop = x[0], x[1], x[2], x[3]
-    offset = e[E_OFFSET]
-    gain = 1.0 + e[E_IGAIN]
-    v_dc = p[P_VDC] * (1.0 - e[E_VSAG])
-    r_scale = 1.0 + e[E_RRISE]
-    ks_scale = 1.0 - e[E_GEAR]
-    cog_order = 6.0 * p[P_PP]
-    n_delay = e[E_DELAY] / p[P_DTC]  # controller samples, fractional
+    offset, gain, v_dc, r_scale, ks_scale, n_delay = effect_terms(e, p)
     buf = np.zeros(MAX_DELAY_SAMPLES + 1)
     th_m = w_m = th_u = w_u = 0.0
     ia = ib = ic = 0.0
@@ -71,8 +59,7 @@ def reference_kernel(p, x, e, cmd, n_out, steps_out, steps_ctrl, dt, out):
             countdown -= 1
             ia, ib, ic, sa, sb, sc, t_m = bldc_step(ia, ib, ic, sa, sb, sc, i_ref, th_m, w_m,
                                                     na, e[E_ECC], r_scale, v_dc, p, dt)
-            if e[E_COG] != 0.0:
-                t_m += e[E_COG] * math.sin(cog_order * th_m)
+            t_m += cogging_torque(e, th_m, p)
             t_load = hinge_moment(th_u, w_u, p, e)
             th_m, w_m, th_u, w_u, _ = mech_step(th_m, w_m, th_u, w_u, t_m, t_load, fst, blk,
                                                 e[E_VISC], ks_scale, p, dt)

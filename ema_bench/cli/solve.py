@@ -26,16 +26,13 @@ _SOLVE_EPILOG = "Run 'ema-bench solvers' for the registered solvers."
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    """Add ``solve`` and ``solvers`` (whichever is not there yet: COMMANDS names this module
-    for both, so it is called twice)."""
-    if "solve" not in sub.choices:
-        _register_solve(sub)
-    if "solvers" not in sub.choices:
-        p = sub.add_parser("solvers", help="list the registered solvers",
-                           description="List every registered solver (the built-in zoo and "
-                                       "plugins of the 'ema_bench.solvers' entry-point group).")
-        p.add_argument("--json", action="store_true", help="print JSON")
-        p.set_defaults(func=run_solvers)
+    """Add the ``solve`` and ``solvers`` commands."""
+    _register_solve(sub)
+    p = sub.add_parser("solvers", help="list the registered solvers",
+                       description="List every registered solver (the built-in zoo and "
+                                   "plugins of the 'ema_bench.solvers' entry-point group).")
+    p.add_argument("--json", action="store_true", help="print JSON")
+    p.set_defaults(func=run_solvers)
 
 
 def _register_solve(sub: argparse._SubParsersAction) -> None:
