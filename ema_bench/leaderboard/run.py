@@ -47,7 +47,8 @@ def write_outputs(records: list[dict], out: Path, command: str, plots: bool = Tr
                   landscape_n: int = 40, expected: int | None = None) -> dict[str, object]:
     """Tables and plots of ``records`` under ``out``; returns a summary."""
     partial = (f" **PARTIAL: {len(records)} of the sweep's {expected} runs are done; rerun "
-               f"the command to resume.**" if expected and len(records) < expected else "")
+               f"the sweep's command (without --report-only) to resume.**"
+               if expected and len(records) < expected else "")
     header = (f"Produced by `{command}`: {len(records)} runs.{partial} "
               "Success = every parameter within 1 % of its range of the truth; "
               "ERT = evaluations summed over runs (failures at their budget) / successes.")
