@@ -22,6 +22,8 @@ import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 
+from ..seeding import child
+
 _SOLVE_EPILOG = "Run 'ema-bench solvers' for the registered solvers."
 
 
@@ -100,7 +102,9 @@ def _make_problem(args: argparse.Namespace):
         return make_problem(measured=load_traces(args.measured), budget=args.budget,
                             normalise=not args.raw)
     effects = _effects(args)
-    return make_problem(args.case or "small", track=args.track, seed=args.seed,
+    # the instance draws from child 0 of the root seed, the solver from child 1 (below), so
+    # a solver spawning from its seed never replays the instance's noise streams
+    return make_problem(args.case or "small", track=args.track, seed=child(args.seed, 0),
                         budget=args.budget, normalise=not args.raw,
                         heterogeneity=args.heterogeneity, effects=effects or None)
 
@@ -143,7 +147,7 @@ def run(args: argparse.Namespace) -> int:
     problem = _make_problem(args)
     show_bar = not (args.json or args.no_progress) and sys.stderr.isatty()
     with _progress(problem, show_bar):
-        res = run_solver(args.solver, problem, budget=args.budget, seed=args.seed)
+        res = run_solver(args.solver, problem, budget=args.budget, seed=child(args.seed, 1))
 
     out = {"solver": res.solver,
            "case": problem.meta.get("case", problem.label),
