@@ -11,6 +11,7 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 
@@ -127,6 +128,17 @@ def test_check_passes_on_committed_and_fails_on_doctored(quick, tmp_path):
     bad = run(QUICK + ["--executor", "serial", "--no-plots", "--check", str(doctored)])
     assert bad.returncode == 1
     assert "REGRESSIONS" in bad.stdout and "success" in bad.stdout
+
+
+def test_quick_check_passes_on_the_leaderboard_in_the_repository(tmp_path):
+    """The CI use: a quick run checked against the committed ``leaderboards/`` (a subset of
+    it here, to stay cheap) reports no regression."""
+    committed = Path(__file__).resolve().parents[1] / "leaderboards"
+    res = run(["--quick", "--solvers", "cmaes,paper-ga", "--cases", "small,full", "--tracks",
+               "reference,twin", "--executor", "serial", "--no-plots", "--check",
+               str(committed), "--out", str(tmp_path / "q")])
+    assert res.returncode == 0, res.stdout + res.stderr
+    assert "no regression" in res.stdout
 
 
 def test_bad_arguments_exit_2(tmp_path):

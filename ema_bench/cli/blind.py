@@ -2,7 +2,9 @@
 
 Draws N cases (library effects above their detection thresholds, null cases, decoys outside
 the library) with random faults, runs ``diagnose`` on each without showing it the answer, and
-reports naming accuracy, false alarms, held-out gap closed and parameter error.  Results are
+reports naming accuracy, false alarms, held-out gap closed and parameter error.  A decoy
+counts as handled when it is reported unexplained, or named with the nearest effect flagged
+partial (the model with that effect still leaves the bootstrap envelopes).  Results are
 appended to OUT/blind.jsonl as cases finish; rerunning resumes.
 """
 
@@ -44,6 +46,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"blind suite: {s['cases']} cases, seed {args.seed}")
     print(f"  naming accuracy (top-1): {s['naming_accuracy']:.0%} of {s['effect_cases']} "
           f"effect cases  {s['per_effect']}")
+    print(f"  of which flagged partial (a discrepancy remains): {s['named_partial']}")
     print(f"  false alarms: {s['false_alarms']} of {s['null_cases']} null cases")
     print(f"  decoys unexplained or partial: {s['decoys_unexplained_or_partial']} of "
           f"{s['decoy_cases']}")
@@ -52,5 +55,6 @@ def run(args: argparse.Namespace) -> int:
     for r in res["records"]:
         truth = f"{r['effect']}={r['value']:.3g}" if r["effect"] else "nothing"
         print(f"    case {r['index']:>3} {r['kind']:<6} {truth:<28} -> {r['verdict']:<11} "
-              f"{','.join(r['named']) or r.get('partial') or ''}")
+              f"{','.join(r['named']) or r.get('partial') or ''}"
+              f"{' (partial)' if r['named'] and r.get('partial') else ''}")
     return 0

@@ -55,7 +55,8 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         out = d.as_dict()
         out["effects"] = [{k: e[k] for k in ("name", "params", "interval", "gap_before",
-                                              "gap_after", "gap_closed")} for e in out["effects"]]
+                                              "gap_after", "gap_closed", "partial")}
+                          for e in out["effects"]]
         print_json(out)
         return 0
     print(f"verdict: {d.verdict}. {d.message}")
@@ -63,7 +64,7 @@ def run(args: argparse.Namespace) -> int:
         (name, v), = e.params.items()
         print(f"  {name} = {v:.4g} (95 % interval {e.interval[0]:.4g} .. {e.interval[1]:.4g}); "
               f"held-out gap {e.gap_before:.3g} -> {e.gap_after:.3g} "
-              f"({100 * e.gap_closed:.0f} % closed)")
+              f"({100 * e.gap_closed:.0f} % closed){', partial' if e.partial else ''}")
     print("faults before -> after: " + ", ".join(
         f"{n} {v['before']:.4g} -> {v['after']:.4g}" for n, v in d.faults.items()))
     if args.report:

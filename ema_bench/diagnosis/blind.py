@@ -85,6 +85,7 @@ def run_case(case: BlindCase, seed: SeedLike, settings: Settings) -> dict:
            "wall_s": time.perf_counter() - t0}
     if case.kind == "effect":
         rec["correct"] = bool(named) and named[0] == case.effect
+        rec["named_partial"] = bool(d.effects) and d.effects[0].partial
         if rec["correct"]:
             est = d.effects[0].params[case.effect]
             rec["estimate"] = est
@@ -114,6 +115,8 @@ def summarise(records: list[dict]) -> dict[str, object]:
         "null_cases": len(null), "false_alarms": sum(r["false_alarm"] for r in null),
         "decoy_cases": len(dec), "decoys_unexplained_or_partial": sum(r["decoy_ok"]
                                                                       for r in dec),
+        # correct names whose model still leaves the envelopes (e.g. at heavy stiction)
+        "named_partial": sum(bool(r.get("named_partial")) for r in eff if r.get("correct")),
         "median_heldout_gap_closed": float(np.median(closed)) if closed else math.nan,
         "median_param_error": float(np.median(perr)) if perr else math.nan,
         "per_effect": {k: f"{v[0]}/{v[1]}" for k, v in sorted(per_effect.items())},

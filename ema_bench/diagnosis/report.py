@@ -103,6 +103,7 @@ def write_report(d: Diagnosis, measured: Traces, out: str | Path, source: str = 
                   "|---|---:|---|---:|---:|---:|---|---|"]
         for e in d.effects:
             (name, v), = e.params.items()
+            name += " (partial)" if e.partial else ""
             lines.append(f"| {name} | {v:.4g} | [{e.interval[0]:.4g}, {e.interval[1]:.4g}] | "
                          f"{e.gap_before:.3g} | {e.gap_after:.3g} | "
                          f"{100 * e.gap_closed:.0f} % | {e.train_fitness[0]:.3g} -> "
@@ -121,6 +122,10 @@ def write_report(d: Diagnosis, measured: Traces, out: str | Path, source: str = 
         lines += ["", "## Residual statistics outside the bootstrap envelopes (base fit)", "",
                   "| statistic | value | robust z |", "|---|---:|---:|"]
         lines += [f"| {n} | {v:.3g} | {z:.1f} |" for n, v, z in d.flagged[:15]]
+    if d.flagged_after:
+        lines += ["", "## Still outside the envelopes with the named effects (why partial)", "",
+                  "| statistic | value | robust z |", "|---|---:|---:|"]
+        lines += [f"| {n} | {v:.3g} | {z:.1f} |" for n, v, z in d.flagged_after[:15]]
     if d.screening:
         lines += ["", "## Screening (linearised score, chi-square 1 dof)", "",
                   "| effect | score | linear estimate |", "|---|---:|---:|"]
