@@ -132,13 +132,31 @@ def test_check_passes_on_committed_and_fails_on_doctored(quick, tmp_path):
 
 def test_quick_check_passes_on_the_leaderboard_in_the_repository(tmp_path):
     """The CI use: a quick run checked against the committed ``leaderboards/`` (a subset of
-    it here, to stay cheap) reports no regression."""
+    it here, to stay cheap) reports no regression; its baseline is the committed quick run
+    (``leaderboards/quick``), which the same seeds reproduce."""
     committed = Path(__file__).resolve().parents[1] / "leaderboards"
     res = run(["--quick", "--solvers", "cmaes,paper-ga", "--cases", "small,full", "--tracks",
                "reference,twin", "--executor", "serial", "--no-plots", "--check",
                str(committed), "--out", str(tmp_path / "q")])
     assert res.returncode == 0, res.stdout + res.stderr
-    assert "no regression" in res.stdout
+    assert "no regression" in res.stdout and "committed runs at this budget: 16" in res.stdout
+
+
+def test_check_baseline_prefers_the_same_budget_and_re_scores_larger_ones():
+    from ema_bench.leaderboard.check import baseline
+
+    def rec(solver, budget, seed, first):
+        return {"solver": solver, "case": "small", "track": "twin", "seed": seed,
+                "budget": budget, "success": first is not None, "evals_to_success": first}
+
+    records = [rec("a", 400, 0, None), rec("a", 5000, 0, 100),   # same budget wins
+               rec("b", 5000, 0, 300), rec("b", 5000, 1, 900),   # re-scored at 400
+               rec("b", 10000, 0, 50), rec("c", 100, 0, 10),     # 5000 < 10000; 100 < 400
+               rec("a", 400, 5, 10)]                             # seed beyond the check
+    base, used = baseline(records, 400, 2)
+    got = {(r["solver"], r["seed"]): (r["budget"], r["success"]) for r in base}
+    assert got == {("a", 0): (400, False), ("b", 0): (400, True), ("b", 1): (400, False)}
+    assert used == {"same_budget": 1, "re_scored": 2}
 
 
 def test_bad_arguments_exit_2(tmp_path):

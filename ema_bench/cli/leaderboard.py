@@ -68,7 +68,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help=f"small budget and seeds for CI ({QUICK['seeds']} seeds, "
                         f"budget {QUICK['budget']})")
     p.add_argument("--check", default=None, metavar="DIR",
-                   help="compare with the committed leaderboard in DIR; exit 1 on regression")
+                   help="compare with the committed runs in DIR (and DIR/*/) of the same "
+                        "budget and seeds, else larger-budget runs re-scored at this budget; "
+                        "exit 1 when a solver's success rate or ERT got worse")
     p.add_argument("--no-plots", action="store_true", help="tables only")
     p.add_argument("--report-only", action="store_true",
                    help="run nothing: rebuild tables and plots from the records already in "
@@ -78,7 +80,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..leaderboard.check import compare, truncate
+    from ..leaderboard.check import compare, load_baseline
     from ..leaderboard.run import leaderboard, select
     from ..leaderboard.store import RUNS_FILE, read_records
     from ..leaderboard.tasks import make_tasks
@@ -103,24 +105,31 @@ def run(args: argparse.Namespace) -> int:
                           run=not args.report_only)
     status = 0
     if args.check:
-        committed_path = Path(args.check) / RUNS_FILE
-        committed = read_records(committed_path)
-        if not committed:
-            raise CLIError(f"no committed runs in {committed_path}")
         tasks = make_tasks(solvers, args.cases, args.tracks, seeds, budget, args.root_seed,
                            args.shard)
+        committed, used = load_baseline(args.check, budget, seeds,
+                                        {(t.solver, t.case, t.track, t.seed, t.root_seed)
+                                         for t in tasks})
+        if not committed:
+            folder = Path(args.check)
+            raise CLIError(f"no committed runs of these tasks (same seeds and root seed) at "
+                           f"budget >= {budget} in {folder / RUNS_FILE} or "
+                           f"{folder / '*' / RUNS_FILE}")
         now = select(read_records(out / RUNS_FILE), tasks)
-        regressions = compare(now, truncate(committed, budget, seeds))
+        regressions = compare(now, committed)
         summary["regressions"] = [str(r) for r in regressions]
+        summary["baseline"] = used
         status = 1 if regressions else 0
         if not args.json:
+            against = (f"{args.check} (budget {budget}, {seeds} seeds; committed runs at "
+                       f"this budget: {used['same_budget']}, re-scored from a larger "
+                       f"budget: {used['re_scored']})")
             if regressions:
-                print(f"REGRESSIONS against {committed_path} (budget {budget}, {seeds} seeds):")
+                print(f"REGRESSIONS against {against}:")
                 for r in regressions:
                     print("  " + str(r))
             else:
-                print(f"no regression against {committed_path} (budget {budget}, "
-                      f"{seeds} seeds)")
+                print(f"no regression against {against}")
     if args.json:
         print_json({"out": str(out), **summary})
     else:

@@ -24,12 +24,22 @@ def _best_at(trace: list[list[float]], grid: np.ndarray) -> np.ndarray:
     return out
 
 
+def _styles(records: list[dict]) -> dict[str, dict[str, object]]:
+    """One colour and line style per solver, the same in every panel (ten colours, then
+    dashed)."""
+    cmap = plt.get_cmap("tab10")
+    solvers = sorted({r["solver"] for r in records})
+    return {s: {"color": cmap(i % 10), "ls": ("-", "--", ":")[i // 10 % 3]}
+            for i, s in enumerate(solvers)}
+
+
 def convergence_plot(records: list[dict], track: str, path: Path) -> None:
     """Best fitness vs evaluations: median and quartiles over seeds, per solver and case."""
     cases = list(dict.fromkeys(r["case"] for r in records if r["track"] == track))
     fig, axes = plt.subplots(1, len(cases), figsize=(4.2 * len(cases), 3.8), squeeze=False)
     budget = max(r["budget"] for r in records)
     grid = np.unique(np.geomspace(1, budget, 120).astype(int))
+    style = _styles(records)
     for ax, case in zip(axes[0], cases):
         groups = defaultdict(list)
         for r in records:
@@ -38,9 +48,10 @@ def convergence_plot(records: list[dict], track: str, path: Path) -> None:
         for solver, curves in sorted(groups.items()):
             c = np.array(curves)
             med = np.nanmedian(c, axis=0)
-            (line,) = ax.plot(grid, med, lw=1.3, label=solver)
+            ax.plot(grid, med, lw=1.3, label=solver, **style[solver])
             ax.fill_between(grid, np.nanpercentile(c, 25, axis=0),
-                            np.nanpercentile(c, 75, axis=0), color=line.get_color(), alpha=0.15)
+                            np.nanpercentile(c, 75, axis=0), color=style[solver]["color"],
+                            alpha=0.15)
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_title(f"{case} ({track})")
@@ -59,6 +70,7 @@ def ecdf_plot(records: list[dict], path: Path) -> None:
     fig, axes = plt.subplots(1, len(tracks), figsize=(5.5 * len(tracks), 4), squeeze=False)
     budget = max(r["budget"] for r in records)
     grid = np.unique(np.geomspace(1, budget, 200).astype(int))
+    style = _styles(records)
     for ax, track in zip(axes[0], tracks):
         groups = defaultdict(list)
         for r in records:
@@ -68,7 +80,7 @@ def ecdf_plot(records: list[dict], path: Path) -> None:
         for solver, costs in sorted(groups.items()):
             c = np.sort(np.array(costs, dtype=float))
             ax.step(grid, np.searchsorted(c, grid, side="right") / c.size, where="post",
-                    label=solver, lw=1.3)
+                    label=solver, lw=1.3, **style[solver])
         ax.set_xscale("log")
         ax.set_ylim(0, 1.02)
         ax.set_xlabel("evaluations")
