@@ -111,6 +111,30 @@ def test_executors_give_identical_records(quick, tmp_path, executor):
                                                                           "runs.jsonl"))
 
 
+def test_dask_reruns_a_task_whose_worker_dies(quick, tmp_path):
+    """The first task to start kills its worker process; the scheduler moves it to another
+    worker and the records still equal the serial executor's."""
+    pytest.importorskip("dask.distributed")
+    from ema_bench.leaderboard.executors import execute
+    from ema_bench.leaderboard.tasks import make_tasks, run_task
+
+    marker = tmp_path / "a-worker-died"
+
+    def dies_once(task):  # pickled by value: workers run this very closure
+        import os
+        if not marker.exists():
+            marker.touch()
+            os._exit(1)
+        return run_task(task)
+
+    tasks = make_tasks(["random"], ["small"], ["reference", "twin"], 2, 60)
+    records = list(execute(tasks, "dask", workers=2, progress=False, runner=dies_once))
+    assert marker.exists()
+    want = stable(read_records(quick / "runs.jsonl"))
+    got = stable(records)
+    assert set(got) == {t.key for t in tasks} and all(got[k] == want[k] for k in got)
+
+
 def test_check_passes_on_committed_and_fails_on_doctored(quick, tmp_path):
     committed = tmp_path / "committed"
     committed.mkdir()

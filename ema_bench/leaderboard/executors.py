@@ -25,12 +25,17 @@ def _worker_init() -> None:
     numba.set_num_threads(1)
 
 
-def _serial(tasks: list[Task], workers: int, scheduler: str | None) -> Iterator[dict]:
+Runner = Callable[[Task], dict]
+
+
+def _serial(tasks: list[Task], workers: int, scheduler: str | None, runner: Runner
+            ) -> Iterator[dict]:
     for t in tasks:
-        yield run_task(t)
+        yield runner(t)
 
 
-def _processes(tasks: list[Task], workers: int, scheduler: str | None) -> Iterator[dict]:
+def _processes(tasks: list[Task], workers: int, scheduler: str | None, runner: Runner
+               ) -> Iterator[dict]:
     import multiprocessing as mp
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
@@ -38,7 +43,7 @@ def _processes(tasks: list[Task], workers: int, scheduler: str | None) -> Iterat
     ctx = mp.get_context("spawn")
     with ProcessPoolExecutor(max_workers=workers, mp_context=ctx,
                              initializer=_worker_init) as pool:
-        futures = [pool.submit(run_task, t) for t in tasks]
+        futures = [pool.submit(runner, t) for t in tasks]
         try:
             for fut in as_completed(futures):
                 yield fut.result()
@@ -47,7 +52,8 @@ def _processes(tasks: list[Task], workers: int, scheduler: str | None) -> Iterat
                 fut.cancel()
 
 
-def _dask(tasks: list[Task], workers: int, scheduler: str | None) -> Iterator[dict]:
+def _dask(tasks: list[Task], workers: int, scheduler: str | None, runner: Runner
+          ) -> Iterator[dict]:
     try:
         from dask.distributed import Client, LocalCluster, as_completed
     except ImportError as exc:  # pragma: no cover - depends on the install
@@ -61,8 +67,9 @@ def _dask(tasks: list[Task], workers: int, scheduler: str | None) -> Iterator[di
         client = Client(cluster)
     try:
         client.run(_worker_init)
-        # retries: a task whose worker dies is rescheduled on another worker
-        futures = [client.submit(run_task, t, key=f"ema-{t.key}-{t.root_seed}-{t.budget}",
+        # a task whose worker dies is rescheduled by the scheduler (up to its
+        # allowed-failures, 3 by default); retries re-run a task that raised
+        futures = [client.submit(runner, t, key=f"ema-{t.key}-{t.root_seed}-{t.budget}",
                                  pure=False, retries=3) for t in tasks]
         for fut in as_completed(futures):
             yield fut.result()
@@ -72,14 +79,16 @@ def _dask(tasks: list[Task], workers: int, scheduler: str | None) -> Iterator[di
             cluster.close()
 
 
-_RUNNERS: dict[str, Callable[[list[Task], int, str | None], Iterator[dict]]] = {
+_RUNNERS: dict[str, Callable[[list[Task], int, str | None, Runner], Iterator[dict]]] = {
     "serial": _serial, "processes": _processes, "dask": _dask,
 }
 
 
 def execute(tasks: list[Task], executor: str = "processes", workers: int | None = None,
-            scheduler: str | None = None, progress: bool = True) -> Iterable[dict]:
-    """Run ``tasks`` and yield their records as they finish."""
+            scheduler: str | None = None, progress: bool = True, runner: Runner = run_task
+            ) -> Iterable[dict]:
+    """Run ``tasks`` (each through ``runner``, :func:`run_task` unless a test injects a
+    fault) and yield their records as they finish."""
     if executor not in _RUNNERS:
         raise ValueError(f"unknown executor {executor!r}; known: {list(EXECUTORS)}")
     workers = workers or os.cpu_count() or 1
@@ -88,7 +97,7 @@ def execute(tasks: list[Task], executor: str = "processes", workers: int | None 
     bar = tqdm(total=len(tasks), desc=f"leaderboard ({executor})", unit="run",
                disable=not progress or not sys.stderr.isatty(), file=sys.stderr)
     try:
-        for rec in _RUNNERS[executor](tasks, workers, scheduler):
+        for rec in _RUNNERS[executor](tasks, workers, scheduler, runner):
             bar.update(1)
             bar.set_postfix_str(rec["key"], refresh=False)
             yield rec
