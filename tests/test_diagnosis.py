@@ -84,6 +84,8 @@ def test_small_blind_suite(blind_records):
     assert s["false_alarms"] == 0                       # null: verdict none
     assert s["naming_accuracy"] == 1.0                  # both effects named top-1
     assert s["decoys_unexplained_or_partial"] == 1      # the decoy is not named
+    assert s["decoys_by_outcome"] == {"unexplained": 1, "named_partial": 0, "not_detected": 0,
+                                      "named": 0}
     assert s["median_heldout_gap_closed"] >= 0.7
     assert s["median_param_error"] < 0.1
 

@@ -48,8 +48,10 @@ def run(args: argparse.Namespace) -> int:
           f"effect cases  {s['per_effect']}")
     print(f"  of which flagged partial (a discrepancy remains): {s['named_partial']}")
     print(f"  false alarms: {s['false_alarms']} of {s['null_cases']} null cases")
-    print(f"  decoys unexplained or partial: {s['decoys_unexplained_or_partial']} of "
-          f"{s['decoy_cases']}")
+    o = s["decoys_by_outcome"]
+    print(f"  decoys not misnamed: {s['decoys_unexplained_or_partial']} of "
+          f"{s['decoy_cases']} (unexplained {o['unexplained']}, named but partial "
+          f"{o['named_partial']}, not detected {o['not_detected']}, named {o['named']})")
     print(f"  median held-out gap closed: {s['median_heldout_gap_closed']:.0%}; median "
           f"parameter error: {s['median_param_error']:.1%}")
     for r in res["records"]:

@@ -113,8 +113,15 @@ def summarise(records: list[dict]) -> dict[str, object]:
         "effect_cases": len(eff), "naming_accuracy": (sum(r["correct"] for r in eff) / len(eff)
                                                       if eff else math.nan),
         "null_cases": len(null), "false_alarms": sum(r["false_alarm"] for r in null),
+        # a decoy is handled when no library effect is claimed as the whole answer
         "decoy_cases": len(dec), "decoys_unexplained_or_partial": sum(r["decoy_ok"]
                                                                       for r in dec),
+        "decoys_by_outcome": {
+            "unexplained": sum(r["verdict"] == "unexplained" for r in dec),
+            "named_partial": sum(r["verdict"] == "effect" and bool(r.get("partial"))
+                                 for r in dec),
+            "not_detected": sum(r["verdict"] == "none" for r in dec),
+            "named": sum(r["verdict"] == "effect" and not r.get("partial") for r in dec)},
         # correct names whose model still leaves the envelopes (e.g. at heavy stiction)
         "named_partial": sum(bool(r.get("named_partial")) for r in eff if r.get("correct")),
         "median_heldout_gap_closed": float(np.median(closed)) if closed else math.nan,
