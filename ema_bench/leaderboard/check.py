@@ -49,6 +49,11 @@ def truncate(records: list[dict], budget: int, seeds: int) -> list[dict]:
     return out
 
 
+def run_id(r: dict) -> tuple:
+    """What identifies a run apart from its budget."""
+    return r["solver"], r["case"], r["track"], r["seed"], r.get("root_seed", 0)
+
+
 def committed_files(folder: str | Path) -> list[Path]:
     """The run files of a committed leaderboard: ``DIR/runs.jsonl`` and those one folder
     down (a quick baseline, a supplementary sweep)."""
@@ -64,7 +69,7 @@ def baseline(records: list[dict], budget: int, seeds: int, keys: set[tuple] | No
     ``budget``; and how many of each were used."""
     best: dict[tuple, dict] = {}
     for r in records:
-        k = (r["solver"], r["case"], r["track"], r["seed"], r.get("root_seed", 0))
+        k = run_id(r)
         if r["seed"] >= seeds or r["budget"] < budget or (keys is not None and k not in keys):
             continue
         if k not in best or r["budget"] < best[k]["budget"]:
@@ -80,13 +85,10 @@ def compare(now: list[dict], committed: list[dict], success_tol: float = 0.34,
     """Regressions of ``now`` against ``committed`` (a :func:`baseline`) per (track, solver)
     over the cases both hold: success rate lower by more than ``success_tol`` or ERT worse
     by more than ``ert_factor``."""
-    def keys(rs: list[dict]) -> set[tuple]:
-        return {(r["solver"], r["case"], r["track"], r["seed"]) for r in rs}
-
-    shared = keys(now) & keys(committed)
+    shared = set(map(run_id, now)) & set(map(run_id, committed))
 
     def index(rs: list[dict]) -> dict:
-        rs = [r for r in rs if (r["solver"], r["case"], r["track"], r["seed"]) in shared]
+        rs = [r for r in rs if run_id(r) in shared]
         return {(s.track, s.solver): s for s in score_records(rs) if s.case == ALL}
 
     a, b = index(committed), index(now)
