@@ -1,87 +1,266 @@
-"""``ema-bench bench``: speed of the models on this machine, measured side by side in one run."""
+"""``ema-bench bench``: speed of the models on this machine, measured honestly.
+
+Every figure is a median over interleaved rounds (batched, one-thread, C and single-candidate
+measurements take turns, so a burst of load from elsewhere hits them all alike), with CPU time
+beside wall time and the load average seen while measuring.  Figures that need a fresh process
+(import, cache load, cold compile, cold command line) run in child processes.
+
+Keys of the result (``--json``):
+
+``monitor_evals_per_s``
+    full monitor evaluations (both standard tests) per wall second, batched on all threads.
+``monitor_evals_per_cpu_s``
+    the same per CPU second on one thread (serial kernel).
+``single_call_ms`` / ``single_call_ms_loaded`` (and its 90th percentile)
+    median wall time of a one-candidate call; the second while other processes keep every
+    core busy.
+``c_time_ratio``
+    numba time / plain-C time on the same candidates, one thread each (null without a C
+    compiler or outside a source checkout; ``c_unavailable`` says why).
+``naive_python_evals_per_s``, ``speedup_vs_naive_python``
+    the same equations as a plain-Python loop (:mod:`ema_bench.naive`), one thread against one
+    thread.
+``import_s``, ``cache_load_s``, ``cold_compile_s``
+    ``import ema_bench``; loading the compiled kernel from numba's cache; compiling it from
+    scratch (an empty cache folder).
+``time_to_success_warm_s`` / ``time_to_success_cold_s``
+    solver -> case -> median wall seconds until the first vector with every fault within 1 %
+    of its range (reference track): in this process (problem set-up included, reference
+    traces cached), and from launching ``ema-bench solve`` to that evaluation.  null where no
+    seed succeeded.
+``load_avg``
+    1-minute load average before, during and after the measurements.
+"""
 
 from __future__ import annotations
 
+import json
 import os
 import platform
+import statistics
+import subprocess
+import sys
+import tempfile
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 
 import numba
 import numpy as np
 
-from .faults import CASES, NOMINAL, random_faults
+from .faults import CASES, random_faults
 from .monitor import simulate_monitor
-from .naive import simulate_naive
-from .protocol import STANDARD_TESTS
 from .reference import simulate_reference
 
+TTS_SOLVERS = ("cmaes", "powell")
+TTS_CASES = ("nominal", "small", "full", "random")
 
-def _best_time(fn: Callable[[], object], repeat: int) -> float:
-    """Best wall time (s) of ``repeat`` calls, after one warm-up call (compilation)."""
+
+def _timed(fn: Callable[[], object]) -> tuple[float, float]:
+    """(wall s, CPU s of this process) of one call."""
+    c, w = time.process_time(), time.perf_counter()
     fn()
-    best = float("inf")
-    for _ in range(repeat):
-        t = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t)
-    return best
+    return time.perf_counter() - w, time.process_time() - c
 
 
-def run_bench(batch: int = 256, repeat: int = 3, naive_candidates: int = 1,
-              seed: int = 0) -> dict[str, object]:
-    """Measure the models and return the figures (see module docstring of the CLI).
+def _median(xs: list[float]) -> float:
+    return float(statistics.median(xs))
+
+
+def _child(code: str, env: dict[str, str] | None = None, timeout: float = 600.0,
+           last_line: bool = True) -> str:
+    """Run ``python -c code`` in a fresh process; its last stdout line (or all of it)."""
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          env={**os.environ, **(env or {})}, timeout=timeout, check=False)
+    if proc.returncode != 0:
+        raise RuntimeError(f"bench child failed:\n{proc.stderr[-2000:]}")
+    return proc.stdout.strip().splitlines()[-1] if last_line else proc.stdout
+
+
+@contextmanager
+def busy_cores(n: int) -> Iterator[None]:
+    """``n`` child processes spinning on a core each, for measurements under load."""
+    procs = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(n)]
+    try:
+        time.sleep(0.3)   # let them start spinning
+        yield
+    finally:
+        for p in procs:
+            p.kill()
+        for p in procs:
+            p.wait()
+
+
+def startup_figures(repeat: int = 3) -> dict[str, float]:
+    """``import_s`` and ``cache_load_s`` (medians over fresh processes) and
+    ``cold_compile_s`` (one process with an empty numba cache folder)."""
+    imp = [float(_child("import time; t = time.perf_counter(); import ema_bench; "
+                        "print(time.perf_counter() - t)")) for _ in range(repeat)]
+    first_call = ("import time, numpy as np\n"
+                  "from ema_bench.monitor import simulate_monitor\n"
+                  "from ema_bench.faults import NOMINAL\n"
+                  "x = NOMINAL[None, :]\n"
+                  "t = time.perf_counter(); simulate_monitor(x, parallel=False)\n"
+                  "a = time.perf_counter() - t\n"
+                  "t = time.perf_counter(); simulate_monitor(x, parallel=False)\n"
+                  "print(a - (time.perf_counter() - t))")
+    load = [float(_child(first_call)) for _ in range(repeat)]
+    with tempfile.TemporaryDirectory() as d:
+        cold = float(_child(first_call, env={"NUMBA_CACHE_DIR": d}))
+    return {"import_s": _median(imp), "cache_load_s": _median(load), "cold_compile_s": cold}
+
+
+def time_to_success(solvers: tuple[str, ...] = TTS_SOLVERS, cases: tuple[str, ...] = TTS_CASES,
+                    seeds: int = 3, budget: int = 3000, cold: bool = True,
+                    progress: Callable[[str], None] | None = None) -> dict[str, dict]:
+    """Median seconds to the first successful vector, warm and cold (see module doc)."""
+    from .problem import make_problem
+    from .registry import run_solver
+    from .seeding import child
+
+    warm: dict[str, dict[str, float | None]] = {}
+    coldd: dict[str, dict[str, float | None]] = {}
+    for solver in solvers:
+        warm[solver], coldd[solver] = {}, {}
+        for case in cases:
+            w_times, c_times = [], []
+            for seed in range(seeds):
+                if progress:
+                    progress(f"time to success: {solver} {case} seed {seed}")
+                t0 = time.perf_counter()
+                # the seeds of `ema-bench solve --seed`: instance child 0, solver child 1
+                problem = make_problem(case, track="reference", seed=child(seed, 0),
+                                       budget=budget)
+                t_setup = time.perf_counter() - t0
+                run_solver(solver, problem, seed=child(seed, 1))
+                t_hit = problem.first_success_wall_s()
+                w_times.append(np.inf if t_hit is None else t_setup + t_hit)
+                if cold:
+                    launch = time.perf_counter()
+                    out = json.loads(_child(
+                        "import sys; from ema_bench.cli import main; sys.exit(main(["
+                        f"'solve', '--case', '{case}', '--solver', '{solver}', '--seed', "
+                        f"'{seed}', '--budget', '{budget}', '--json', '--no-progress']))",
+                        last_line=False))
+                    clock = out.get("clock_at_success")
+                    c_times.append(np.inf if clock is None else clock - launch)
+            warm[solver][case] = _finite_median(w_times)
+            coldd[solver][case] = _finite_median(c_times) if cold else None
+    return {"time_to_success_warm_s": warm, "time_to_success_cold_s": coldd}
+
+
+def _finite_median(xs: list[float]) -> float | None:
+    """Median counting failures as infinitely slow; None when it is infinite."""
+    if not xs:
+        return None
+    m = float(np.median(xs))
+    return m if np.isfinite(m) else None
+
+
+def run_bench(batch: int = 256, repeat: int = 7, serial: int = 16, naive_evals: int = 2,
+              tts_seeds: int = 3, tts_budget: int = 3000, seed: int = 0, startup: bool = True,
+              tts: bool = True, progress: Callable[[str], None] | None = None
+              ) -> dict[str, object]:
+    """Measure the models and return the figures (keys: module docstring).
 
     Parameters
     ----------
     batch : int
-        Candidates per batched monitor call.
+        Candidates per batched (all-thread) monitor call.
     repeat : int
-        Timed repetitions (the best is kept).
-    naive_candidates : int
-        Candidates run through the ``solve_ivp`` baseline (it is slow: ~seconds each).
+        Interleaved rounds; every figure is the median over them.
+    serial : int
+        Candidates per one-thread call (numba serial and C) and one-candidate calls per round.
+    naive_evals : int
+        Evaluations of the plain-Python baseline (about 0.5 s each).
+    tts_seeds, tts_budget : int
+        Seeds per case and budget of the time-to-success runs.
     seed : int
-        Root seed of the random candidates and the sensor noise.
+        Root seed of the random candidates.
+    startup, tts : bool
+        Include the child-process start-up figures / the time-to-success runs.
     """
-    ss = np.random.SeedSequence(seed)
-    s_cand, s_noise = ss.spawn(2)
-    X = random_faults(s_cand, heterogeneity=1.0, n=batch)
-    t_batch = _best_time(lambda: simulate_monitor(X), repeat)
-    singles = X[: min(16, batch)]
+    from . import c_kernel, naive
 
-    def one_at_a_time() -> None:
-        for x in singles:
+    say = progress or (lambda msg: None)
+    loads = [os.getloadavg()[0]]
+    X = random_faults(np.random.SeedSequence(seed), heterogeneity=1.0, n=batch)
+    Xs = X[:serial]
+    try:
+        c_lib = c_kernel.build()
+        c_reason = None
+    except c_kernel.CKernelUnavailable as exc:
+        c_lib, c_reason = None, str(exc)
+
+    def singles() -> list[float]:
+        """ms of each one-candidate call (the median is over calls: a preempted call is one
+        slow sample, not a slower average)."""
+        ms = []
+        for x in Xs:
+            t = time.perf_counter()
             simulate_monitor(x[None, :])
+            ms.append(1e3 * (time.perf_counter() - t))
+        return ms
 
-    t_single = _best_time(one_at_a_time, repeat) / len(singles)
-    x_full = CASES["full"].x
-    t_ref = _best_time(lambda: simulate_reference(x_full, seed=s_noise), repeat)
-    t_naive = 0.0
-    for x in X[:naive_candidates]:
-        t = time.perf_counter()
-        simulate_naive(x)
-        t_naive += time.perf_counter() - t
-    t_naive /= naive_candidates
-    simulated_s = sum(s.duration for s in STANDARD_TESTS)
-    evals_per_s = batch / t_batch
-    # the monitor's cost per simulated second on one thread, vs the reference's
-    threads = numba.get_num_threads()
-    mon_cpu_per_sim_s = threads * t_batch / batch / simulated_s
-    ref_per_sim_s = t_ref / simulated_s
-    return {
-        "monitor_evals_per_s": evals_per_s,
-        "monitor_single_evals_per_s": 1.0 / t_single,
+    # warm-up: compile or load every kernel before timing
+    simulate_monitor(X[:2 * numba.get_num_threads()], parallel=True)
+    simulate_monitor(Xs[:1], parallel=False)
+    if c_lib is not None:
+        c_kernel.simulate_c(Xs[:1], library=c_lib)
+    batched, serial_cpu, single, ratio = [], [], [], []
+    for r in range(repeat):
+        say(f"interleaved round {r + 1}/{repeat}")
+        wall, cpu = _timed(lambda: simulate_monitor(X, parallel=True))
+        batched.append(batch / wall)
+        wall, cpu = _timed(lambda: simulate_monitor(Xs, parallel=False))
+        serial_cpu.append(serial / cpu)
+        if c_lib is not None:
+            _, c_cpu = _timed(lambda: c_kernel.simulate_c(Xs, library=c_lib))
+            ratio.append(cpu / c_cpu)
+        single.extend(singles())
+        loads.append(os.getloadavg()[0])
+    say("one-candidate calls with both cores busy")
+    with busy_cores(os.cpu_count() or 2):
+        loaded = [v for _ in range(repeat) for v in singles()]
+        loads.append(os.getloadavg()[0])
+    say(f"plain-Python baseline ({naive_evals} evaluations, ~0.5 s each)")
+    nv = naive.naive_python_timing(naive_evals, seed)
+    evals_cpu = _median(serial_cpu)
+    t_ref, _ = _timed(lambda: simulate_reference(CASES["full"].x, seed=seed))
+    result: dict[str, object] = {
+        "monitor_evals_per_s": _median(batched),
+        "monitor_evals_per_cpu_s": evals_cpu,
+        "single_call_ms": _median(single),
+        "single_call_ms_loaded": _median(loaded),
+        "single_call_ms_loaded_p90": float(np.percentile(loaded, 90)),
+        "c_time_ratio": _median(ratio) if ratio else None,
+        "c_lane_time_ratio": None,   # no lane C kernel (see benchmarks/README.md)
+        "c_unavailable": c_reason,
+        "naive_python_evals_per_s": nv["evals_per_cpu_s"],
+        "speedup_vs_naive_python": evals_cpu / nv["evals_per_cpu_s"],
         "reference_episode_s": t_ref,
-        "naive_evals_per_s": 1.0 / t_naive,
-        "speedup_vs_naive": evals_per_s * t_naive,
-        "single_speedup_vs_naive": t_naive / t_single,
-        "monitor_vs_reference_cost_ratio": ref_per_sim_s / mon_cpu_per_sim_s,
-        "batch": batch,
-        "simulated_s_per_episode": simulated_s,
-        "numba_threads": threads,
-        "cpu_count": os.cpu_count(),
-        "machine": platform.machine(),
-        "python": platform.python_version(),
-        "numba": numba.__version__,
-        "nominal_check": bool(simulate_monitor(NOMINAL[None, :])[1][0]),
     }
+    if startup:
+        say("start-up figures (fresh processes, one cold compile)")
+        result.update(startup_figures())
+    if tts:
+        result.update(time_to_success(seeds=tts_seeds, budget=tts_budget, progress=say))
+    loads.append(os.getloadavg()[0])
+    result.update({
+        "load_avg": {"before": loads[0], "max": max(loads), "after": loads[-1]},
+        "rounds": repeat, "batch": batch, "serial_batch": serial,
+        "numba_threads": numba.get_num_threads(),
+        "threading_layer": _threading_layer(),
+        "cpu_count": os.cpu_count(), "machine": platform.machine(),
+        "processor": platform.processor() or platform.machine(),
+        "python": platform.python_version(), "numba": numba.__version__,
+        "numpy": np.__version__,
+    })
+    return result
+
+
+def _threading_layer() -> str | None:
+    try:
+        return numba.threading_layer()
+    except ValueError:   # no parallel kernel ran
+        return None

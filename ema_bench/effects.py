@@ -73,8 +73,13 @@ EFFECTS: tuple[Effect, ...] = (
            trivial=0.1, detect=1.0, signature="current step at each surface speed reversal"),
 )
 EFFECT_NAMES: tuple[str, ...] = tuple(e.name for e in EFFECTS)
-(E_ECC, E_OFFSET, E_VISC, E_AERO, E_DELAY, E_IGAIN, E_RRISE, E_COG, E_VSAG,
- E_GEAR, E_QDAMP, E_HFRIC) = range(len(EFFECTS))
+EFFECT_INDEX: dict[str, int] = {n: i for i, n in enumerate(EFFECT_NAMES)}
+# positions in an effects vector, by name (numba folds the module-level ints as constants)
+(E_ECC, E_OFFSET, E_VISC, E_AERO, E_DELAY, E_IGAIN, E_RRISE, E_COG, E_VSAG, E_GEAR, E_QDAMP,
+ E_HFRIC) = (EFFECT_INDEX[n] for n in (
+    "eccentricity", "sensor_offset", "viscous_friction", "aero_spring", "delay", "current_gain",
+    "resistance_rise", "cogging", "voltage_sag", "gear_stiffness", "quadratic_damping",
+    "hinge_friction"))
 LIBRARY: tuple[str, ...] = tuple(e.name for e in EFFECTS if e.library)
 DECOYS: tuple[str, ...] = tuple(e.name for e in EFFECTS if not e.library)
 N_EFFECTS = len(EFFECTS)

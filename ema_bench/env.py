@@ -1,9 +1,9 @@
 """Gymnasium interface to the identification problem: ``EMAFault/Identify-v0``.
 
-Importing :mod:`ema_bench` registers the environment::
+Importing this module registers the environment::
 
     import gymnasium as gym
-    import ema_bench  # noqa: F401  (registers the id)
+    import ema_bench.env  # noqa: F401  (registers the id)
 
     env = gym.make("EMAFault/Identify-v0", case="small", track="reference", budget=500)
     obs, info = env.reset(seed=0)          # obs: the measured traces, stacked

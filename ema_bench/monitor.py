@@ -1,99 +1,109 @@
 """The monitor model: the cheap EMA model that solvers evaluate thousands of times.
 
-Same logical structure and fault parameters as the reference model, but the three-phase motor
-and its hysteresis current loop are replaced by the single-phase equivalent of the conducting
-pair (:func:`ema_bench.physics.bldc.pair_constants`) with an ideal current loop whose rise is
-limited by the available voltage, ``L dI/dt <= V_dc - Kt w - R I``.  The controller, mechanics,
-backlash, friction and load are the very same compiled functions as in the reference.  One call
-simulates a batch of candidate fault vectors in parallel (numba ``prange``).
+Same logical structure and fault parameters as the reference model, with the three-phase motor
+and its hysteresis current loop replaced by the averaged drive of the conducting pair
+(:mod:`ema_bench.physics.averaged_drive`) and one 50 microsecond step per controller sample.
+The controller, the mechanics (backlash, friction, load) and the window outputs are the very
+same compiled code as in the reference (:mod:`ema_bench.physics.integrator`,
+:mod:`ema_bench.physics.mechanics`).  One call simulates a batch of candidates, all tests, in
+parallel over candidates (numba ``prange``); batches smaller than twice the thread count run on
+the calling thread, where waking the worker threads would cost more than it saves.
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 
+import numba
 import numpy as np
 from numba import njit, prange
 
-from .effects import (
-    E_ECC,
-    E_VISC,
-    MAX_DELAY_SAMPLES,
-    N_EFFECTS,
-)
+from .effects import N_EFFECTS
 from .faults import check_faults, faults_to_dict
-from .params import DEFAULT_PARAMS, P_HYST, P_IRIP, P_KTF, EMAParams
-from .physics.ace import ace_update, delayed_feedback
-from .physics.bldc import pair_constants
-from .physics.effect_terms import cogging_torque, effect_terms
-from .physics.load import hinge_moment
-from .physics.mechanics import mech_step
+from .params import DEFAULT_PARAMS, P_PP, EMAParams
+from .physics.averaged_drive import drive_consts, drive_step, sector_index
+from .physics.effect_terms import cogging_torque, plant_terms
+from .physics.integrator import integrate
+from .physics.load import hinge_extra
+from .physics.mechanics import mech_consts, mech_step
 from .protocol import STANDARD_TESTS, TestSpec, steps_per
 from .reference import SimulationError
+from .threads import configure_threads
 from .traces import OUTPUT_DT, Traces
 
-
-@njit(cache=True)
-def monitor_one(p, x, e, cmd, n_out, steps_out, steps_ctrl, dt, out):
-    """Integrate one candidate on one test; window means into ``out`` (n_out, 4).
-
-    Returns False if the state became non-finite."""
-    na, fst, blk, gprop = x[0], x[1], x[2], x[3]
-    offset, gain, v_dc, r_scale, ks_scale, n_delay = effect_terms(e, p)
-    ripple = p[P_IRIP] * p[P_HYST]
-    buf = np.zeros(MAX_DELAY_SAMPLES + 1)
-    th_m = w_m = th_u = w_u = 0.0
-    cur = 0.0
-    i_ref = integ = 0.0
-    k_ctrl = 0
-    countdown = 0
-    for k in range(n_out):
-        a0 = a1 = a2 = a3 = 0.0
-        for _ in range(steps_out):
-            if countdown == 0:
-                fb = delayed_feedback(buf, k_ctrl, th_u + offset, n_delay)
-                i_ref, integ = ace_update(cmd[k_ctrl], fb, w_m, integ, gprop, p)
-                k_ctrl += 1
-                countdown = steps_ctrl
-            countdown -= 1
-            kt, r_pair, l_pair = pair_constants(th_m, na, e[E_ECC], p)
-            r_pair *= r_scale
-            # ideal current loop, limited by the bus voltage
-            target = i_ref
-            hi = cur + dt * (v_dc - kt * w_m - r_pair * cur) / l_pair
-            lo = cur + dt * (-v_dc - kt * w_m - r_pair * cur) / l_pair
-            cur_old = cur
-            cur = min(max(target, lo), hi)
-            t_m = p[P_KTF] * kt * cur
-            t_m += cogging_torque(e, th_m, p)
-            t_load = hinge_moment(th_u, w_u, p, e)
-            th_m, w_m, th_u, w_u, _ = mech_step(th_m, w_m, th_u, w_u, t_m, t_load, fst, blk,
-                                                e[E_VISC], ks_scale, p, dt)
-            a0 += th_u
-            a1 += th_m
-            a2 += w_m
-            # exact step mean of the current: it ramps at the voltage-limited slope until it
-            # reaches its target, then holds (a rise to 20 A takes ~1.5 steps, so end-of-step
-            # samples would bias the window mean)
-            delta = cur - cur_old
-            span = (hi if delta > 0.0 else lo) - cur_old
-            frac = delta / span if span != 0.0 else 1.0
-            a3 += abs(cur - 0.5 * delta * frac)
-        out[k, 0] = a0 / steps_out + offset
-        out[k, 1] = a1 / steps_out
-        out[k, 2] = a2 / steps_out
-        out[k, 3] = gain * a3 / steps_out + ripple
-        if not (math.isfinite(a0) and math.isfinite(a2) and math.isfinite(a3)):
-            return False
-    return True
+configure_threads()
 
 
-@njit(parallel=True, cache=True)
-def monitor_batch(p, X, E, cmd, n_out, steps_out, steps_ctrl, dt, out, ok):
-    """Candidates ``X`` (n, 4) with effects ``E`` (n, N_EFFECTS) on one test, in parallel."""
+# --- the monitor plant --------------------------------------------------------------------
+@njit(cache=True, error_model="numpy")
+def monitor_consts(p, x, e, dt):
+    """Per-candidate constants of the monitor plant (drive, mechanics, effects)."""
+    zeta, v_dc, r_scale, ks_scale, c_visc, k_aero, cog, quad, hfric = plant_terms(e, p)
+    dc = drive_consts(p, x[0], zeta, r_scale, v_dc, dt)
+    mc = mech_consts(p, x[1], x[2], c_visc, k_aero, ks_scale, dt)
+    return dc, mc, cog, p[P_PP], quad, hfric
+
+
+@njit(cache=True, error_model="numpy")
+def monitor_init(pc):
+    """Drive state at rest: no current, the sector of angle 0, no commutation in progress."""
+    return 0.0, sector_index(0.0, pc[3]), -1.0, 0.0, 0.0, 0.0, 0.0
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def monitor_step(th_m, w_m, th_u, w_u, ps, i_ref, pc):
+    """One 50 microsecond step of the monitor plant (see :mod:`ema_bench.physics.integrator`)."""
+    dc, mc, cog, pp, quad, hfric = pc
+    cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr = ps
+    (cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr, t_mean, t_start, t_end, t_rip,
+     i_eq) = drive_step(cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr, i_ref, th_m, w_m, dc)
+    t_cog = cogging_torque(cog, th_m + 0.5 * dc.h * w_m, pp)
+    th_m, w_m, th_u, w_u, m_thm, m_wm, m_thu = mech_step(
+        th_m, w_m, th_u, w_u, t_mean + t_cog, t_start + t_cog, t_end + t_cog, t_rip,
+        hinge_extra(w_u, quad, hfric), mc)
+    return (th_m, w_m, th_u, w_u, (cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr), m_thu, m_thm,
+            m_wm, i_eq)
+
+
+# --- batched kernels ----------------------------------------------------------------------
+@njit(cache=True, error_model="numpy")
+def _candidate(p, x, e, cmd, cmd_start, n_out, out_start, ticks_out, steps_tick, dt, out):
+    """Every test of one candidate; ``out`` is its (total_samples, 4) block."""
+    ok = True
+    for t in range(n_out.shape[0]):
+        ok &= integrate(monitor_consts, monitor_init, monitor_step, p, x, e,
+                        cmd[cmd_start[t]:cmd_start[t + 1]], n_out[t], ticks_out, steps_tick,
+                        dt, out[out_start[t]:out_start[t] + n_out[t]])
+    return ok
+
+
+@njit(parallel=True, cache=True, error_model="numpy")
+def monitor_batch_parallel(p, X, E, cmd, cmd_start, n_out, out_start, ticks_out, steps_tick,
+                           dt, out, ok):
+    """Candidates ``X`` (n, 4) with effects ``E`` (n, N_EFFECTS), in parallel."""
     for c in prange(X.shape[0]):
-        ok[c] = monitor_one(p, X[c], E[c], cmd, n_out, steps_out, steps_ctrl, dt, out[c])
+        ok[c] = _candidate(p, X[c], E[c], cmd, cmd_start, n_out, out_start, ticks_out,
+                           steps_tick, dt, out[c])
+
+
+@njit(cache=True, error_model="numpy")
+def monitor_batch_serial(p, X, E, cmd, cmd_start, n_out, out_start, ticks_out, steps_tick,
+                         dt, out, ok):
+    """As :func:`monitor_batch_parallel`, on the calling thread."""
+    for c in range(X.shape[0]):
+        ok[c] = _candidate(p, X[c], E[c], cmd, cmd_start, n_out, out_start, ticks_out,
+                           steps_tick, dt, out[c])
+
+
+def test_layout(tests: Sequence[TestSpec], dt_ctrl: float) -> tuple[np.ndarray, ...]:
+    """Commands of ``tests`` concatenated, with where each test's command and outputs start.
+
+    Returns ``(cmd, cmd_start, n_out, out_start)``."""
+    cmds = [spec.command_at_samples(dt_ctrl) for spec in tests]
+    n_out = np.array([spec.n_samples() for spec in tests], dtype=np.int64)
+    cmd_start = np.concatenate([[0], np.cumsum([c.size for c in cmds])]).astype(np.int64)
+    out_start = np.concatenate([[0], np.cumsum(n_out)[:-1]]).astype(np.int64)
+    return np.concatenate(cmds), cmd_start, n_out, out_start
 
 
 def simulate_monitor(
@@ -104,6 +114,7 @@ def simulate_monitor(
     params: EMAParams = DEFAULT_PARAMS,
     dt: float | None = None,
     check: bool = True,
+    parallel: bool | None = None,
 ) -> tuple[dict[str, np.ndarray], np.ndarray]:
     """Simulate a batch of candidate fault vectors with the monitor model.
 
@@ -113,15 +124,23 @@ def simulate_monitor(
         Candidate fault vectors in physical units (``FAULT_NAMES`` order).
     E : ndarray, shape (n, N_EFFECTS) or (N_EFFECTS,), optional
         Effects per candidate (augmented monitor); zeros by default.
+    tests : sequence of TestSpec
+        Protocol tests to run (each candidate runs them all).
+    params : EMAParams
+        Physical parameters.
     dt : float, optional
         Step (s); default ``params.dt_mon``.  Must divide the controller period.
     check : bool
         Validate ``X`` (shape, finite, in bounds).  Callers that already did may skip it.
+    parallel : bool, optional
+        Run candidates on numba's threads; default: when the batch has at least twice as
+        many candidates as threads.
 
     Returns
     -------
     outputs : dict
-        Test name -> array (n, n_samples, 4) of clean window-averaged outputs.
+        Test name -> array (n, n_samples, 4) of clean window-averaged outputs (views into one
+        block).
     ok : ndarray of bool, shape (n,)
         False where a candidate's simulation became non-finite on any test.
     """
@@ -129,21 +148,21 @@ def simulate_monitor(
     n = X.shape[0]
     if E is None:
         E = np.zeros((n, N_EFFECTS))
-    E = np.ascontiguousarray(np.broadcast_to(np.asarray(E, dtype=np.float64), (n, N_EFFECTS)))
-    p = params.to_array()
+    # a writeable copy: one compiled signature (a read-only broadcast view would be another)
+    E = np.array(np.broadcast_to(np.asarray(E, dtype=np.float64), (n, N_EFFECTS)), order="C")
     dt = params.dt_mon if dt is None else float(dt)
-    steps_out = steps_per(OUTPUT_DT, dt)
-    steps_ctrl = steps_per(params.dt_ctrl, dt)
-    outputs = {}
-    ok_all = np.ones(n, dtype=np.bool_)
-    for spec in tests:
-        out = np.empty((n, spec.n_samples(), 4))
-        ok = np.empty(n, dtype=np.bool_)
-        cmd = spec.command_at_samples(params.dt_ctrl)
-        monitor_batch(p, X, E, cmd, out.shape[1], steps_out, steps_ctrl, dt, out, ok)
-        ok_all &= ok
-        outputs[spec.name] = out
-    return outputs, ok_all
+    ticks_out = steps_per(OUTPUT_DT, params.dt_ctrl)
+    steps_tick = steps_per(params.dt_ctrl, dt)
+    cmd, cmd_start, n_out, out_start = test_layout(tests, params.dt_ctrl)
+    out = np.empty((n, int(n_out.sum()), 4))
+    ok = np.empty(n, dtype=np.bool_)
+    if parallel is None:
+        parallel = n >= 2 * numba.get_num_threads()
+    kernel = monitor_batch_parallel if parallel else monitor_batch_serial
+    kernel(params.to_array(), X, E, cmd, cmd_start, n_out, out_start, ticks_out, steps_tick, dt,
+           out, ok)
+    outputs = {spec.name: out[:, s:s + k] for spec, s, k in zip(tests, out_start, n_out)}
+    return outputs, ok
 
 
 def monitor_traces(x: np.ndarray, effects: np.ndarray | None = None, *,
@@ -155,5 +174,5 @@ def monitor_traces(x: np.ndarray, effects: np.ndarray | None = None, *,
                                    tests=tests, params=params)
     if not ok[0]:
         raise SimulationError(f"monitor model diverged at faults {faults_to_dict(x)}")
-    return Traces(data={k: v[0] for k, v in outputs.items()}, dt=OUTPUT_DT,
-                  meta={"model": "monitor", "faults": faults_to_dict(x)})
+    return Traces(data={k: np.ascontiguousarray(v[0]) for k, v in outputs.items()},
+                  dt=OUTPUT_DT, meta={"model": "monitor", "faults": faults_to_dict(x)})

@@ -5,8 +5,9 @@ one-line source or reason.  The values follow the validated starting point of DE
 section 8 (a flight-control EMA of the Dalla Vedova / Borello family: 270 V HVDC bus, BLDC motor
 with trapezoidal back-EMF, 300:1 reducer, aileron-class surface inertia).
 
-The compiled kernels take the parameters as one flat ``float64`` array; the positions of the
-entries are the module-level ``P_*`` integers below (numba folds them as constants).
+The compiled kernels take the parameters as one flat ``float64`` array; the position of each
+entry is looked up by name (``PARAM_INDEX``) into the module-level ``P_*`` integers below, which
+numba folds as constants.  Adding a parameter is adding a field: nothing depends on its place.
 """
 
 from __future__ import annotations
@@ -31,7 +32,8 @@ class EMAParams:
     L: float = _p(0.5e-3, "H", "phase inductance; 2 mH made commutation eat the 60 deg sector")
     Ke: float = _p(0.05, "V s/rad", "phase back-EMF peak per motor rad/s; 2 Ke = 0.1 N m/A")
     pole_pairs: float = _p(2.0, "-", "4-pole rotor, typical of small servo BLDCs")
-    hyst_band: float = _p(0.5, "A", "current hysteresis band; above the 1 us per-step overshoot")
+    hyst_band: float = _p(0.5, "A", "current hysteresis band (analog comparators: the reference "
+                          "switches at the located crossing instant)")
     # --- mechanics (2-DOF: motor rotor + surface, joined by the reducer) ---
     J_m: float = _p(5e-5, "kg m^2", "motor rotor inertia")
     J_u: float = _p(1.0, "kg m^2", "surface (aileron-class) inertia about the hinge")
@@ -56,12 +58,10 @@ class EMAParams:
     # --- integration steps ---
     dt_ref: float = _p(1e-6, "s", "reference step; converged (halving changes outputs <<1 %)")
     dt_mon: float = _p(5e-5, "s", "monitor step = controller period")
-    # --- monitor calibration ---
-    ieq_ripple: float = _p(0.0, "-", "I_eq excess over |I| in the monitor, x hyst_band; "
-                           "measured 0.017 (0.008 A) on the 4 cases, so 0 (DESIGN said 0.4)")
-
-    kt_factor: float = _p(0.99713, "-", "monitor torque/ideal pair torque: commutation dip of "
-                          "the 3-phase drive, fitted on the healthy case (ema_bench.calibrate)")
+    # --- monitor drive ---
+    kt_factor: float = _p(1.0, "-", "monitor torque / modelled pair torque; calibrated on the "
+                          "healthy actuator it fits to 1.0000 (python -m ema_bench.calibrate): the "
+                          "commutation transfer is modelled, nothing is left to calibrate")
 
     def to_array(self) -> np.ndarray:
         """Flat ``float64`` array in ``P_*`` order, as the compiled kernels take it."""
@@ -82,9 +82,16 @@ class EMAParams:
 
 
 PARAM_NAMES: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(EMAParams))
-(P_VDC, P_R, P_L, P_KE, P_PP, P_HYST, P_JM, P_JU, P_TAU, P_KS, P_CS, P_CM, P_CU, P_KAERO,
- P_THSTOP, P_KSTOP, P_CSTOP, P_FDYN, P_WSTICK, P_KGP, P_WMAX, P_KPV, P_KIV, P_TMAX, P_DTC,
- P_DTREF, P_DTMON, P_IRIP, P_KTF) = range(len(PARAM_NAMES))
-N_PARAMS = len(PARAM_NAMES)
+PARAM_INDEX: dict[str, int] = {n: i for i, n in enumerate(PARAM_NAMES)}
+# positions in the kernels' flat array, by name
+P_VDC, P_R, P_L, P_KE, P_PP, P_HYST = (PARAM_INDEX[n] for n in (
+    "V_dc", "R", "L", "Ke", "pole_pairs", "hyst_band"))
+P_JM, P_JU, P_TAU, P_KS, P_CS, P_CM, P_CU, P_KAERO = (PARAM_INDEX[n] for n in (
+    "J_m", "J_u", "tau", "K_s", "C_s", "C_m", "C_u", "K_aero"))
+P_THSTOP, P_KSTOP, P_CSTOP, P_FDYN, P_WSTICK = (PARAM_INDEX[n] for n in (
+    "theta_stop", "K_stop", "C_stop", "friction_dyn_ratio", "stick_speed"))
+P_KGP, P_WMAX, P_KPV, P_KIV, P_TMAX, P_DTC = (PARAM_INDEX[n] for n in (
+    "K_GP", "w_max", "Kpv", "Kiv", "T_max", "dt_ctrl"))
+P_KTF = PARAM_INDEX["kt_factor"]
 
 DEFAULT_PARAMS = EMAParams()

@@ -30,10 +30,12 @@ from .faults import (
     random_faults,
 )
 from .monitor import simulate_monitor
+from .params import DEFAULT_PARAMS
 from .physics.sensors import SENSORS, measure
 from .protocol import HOLDOUT_TESTS, STANDARD_TESTS, TestSpec
 from .reference import SimulationError, simulate_reference
 from .seeding import SeedLike, as_seed_sequence, children
+from .trace_cache import cache_key, cached_traces, expected_shapes
 from .traces import OUTPUT_DT, SIGNALS, Traces
 
 log = logging.getLogger(__name__)
@@ -111,8 +113,13 @@ def fitness_from_outputs(outputs: Mapping[str, np.ndarray], measured: Traces,
 @functools.lru_cache(maxsize=32)
 def _reference_traces(x: tuple, e: tuple, seed_entropy: int, spawn_key: tuple,
                       tests: tuple[TestSpec, ...]) -> Traces:
+    """Measured reference traces, cached in memory and on disk (:mod:`~ema_bench.trace_cache`)."""
     ss = np.random.SeedSequence(seed_entropy, spawn_key=spawn_key)
-    return simulate_reference(np.array(x), np.array(e), seed=ss, tests=tests)
+    key = cache_key(x=x, e=e, entropy=seed_entropy, spawn_key=spawn_key,
+                    tests=[repr(t) for t in tests],
+                    params=DEFAULT_PARAMS.to_array().tolist())
+    return cached_traces(lambda: simulate_reference(np.array(x), np.array(e), seed=ss,
+                                                    tests=tests), key, expected_shapes(tests))
 
 
 def _twin_traces(x: np.ndarray, e: np.ndarray, seed: np.random.SeedSequence,
@@ -406,6 +413,19 @@ class Problem:
         err = range_error(self._X[:self._count, :4], self.__truth)
         hits = np.flatnonzero(np.all(err <= SUCCESS_RANGE_ERROR, axis=1))
         return int(hits[0]) + 1 if hits.size else None
+
+    def first_success_wall_s(self) -> float | None:
+        """Wall seconds from building the problem to its first successful evaluation, or None
+        (scorer-only, like :meth:`first_success`)."""
+        first = self.first_success()
+        return None if first is None else float(self._t[first - 1])
+
+    def first_success_clock(self) -> float | None:
+        """``time.perf_counter()`` reading at the first successful evaluation, or None.  On
+        Linux that clock is system-wide, so another process can subtract its own launch time
+        (``ema-bench bench`` does, for the cold time to success)."""
+        wall = self.first_success_wall_s()
+        return None if wall is None else self._t0 + wall
 
     def fitness_at_truth(self) -> float:
         """Fitness of the true vector (not counted; for reports of the model-form bias)."""

@@ -1,79 +1,71 @@
 """The reference model: the detailed EMA that plays the real actuator.
 
-Three-phase BLDC with hysteresis current control at a 1 microsecond step, sampled controller,
-2-DOF mechanics with backlash and friction, sensors.  It runs once per episode to make the
+Three-phase BLDC with analog hysteresis current control (switching located inside the step) at
+a 1 microsecond step, the sampled controller, 2-DOF mechanics with backlash and friction, and
+sensors.  The controller, the mechanics and the window outputs are the same compiled code as in
+the monitor (:mod:`ema_bench.physics.integrator`).  It runs once per episode to make the
 "measured" traces.
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
 
 import numpy as np
 from numba import njit
 
-from .effects import (
-    E_ECC,
-    E_VISC,
-    MAX_DELAY_SAMPLES,
-    N_EFFECTS,
-    effects_to_dict,
-    effects_vector,
-)
+from .effects import N_EFFECTS, effects_to_dict, effects_vector
 from .faults import check_faults, faults_to_dict
-from .params import DEFAULT_PARAMS, EMAParams
-from .physics.ace import ace_update, delayed_feedback
-from .physics.bldc import bldc_step
-from .physics.effect_terms import cogging_torque, effect_terms
-from .physics.load import hinge_moment
-from .physics.mechanics import mech_step
+from .params import DEFAULT_PARAMS, P_PP, EMAParams
+from .physics.bldc import bldc_consts, bldc_step
+from .physics.effect_terms import cogging_torque, plant_terms
+from .physics.integrator import integrate
+from .physics.load import hinge_extra
+from .physics.mechanics import mech_consts, mech_step
 from .physics.sensors import measure
 from .protocol import STANDARD_TESTS, TestSpec, steps_per
 from .seeding import SeedLike, children, seed_repr
 from .traces import OUTPUT_DT, Traces
 
 
-@njit(cache=True)
-def reference_kernel(p, x, e, cmd, n_out, steps_out, steps_ctrl, dt, out):
-    """Integrate one test; write window means of the 4 outputs into ``out`` (n_out, 4).
+# --- the reference plant ------------------------------------------------------------------
+@njit(cache=True, error_model="numpy")
+def reference_consts(p, x, e, dt):
+    """Per-candidate constants of the reference plant (three-phase drive, mechanics, effects)."""
+    zeta, v_dc, r_scale, ks_scale, c_visc, k_aero, cog, quad, hfric = plant_terms(e, p)
+    bc = bldc_consts(p, x[0], zeta, r_scale, v_dc)
+    mc = mech_consts(p, x[1], x[2], c_visc, k_aero, ks_scale, dt)
+    return bc, mc, cog, p[P_PP], quad, hfric, dt
 
-    Returns False if the state became non-finite (the caller scores that as a failure)."""
-    na, fst, blk, gprop = x[0], x[1], x[2], x[3]
-    offset, gain, v_dc, r_scale, ks_scale, n_delay = effect_terms(e, p)
-    buf = np.zeros(MAX_DELAY_SAMPLES + 1)
-    th_m = w_m = th_u = w_u = 0.0
-    ia = ib = ic = 0.0
-    sa = sb = sc = 0
-    i_ref = integ = 0.0
-    k_ctrl = 0
-    countdown = 0
-    for k in range(n_out):
-        a0 = a1 = a2 = a3 = 0.0
-        for _ in range(steps_out):
-            if countdown == 0:
-                fb = delayed_feedback(buf, k_ctrl, th_u + offset, n_delay)
-                i_ref, integ = ace_update(cmd[k_ctrl], fb, w_m, integ, gprop, p)
-                k_ctrl += 1
-                countdown = steps_ctrl
-            countdown -= 1
-            ia, ib, ic, sa, sb, sc, t_m = bldc_step(ia, ib, ic, sa, sb, sc, i_ref, th_m, w_m,
-                                                    na, e[E_ECC], r_scale, v_dc, p, dt)
-            t_m += cogging_torque(e, th_m, p)
-            t_load = hinge_moment(th_u, w_u, p, e)
-            th_m, w_m, th_u, w_u, _ = mech_step(th_m, w_m, th_u, w_u, t_m, t_load, fst, blk,
-                                                e[E_VISC], ks_scale, p, dt)
-            a0 += th_u
-            a1 += th_m
-            a2 += w_m
-            a3 += abs(ia) + abs(ib) + abs(ic)
-        out[k, 0] = a0 / steps_out + offset
-        out[k, 1] = a1 / steps_out
-        out[k, 2] = a2 / steps_out
-        out[k, 3] = gain * 0.5 * a3 / steps_out
-        if not (math.isfinite(a0) and math.isfinite(a2) and math.isfinite(a3)):
-            return False
-    return True
+
+@njit(cache=True, error_model="numpy")
+def reference_init(pc):
+    """Drive state at rest: no phase current, every leg off."""
+    return 0.0, 0.0, 0.0, 0, 0, 0
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def reference_step(th_m, w_m, th_u, w_u, ps, i_ref, pc):
+    """One 1 microsecond step of the reference plant (see
+    :mod:`ema_bench.physics.integrator`)."""
+    bc, mc, cog, pp, quad, hfric, dt = pc
+    ia, ib, ic, sa, sb, sc = ps
+    ia, ib, ic, sa, sb, sc, t_mean, t_start, t_end, i_eq = bldc_step(ia, ib, ic, sa, sb, sc,
+                                                                     i_ref, th_m, w_m, bc, dt)
+    t_cog = cogging_torque(cog, th_m + 0.5 * dt * w_m, pp)
+    th_m, w_m, th_u, w_u, m_thm, m_wm, m_thu = mech_step(
+        th_m, w_m, th_u, w_u, t_mean + t_cog, t_start + t_cog, t_end + t_cog, 0.0,
+        hinge_extra(w_u, quad, hfric), mc)
+    return th_m, w_m, th_u, w_u, (ia, ib, ic, sa, sb, sc), m_thu, m_thm, m_wm, i_eq
+
+
+@njit(cache=True, error_model="numpy")
+def reference_kernel(p, x, e, cmd, n_out, ticks_out, steps_tick, dt, out):
+    """Integrate one test; window means of the 4 outputs into ``out`` (n_out, 4).
+
+    Returns False if the state became non-finite."""
+    return integrate(reference_consts, reference_init, reference_step, p, x, e, cmd, n_out,
+                     ticks_out, steps_tick, dt, out)
 
 
 class SimulationError(RuntimeError):
@@ -120,14 +112,14 @@ def simulate_reference(
         raise ValueError("sensor noise needs a seed (pass seed=..., or noise=False)")
     p = params.to_array()
     dt = params.dt_ref if dt is None else float(dt)
-    steps_out = steps_per(OUTPUT_DT, dt)
-    steps_ctrl = steps_per(params.dt_ctrl, dt)
+    ticks_out = steps_per(OUTPUT_DT, params.dt_ctrl)
+    steps_tick = steps_per(params.dt_ctrl, dt)
     kids = children(seed, len(tests)) if noise else [None] * len(tests)
     data = {}
     for spec, kid in zip(tests, kids):
         out = np.empty((spec.n_samples(), 4))
         cmd = spec.command_at_samples(params.dt_ctrl)
-        ok = reference_kernel(p, x, e, cmd, out.shape[0], steps_out, steps_ctrl, dt, out)
+        ok = reference_kernel(p, x, e, cmd, out.shape[0], ticks_out, steps_tick, dt, out)
         if not ok:
             raise SimulationError(f"reference model diverged on test {spec.name!r} at "
                                   f"faults {faults_to_dict(x)}")

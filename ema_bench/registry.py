@@ -96,6 +96,17 @@ def load_plugins() -> None:
                           RuntimeWarning, stacklevel=2)
 
 
+def _load_named(name: str) -> None:
+    """Import only the plugin module(s) whose entry point is ``name``: running one solver
+    must not pay for importing every library of the zoo (about 1 s)."""
+    for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP, name=name):
+        try:
+            ep.load()
+        except Exception as exc:
+            raise SolverError(f"solver plugin {name!r} ({ep.value}) failed to load: "
+                              f"{exc}") from exc
+
+
 def available_solvers() -> dict[str, SolverInfo]:
     """Every registered solver, by name (sorted)."""
     load_plugins()
@@ -103,6 +114,12 @@ def available_solvers() -> dict[str, SolverInfo]:
 
 
 def get_solver(name: str) -> SolverInfo:
+    """The solver registered as ``name``, importing its plugin module only (all of them when
+    the name is unknown, for the error message)."""
+    if name not in _REGISTRY:
+        _load_named(name)
+    if name in _REGISTRY:
+        return _REGISTRY[name]
     solvers = available_solvers()
     if name not in solvers:
         raise SolverError(f"unknown solver {name!r}; registered: {list(solvers)}")

@@ -16,7 +16,6 @@ import warnings
 from collections.abc import Iterator
 
 import numpy as np
-from scipy.stats import qmc
 
 from ema_bench.problem import Problem
 from ema_bench.seeding import child as _seed_child
@@ -65,6 +64,38 @@ def evaluate_unit(problem: Problem, U: np.ndarray) -> np.ndarray:
     return np.asarray(problem.evaluate(problem.from_unit(U)), dtype=float)
 
 
+def import_cma():
+    """``import cma`` without pycma's optional extras.
+
+    pycma imports ``matplotlib.pyplot`` (for its plots) and ``scipy.stats`` (for its surrogate
+    models) at import time, both inside ``try`` blocks with fallbacks: 1-1.5 s of its 2 s import,
+    for nothing the CMA-ES core uses.  While cma is imported the two modules read as absent
+    (holding the import lock, so no other thread's import sees that), then they are importable
+    again as usual.  A no-op once cma is imported; modules already imported are left alone.
+    """
+    import importlib
+    import sys
+
+    if "cma" in sys.modules:
+        return sys.modules["cma"]
+    import _imp
+
+    _imp.acquire_lock()
+    blocked = [m for m in ("matplotlib", "matplotlib.pyplot", "scipy.stats")
+               if m not in sys.modules]
+    try:
+        for m in blocked:
+            sys.modules[m] = None   # type: ignore[assignment]  # import raises ImportError
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")   # "could not import matplotlib.pyplot"
+            return importlib.import_module("cma")
+    finally:
+        for m in blocked:
+            if sys.modules.get(m, 0) is None:
+                del sys.modules[m]
+        _imp.release_lock()
+
+
 def scalar_objective(problem: Problem):
     """``f(u) -> float`` for one-at-a-time methods; raises :class:`StopSolver` instead of
     evaluating once the budget is spent."""
@@ -77,6 +108,8 @@ def scalar_objective(problem: Problem):
 
 def lhs(seed: np.random.SeedSequence, n: int, dim: int) -> np.ndarray:
     """``n`` Latin-hypercube points in ``[0, 1]^dim``, seeded."""
+    from scipy.stats import qmc  # here, not at import: scipy.stats costs 0.5-1 s
+
     return qmc.LatinHypercube(d=dim, rng=np.random.default_rng(seed)).random(n)
 
 

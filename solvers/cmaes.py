@@ -21,7 +21,15 @@ import numpy as np
 
 from ema_bench.registry import SolveResult, finish, register_solver
 
-from ._common import children, evaluate_unit, global_numpy_rng, int_seed, quiet, start_unit
+from ._common import (
+    children,
+    evaluate_unit,
+    global_numpy_rng,
+    import_cma,
+    int_seed,
+    quiet,
+    start_unit,
+)
 
 SIGMA0 = 0.3
 POPSIZE = None  # None: pycma's default, 4 + floor(3 ln n) = 8 for n = 4
@@ -32,7 +40,7 @@ MAX_RESTARTS = 9
 @register_solver("cmaes", description="CMA-ES (pycma) from nominal, sigma0 0.3, IPOP restarts",
                  library="cma")
 def solve(problem, budget: int, seed: np.random.SeedSequence) -> SolveResult:
-    import cma
+    cma = import_cma()
 
     t0 = time.perf_counter()
     s_x0, *s_runs = children(seed, MAX_RESTARTS + 2)

@@ -168,19 +168,42 @@ def test_quick_check_passes_on_the_leaderboard_in_the_repository(tmp_path):
 
 def test_check_baseline_prefers_the_same_budget_and_re_scores_larger_ones():
     from ema_bench.leaderboard.check import baseline
+    from ema_bench.trace_cache import MODEL_VERSION
 
-    def rec(solver, budget, seed, first):
+    def rec(solver, budget, seed, first, version=MODEL_VERSION):
         return {"solver": solver, "case": "small", "track": "twin", "seed": seed,
-                "budget": budget, "success": first is not None, "evals_to_success": first}
+                "budget": budget, "success": first is not None, "evals_to_success": first,
+                "model_version": version}
 
     records = [rec("a", 400, 0, None), rec("a", 5000, 0, 100),   # same budget wins
                rec("b", 5000, 0, 300), rec("b", 5000, 1, 900),   # re-scored at 400
                rec("b", 10000, 0, 50), rec("c", 100, 0, 10),     # 5000 < 10000; 100 < 400
-               rec("a", 400, 5, 10)]                             # seed beyond the check
+               rec("a", 400, 5, 10),                             # seed beyond the check
+               rec("c", 400, 0, 10, version="1")]                # another model: stale
     base, used = baseline(records, 400, 2)
     got = {(r["solver"], r["seed"]): (r["budget"], r["success"]) for r in base}
     assert got == {("a", 0): (400, False), ("b", 0): (400, True), ("b", 1): (400, False)}
-    assert used == {"same_budget": 1, "re_scored": 2}
+    assert used == {"same_budget": 1, "re_scored": 2, "other_model_version": 1}
+    # records from before model versions existed are version 1: stale too
+    legacy = {k: v for k, v in rec("d", 400, 0, 5).items() if k != "model_version"}
+    assert baseline([legacy], 400, 2) == ([], {"same_budget": 0, "re_scored": 0,
+                                               "other_model_version": 1})
+
+
+def test_check_refuses_a_baseline_of_another_model_version(tmp_path):
+    from ema_bench.trace_cache import MODEL_VERSION
+
+    committed = Path(__file__).resolve().parents[1] / "leaderboards" / "quick" / "runs.jsonl"
+    old = tmp_path / "old"
+    old.mkdir()
+    with open(old / "runs.jsonl", "w") as fh:
+        for r in read_records(committed):
+            fh.write(json.dumps({**r, "model_version": MODEL_VERSION + "-old"}) + "\n")
+    res = run(["--quick", "--solvers", "random", "--cases", "small", "--tracks", "twin",
+               "--executor", "serial", "--no-plots", "--check", str(old),
+               "--out", str(tmp_path / "q")])
+    assert res.returncode == 2
+    assert "another model version" in res.stderr and "stale" in res.stderr
 
 
 def test_bad_arguments_exit_2(tmp_path):

@@ -1,43 +1,75 @@
 """``ema-bench bench``: model speed on this machine, measured side by side in one run.
 
-Figures: monitor evaluations per second (both tests, 8 outputs) for a batch and one at a time,
-reference-model wall time per episode, the naive ``solve_ivp`` baseline and the ratios.
+Interleaved rounds, medians, CPU time beside wall time and the load average seen:
+monitor evaluations per second batched on all threads and per CPU second on one thread; the
+cost of a one-candidate call (idle, and with every core kept busy by other processes); the
+numba/C time ratio (needs a C compiler and a source checkout: benchmarks/c/monitor.c); the
+plain-Python baseline (the same equations, JIT off); import, cache-load and cold-compile times;
+the median time to a successful identification for cmaes and powell on the four paper cases,
+in this process and from a cold command line.  See ``ema_bench.bench`` for every key.
+
+It takes a few minutes; --quick skips the start-up and time-to-success figures.
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("bench", help="measure model speed (monitor, reference, naive baseline)",
+    p = sub.add_parser("bench", help="measure model speed and time to a solution",
                        description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--batch", type=int, default=256, help="candidates per batch (default 256)")
-    p.add_argument("--repeat", type=int, default=3, help="timed repetitions, best kept")
-    p.add_argument("--naive", type=int, default=1, metavar="N",
-                   help="candidates through the slow solve_ivp baseline (default 1)")
+    p.add_argument("--repeat", type=int, default=7,
+                   help="interleaved rounds, medians reported (default 7)")
+    p.add_argument("--naive", type=int, default=2, metavar="N",
+                   help="evaluations of the plain-Python baseline (default 2, ~0.5 s each)")
+    p.add_argument("--tts-seeds", type=int, default=3, metavar="N",
+                   help="seeds per case for the time to success (default 3)")
+    p.add_argument("--quick", action="store_true",
+                   help="skip the start-up and time-to-success figures")
     p.add_argument("--seed", type=int, default=0, help="root seed (default 0)")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=run)
+
+
+def _fmt(v: object, spec: str) -> str:
+    return "n/a" if v is None else format(v, spec)
 
 
 def run(args: argparse.Namespace) -> int:
     from ..bench import run_bench
     from . import CLIError, print_json
 
-    if args.batch < 1 or args.repeat < 1 or args.naive < 1:
-        raise CLIError("--batch, --repeat and --naive must be >= 1")
-    result = run_bench(batch=args.batch, repeat=args.repeat, naive_candidates=args.naive,
-                       seed=args.seed)
+    if min(args.batch, args.repeat, args.naive, args.tts_seeds) < 1:
+        raise CLIError("--batch, --repeat, --naive and --tts-seeds must be >= 1")
+    show = None if args.json else (lambda msg: print(f"... {msg}", file=sys.stderr))
+    r = run_bench(batch=args.batch, repeat=args.repeat, naive_evals=args.naive,
+                  tts_seeds=args.tts_seeds, seed=args.seed, startup=not args.quick,
+                  tts=not args.quick, progress=show)
     if args.json:
-        print_json(result)
+        print_json(r)
         return 0
-    print(f"monitor, batch of {result['batch']:>4}: {result['monitor_evals_per_s']:10.0f} evals/s")
-    print(f"monitor, one at a time:  {result['monitor_single_evals_per_s']:10.0f} evals/s")
-    print(f"naive solve_ivp:         {result['naive_evals_per_s']:10.3f} evals/s")
-    print(f"speed-up vs naive:       {result['speedup_vs_naive']:10.0f} x (batched)")
-    print(f"reference episode:       {result['reference_episode_s']:10.3f} s")
-    print(f"reference / monitor cost per simulated second, one thread: "
-          f"{result['monitor_vs_reference_cost_ratio']:.0f} x")
+    print(f"monitor, batched ({r['numba_threads']} threads): {r['monitor_evals_per_s']:9.0f} "
+          "evals/s")
+    print(f"monitor, one thread:        {r['monitor_evals_per_cpu_s']:9.0f} evals/CPU-s")
+    print(f"one-candidate call:         {r['single_call_ms']:9.2f} ms "
+          f"({r['single_call_ms_loaded']:.2f} ms with every core busy)")
+    print(f"numba / C time:             {_fmt(r['c_time_ratio'], '9.2f')}"
+          + (f"  ({r['c_unavailable']})" if r["c_unavailable"] else ""))
+    print(f"plain Python, one thread:   {r['naive_python_evals_per_s']:9.2f} evals/CPU-s "
+          f"(numba {r['speedup_vs_naive_python']:.0f}x faster)")
+    print(f"reference episode:          {r['reference_episode_s']:9.3f} s")
+    if "import_s" in r:
+        print(f"import / cache load / cold compile: {r['import_s']:.2f} / "
+              f"{r['cache_load_s']:.2f} / {r['cold_compile_s']:.1f} s")
+    for key, label in (("time_to_success_warm_s", "warm"), ("time_to_success_cold_s", "cold")):
+        for solver, cases in r.get(key, {}).items():
+            cells = "  ".join(f"{c} {_fmt(v, '.2f')}" for c, v in cases.items())
+            print(f"time to success, {label}, {solver:<7} (s): {cells}")
+    la = r["load_avg"]
+    print(f"load average: {la['before']:.2f} before, {la['max']:.2f} max, {la['after']:.2f} "
+          "after")
     return 0

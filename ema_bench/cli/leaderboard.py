@@ -112,6 +112,12 @@ def run(args: argparse.Namespace) -> int:
                                          for t in tasks})
         if not committed:
             folder = Path(args.check)
+            if used["other_model_version"]:
+                from ..trace_cache import MODEL_VERSION
+                raise CLIError(f"the committed runs in {folder} were made on another model "
+                               f"version than this one ({MODEL_VERSION}): they are stale and "
+                               "not comparable; regenerate them (leaderboards/README.md "
+                               "lists the commands)")
             raise CLIError(f"no committed runs of these tasks (same seeds and root seed) at "
                            f"budget >= {budget} in {folder / RUNS_FILE} or "
                            f"{folder / '*' / RUNS_FILE}")

@@ -71,7 +71,7 @@ def _register_solve(sub: argparse._SubParsersAction) -> None:
 
 
 def _check_args(args: argparse.Namespace) -> None:
-    from ..registry import available_solvers
+    from ..registry import SolverError, get_solver
     from . import CLIError
 
     if args.budget < 1:
@@ -80,9 +80,10 @@ def _check_args(args: argparse.Namespace) -> None:
         raise CLIError(f"--seed must be a non-negative integer, got {args.seed}")
     if not 0.0 <= args.heterogeneity <= 1.0:
         raise CLIError(f"--heterogeneity must lie in [0, 1], got {args.heterogeneity:g}")
-    solvers = available_solvers()
-    if args.solver not in solvers:
-        raise CLIError(f"unknown solver {args.solver!r}; registered: {', '.join(solvers)}")
+    try:
+        get_solver(args.solver)   # imports this solver's plugin only
+    except SolverError as exc:
+        raise CLIError(str(exc)) from None
     if args.measured is not None and args.effect:
         raise CLIError("--effect changes the simulated data; it cannot apply to --measured "
                        "traces")
@@ -170,7 +171,8 @@ def run(args: argparse.Namespace) -> int:
         out.update(accuracy=score.accuracy, range_error=score.range_error,
                    success=score.success, truth=score.truth,
                    fitness_at_truth=problem.fitness_at_truth(),
-                   evaluations_to_success=problem.first_success())
+                   evaluations_to_success=problem.first_success(),
+                   clock_at_success=problem.first_success_clock())
         if args.effect:
             out["effects"] = _effects(args)
     if args.plot:

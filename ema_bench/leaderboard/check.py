@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .scores import ALL, score_records
-from .store import RUNS_FILE, read_records
+from .store import RUNS_FILE, is_current, read_records
 
 
 @dataclass(frozen=True)
@@ -68,7 +68,11 @@ def baseline(records: list[dict], budget: int, seeds: int, keys: set[tuple] | No
     run at exactly ``budget``, else the one of the smallest larger budget truncated to
     ``budget``; and how many of each were used."""
     best: dict[tuple, dict] = {}
+    stale = 0
     for r in records:
+        if not is_current(r):   # another model version: not comparable
+            stale += 1
+            continue
         k = run_id(r)
         if r["seed"] >= seeds or r["budget"] < budget or (keys is not None and k not in keys):
             continue
@@ -77,7 +81,8 @@ def baseline(records: list[dict], budget: int, seeds: int, keys: set[tuple] | No
     exact = [r for r in best.values() if r["budget"] == budget]
     larger = [r for r in best.values() if r["budget"] > budget]
     return exact + truncate(larger, budget, seeds), {"same_budget": len(exact),
-                                                     "re_scored": len(larger)}
+                                                     "re_scored": len(larger),
+                                                     "other_model_version": stale}
 
 
 def compare(now: list[dict], committed: list[dict], success_tol: float = 0.34,

@@ -18,7 +18,7 @@ from .figures import (
 )
 from .report import load_paper_results, write_leaderboards, write_paper_tables
 from .scores import score_records
-from .store import RUNS_FILE, RunStore, read_records
+from .store import RUNS_FILE, RunStore, is_current, read_records
 from .tasks import Task, make_tasks
 
 
@@ -36,9 +36,11 @@ def run_tasks(tasks: list[Task], out: Path, executor: str = "processes",
 
 
 def select(records: list[dict], tasks: list[Task]) -> list[dict]:
-    """The records of these tasks (same key, budget and root seed), in task order."""
+    """The current-model records of these tasks (same key, budget and root seed), in task
+    order."""
     want = {(t.key, t.budget, t.root_seed) for t in tasks}
-    recs = [r for r in records if (r["key"], r["budget"], r["root_seed"]) in want]
+    recs = [r for r in records
+            if (r["key"], r["budget"], r["root_seed"]) in want and is_current(r)]
     order = {t.key: i for i, t in enumerate(tasks)}
     return sorted(recs, key=lambda r: order[r["key"]])
 

@@ -13,6 +13,19 @@ from pathlib import Path
 RUNS_FILE = "runs.jsonl"
 
 
+def model_version(record: dict) -> str:
+    """The model version a record was run on (records before versions existed: ``"1"``)."""
+    return str(record.get("model_version", "1"))
+
+
+def is_current(record: dict) -> bool:
+    """Whether a record was run on this installation's models (others are stale: they
+    are neither reused on resume nor compared by ``--check``)."""
+    from ..trace_cache import MODEL_VERSION
+
+    return model_version(record) == MODEL_VERSION
+
+
 def _repair(path: Path) -> None:
     """Drop a trailing partial line (an interrupted write)."""
     if not path.exists() or path.stat().st_size == 0:
@@ -52,7 +65,8 @@ class RunStore:
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         _repair(self.path)
-        self.done = {r["key"] for r in read_records(self.path)}
+        # a stale record (another model version) does not count as done: the run is redone
+        self.done = {r["key"] for r in read_records(self.path) if is_current(r)}
         self._fh = open(self.path, "a", encoding="utf-8")
 
     def append(self, record: dict) -> None:

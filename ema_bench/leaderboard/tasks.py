@@ -10,6 +10,7 @@ import numpy as np
 
 from ..problem import make_problem
 from ..registry import get_solver, run_solver
+from ..trace_cache import MODEL_VERSION
 
 # best-so-far checkpoints kept per run: every improvement, thinned to at most this many
 MAX_TRACE_POINTS = 200
@@ -79,6 +80,7 @@ def run_task(task: Task) -> dict:
     return {
         "key": task.key,
         **asdict(task),
+        "model_version": MODEL_VERSION,
         "x": score.x,
         "truth": score.truth,
         "fitness": result.fitness,

@@ -1,20 +1,36 @@
 """ACE: actuator control electronics (position loop, speed PI, current reference).
 
 Sampled at ``dt_ctrl`` with zero-order hold; both integrators call :func:`ace_update` at each
-controller sample with the same arguments, so the control law exists once.
+controller sample (from the shared skeleton, :mod:`ema_bench.physics.integrator`), so the
+control law exists once.
 """
 
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 
 from numba import njit
 
 from ..params import P_DTC, P_KE, P_KGP, P_KIV, P_KPV, P_TAU, P_TMAX, P_WMAX
 
+CtrlConsts = namedtuple("CtrlConsts", ("k_pos", "w_max", "kpv", "kiv", "t_max", "dtc",
+                                       "amps_per_nm"))
+CtrlConsts.__doc__ = "Per-candidate constants of :func:`ace_update` (see :func:`ace_consts`)."
 
-@njit(cache=True)
-def ace_update(theta_cmd, theta_u_meas, w_m_meas, integ, gprop, p):
+
+@njit(cache=True, error_model="numpy")
+def ace_consts(p, gprop):
+    """Controller constants for position-loop gain ``gprop`` (1/s, the ``Gprop`` fault).
+
+    ``K_GP * Gprop`` is the loop gain at the surface; referred to the motor it is divided by
+    the reducer ratio ``tau``."""
+    return CtrlConsts(p[P_KGP] * gprop / p[P_TAU], p[P_WMAX], p[P_KPV], p[P_KIV], p[P_TMAX],
+                      p[P_DTC], 1.0 / (2.0 * p[P_KE]))
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def ace_update(theta_cmd, theta_u_meas, w_m_meas, integ, cc):
     """One controller sample.
 
     Parameters
@@ -25,11 +41,7 @@ def ace_update(theta_cmd, theta_u_meas, w_m_meas, integ, gprop, p):
         rad/s, measured motor speed.
     integ : float
         rad, speed-error integral (state of the PI).
-    gprop : float
-        1/s, position-loop gain (the ``Gprop`` fault); ``K_GP * Gprop`` is the loop gain at the
-        surface.
-    p : ndarray
-        Parameter array (:mod:`ema_bench.params`).
+    cc : CtrlConsts
 
     Returns
     -------
@@ -39,28 +51,30 @@ def ace_update(theta_cmd, theta_u_meas, w_m_meas, integ, gprop, p):
         Updated integral; conditional integration stops it winding up while the torque
         reference is saturated in the direction of the error.
     """
-    e_m = (theta_cmd - theta_u_meas) / p[P_TAU]          # error referred to the motor, rad
-    w_ref = p[P_KGP] * gprop * e_m
-    w_max = p[P_WMAX]
-    if w_ref > w_max:
-        w_ref = w_max
-    elif w_ref < -w_max:
-        w_ref = -w_max
+    w_ref = cc.k_pos * (theta_cmd - theta_u_meas)
+    if w_ref > cc.w_max:
+        w_ref = cc.w_max
+    elif w_ref < -cc.w_max:
+        w_ref = -cc.w_max
     ew = w_ref - w_m_meas
-    t_unsat = p[P_KPV] * ew + p[P_KIV] * integ
-    t_max = p[P_TMAX]
-    t_ref = min(max(t_unsat, -t_max), t_max)
-    if t_ref == t_unsat or (t_unsat > t_max and ew < 0.0) or (t_unsat < -t_max and ew > 0.0):
-        integ += ew * p[P_DTC]
-    return t_ref / (2.0 * p[P_KE]), integ
+    t_unsat = cc.kpv * ew + cc.kiv * integ
+    t_ref = t_unsat
+    if t_ref > cc.t_max:
+        t_ref = cc.t_max
+    elif t_ref < -cc.t_max:
+        t_ref = -cc.t_max
+    if t_ref == t_unsat or (t_unsat > cc.t_max and ew < 0.0) or \
+            (t_unsat < -cc.t_max and ew > 0.0):
+        integ += ew * cc.dtc
+    return t_ref * cc.amps_per_nm, integ
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always", error_model="numpy")
 def _stored(buf, k):
     return buf[0] if k < 0 else buf[k % buf.shape[0]]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always", error_model="numpy")
 def delayed_feedback(buf, k_ctrl, value, delay):
     """Store ``value`` as controller sample ``k_ctrl`` and return it ``delay`` samples ago.
 

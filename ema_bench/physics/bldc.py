@@ -5,13 +5,14 @@ commutation from the rotor angle, per-leg hysteresis current control, floating n
 short circuit ``Na`` in phase a (``R_a = Na R``, ``L_a = Na^2 L``, ``ke_a = Na Ke``) and static
 rotor eccentricity ``zeta`` (``ke_x *= 1 + zeta cos(th_m - phi_x)``).
 
-The monitor model uses :func:`pair_constants`: the single-phase equivalent of the conducting
-pair of the present sector.
+The monitor model's single-phase equivalent of this drive is
+:mod:`ema_bench.physics.averaged_drive`.
 """
 
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 
 from numba import njit
 
@@ -22,13 +23,13 @@ SIXTH = math.pi / 6.0
 PHASE_SHIFT = (0.0, TWO_PI / 3.0, 2.0 * TWO_PI / 3.0)   # electrical (and eccentricity) phase
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always", error_model="numpy")
 def wrap(x):
     """Angle in [0, 2 pi)."""
     return x - TWO_PI * math.floor(x / TWO_PI)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always", error_model="numpy")
 def trapezoid(x):
     """Normalised back-EMF shape of a phase at electrical angle ``x`` (rad): flat +1 on
     [30, 150] deg, flat -1 on [210, 330] deg, linear ramps between."""
@@ -44,13 +45,13 @@ def trapezoid(x):
     return -1.0 + (x - 11.0 * SIXTH) / SIXTH
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always", error_model="numpy")
 def sector(th_e):
     """Six-step commutation sector (0..5) at electrical angle ``th_e`` (rad)."""
     return int(math.floor((th_e - SIXTH) / (2.0 * SIXTH))) % 6
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always", error_model="numpy")
 def commutation(th_e):
     """Six-step commutation signs ``(ca, cb, cc)``: +1 for the phase on its positive back-EMF
     flat top, -1 for the one on its negative flat top, 0 (leg off) for the ramping phase."""
@@ -66,7 +67,7 @@ def commutation(th_e):
     return 0, sign, -sign
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always", error_model="numpy")
 def hysteresis_leg(s, i, i_ref_phase, c, band):
     """Leg state (+1 upper switch, -1 lower switch, 0 both off) from its hysteresis comparator.
 
@@ -83,7 +84,7 @@ def hysteresis_leg(s, i, i_ref_phase, c, band):
     return s
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always", error_model="numpy")
 def terminal_voltage(s, i, v_dc):
     """Leg output voltage w.r.t. the DC mid-point (V) and whether the phase conducts.
 
@@ -98,11 +99,11 @@ def terminal_voltage(s, i, v_dc):
     return 0.0, False
 
 
-@njit(cache=True)
-def emf_constants(th_m, na, zeta, p):
-    """Back-EMF constants ``ke_x`` (V s/rad) of phases a, b, c at motor angle ``th_m``."""
-    th_e = p[P_PP] * th_m
-    ke = p[P_KE]
+@njit(cache=True, inline="always", error_model="numpy")
+def emf_constants(th_m, na, zeta, ke, pole_pairs):
+    """Back-EMF constants ``ke_x`` (V s/rad) of phases a, b, c at motor angle ``th_m`` (rad):
+    ``Ke`` times the turns fraction, the trapezoidal shape and the eccentricity factor."""
+    th_e = pole_pairs * th_m
     ka = na * ke * trapezoid(th_e)
     kb = ke * trapezoid(th_e - PHASE_SHIFT[1])
     kc = ke * trapezoid(th_e - PHASE_SHIFT[2])
@@ -113,108 +114,149 @@ def emf_constants(th_m, na, zeta, p):
     return ka, kb, kc
 
 
-@njit(cache=True)
-def bldc_step(ia, ib, ic, sa, sb, sc, i_ref, th_m, w_m, na, zeta, r_scale, v_dc, p, dt):
-    """Advance the three phase currents by one step (explicit Euler).
+BLDCConsts = namedtuple("BLDCConsts", ("na", "zeta", "ke", "pp", "band", "ra", "rb", "rc",
+                                       "la", "lb", "lc", "v_dc"))
+BLDCConsts.__doc__ = "Per-candidate constants of :func:`bldc_step` (see :func:`bldc_consts`)."
+
+
+@njit(cache=True, error_model="numpy")
+def bldc_consts(p, na, zeta, r_scale, v_dc):
+    """Drive constants: phase a with ``na`` of its turns (``R_a = Na R``, ``L_a = Na^2 L``),
+    eccentricity ``zeta``, resistance multiplier ``r_scale``, bus voltage ``v_dc`` (V)."""
+    r = p[P_R] * r_scale
+    el = p[P_L]
+    return BLDCConsts(na, zeta, p[P_KE], p[P_PP], p[P_HYST], na * r, r, r, na * na * el, el,
+                      el, v_dc)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _phase_rates(ia, ib, ic, sa, sb, sc, ka, kb, kc, w_m, bc):
+    """di/dt of the three phases (A/s) with the floating neutral, and which phases conduct."""
+    va, on_a = terminal_voltage(sa, ia, bc.v_dc)
+    vb, on_b = terminal_voltage(sb, ib, bc.v_dc)
+    vc, on_c = terminal_voltage(sc, ic, bc.v_dc)
+    if int(on_a) + int(on_b) + int(on_c) < 2:
+        return 0.0, 0.0, 0.0, False
+    num = 0.0
+    den = 0.0
+    if on_a:
+        num += (va - bc.ra * ia - ka * w_m) / bc.la
+        den += 1.0 / bc.la
+    if on_b:
+        num += (vb - bc.rb * ib - kb * w_m) / bc.lb
+        den += 1.0 / bc.lb
+    if on_c:
+        num += (vc - bc.rc * ic - kc * w_m) / bc.lc
+        den += 1.0 / bc.lc
+    vn = num / den   # floating neutral: the conducting phases' di/dt sum to zero
+    da = (va - vn - bc.ra * ia - ka * w_m) / bc.la if on_a else 0.0
+    db = (vb - vn - bc.rb * ib - kb * w_m) / bc.lb if on_b else 0.0
+    dc = (vc - vn - bc.rc * ic - kc * w_m) / bc.lc if on_c else 0.0
+    return da, db, dc, True
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _time_to_event(i, di, s, i_ref_phase, half_band):
+    """Time (s) until a phase current ``i`` moving at ``di`` (A/s) reaches its next switching
+    event: its comparator threshold while its leg drives it, zero while it freewheels."""
+    if s == 0:
+        if (i > 0.0 and di < 0.0) or (i < 0.0 and di > 0.0):
+            return -i / di
+        return math.inf
+    if s > 0:
+        if di > 0.0:
+            return max((i_ref_phase + half_band - i) / di, 0.0)
+        return math.inf
+    if di < 0.0:
+        return max((i_ref_phase - half_band - i) / di, 0.0)
+    return math.inf
+
+
+@njit(cache=True, error_model="numpy")
+def bldc_step(ia, ib, ic, sa, sb, sc, i_ref, th_m, w_m, bc, dt):
+    """Advance the three phase currents by one step, switching each leg at the instant its
+    current crosses the comparator threshold (the analog hysteresis controller).
+
+    Within the step the phase voltages are piecewise constant, so the currents are piecewise
+    linear: the step is split at each located switching event (a threshold crossing, or a
+    freewheeling current reaching zero, where its diode blocks).  Sampling the comparators only
+    at the 1 microsecond steps instead put a speed-dependent offset of 10-20 mA into the mean
+    phase current (the band is crossed in 2-3 steps): an artefact of the step, not a property
+    of the drive.
 
     Parameters
     ----------
     ia, ib, ic : float
         A, phase currents (into the star point).
     sa, sb, sc : int
-        Leg states kept by the hysteresis comparators.
+        Leg states kept by the hysteresis comparators (+1 upper switch, -1 lower, 0 off).
     i_ref : float
         A, current reference of the conducting pair (signed: sign = torque direction).
     th_m, w_m : float
         rad, rad/s: rotor angle and speed.
-    na : float
-        healthy turn fraction of phase a (the ``Na`` fault).
-    zeta : float
-        static eccentricity (effect; 0 = off).
-    r_scale : float
-        multiplier of the winding resistance (``resistance_rise`` effect; 1 = cold).
-    v_dc : float
-        V, DC bus voltage seen by the bridge.
+    bc : BLDCConsts
+    dt : float
+        s, step.
 
     Returns
     -------
-    ia, ib, ic, sa, sb, sc, torque
-        New currents, leg states and electromagnetic torque (N m) ``sum(ke_x i_x)``.
+    ia, ib, ic, sa, sb, sc
+        New currents and leg states.
+    t_mean, t_start, t_end : float
+        N m: electromagnetic torque ``sum(ke_x i_x)``, its step mean and its values at the
+        start and the end of the step.
+    i_eq : float
+        A, step mean of the equivalent current ``(|ia| + |ib| + |ic|) / 2``.
     """
-    th_e = p[P_PP] * th_m
-    ka, kb, kc = emf_constants(th_m, na, zeta, p)
-    band = p[P_HYST]
-    ca, cb, cc = commutation(th_e)
+    ka, kb, kc = emf_constants(th_m, bc.na, bc.zeta, bc.ke, bc.pp)
+    ca, cb, cc = commutation(bc.pp * th_m)
+    band = bc.band
+    half_band = 0.5 * band
     sa = hysteresis_leg(sa, ia, ca * i_ref, ca, band)
     sb = hysteresis_leg(sb, ib, cb * i_ref, cb, band)
     sc = hysteresis_leg(sc, ic, cc * i_ref, cc, band)
-    r = p[P_R] * r_scale
-    ra, la = na * r, na * na * p[P_L]
-    rb = rc = r
-    lb = lc = p[P_L]
-    va, on_a = terminal_voltage(sa, ia, v_dc)
-    vb, on_b = terminal_voltage(sb, ib, v_dc)
-    vc, on_c = terminal_voltage(sc, ic, v_dc)
-    # floating neutral: sum of di/dt over the conducting phases is zero
-    num = 0.0
-    den = 0.0
-    if on_a:
-        num += (va - ra * ia - ka * w_m) / la
-        den += 1.0 / la
-    if on_b:
-        num += (vb - rb * ib - kb * w_m) / lb
-        den += 1.0 / lb
-    if on_c:
-        num += (vc - rc * ic - kc * w_m) / lc
-        den += 1.0 / lc
-    n_cond = int(on_a) + int(on_b) + int(on_c)
-    if n_cond >= 2:
-        vn = num / den
-        ia_new = ia + dt * (va - vn - ra * ia - ka * w_m) / la if on_a else 0.0
-        ib_new = ib + dt * (vb - vn - rb * ib - kb * w_m) / lb if on_b else 0.0
-        ic_new = ic + dt * (vc - vn - rc * ic - kc * w_m) / lc if on_c else 0.0
-        # a freewheeling current that reaches zero stays there (its diode blocks); the other
-        # two phases share what the clamp removed so the currents still sum to zero
-        if sa == 0 and ia_new * ia < 0.0:
-            ib_new += 0.5 * ia_new
-            ic_new += 0.5 * ia_new
-            ia_new = 0.0
-        if sb == 0 and ib_new * ib < 0.0:
-            ia_new += 0.5 * ib_new
-            ic_new += 0.5 * ib_new
-            ib_new = 0.0
-        if sc == 0 and ic_new * ic < 0.0:
-            ia_new += 0.5 * ic_new
-            ib_new += 0.5 * ic_new
-            ic_new = 0.0
-    else:
-        ia_new = ib_new = ic_new = 0.0
-    torque = ka * ia_new + kb * ib_new + kc * ic_new
-    return ia_new, ib_new, ic_new, sa, sb, sc, torque
-
-
-@njit(cache=True)
-def pair_constants(th_m, na, zeta, p):
-    """Single-phase equivalent of the conducting pair in the present commutation sector.
-
-    With phase x driven positive and y negative, ``T = (ke_x - ke_y) I`` and the pair has
-    ``R_x + R_y`` and ``L_x + L_y``.  Returns ``(kt, r_pair, l_pair)`` in N m/A (= V s/rad),
-    ohm and H.  Averaged over the six sectors this gives ``Kt = 2 Ke (Na + 2) / 3`` of DESIGN
-    section 8; resolving the sector keeps the monitor right at standstill too, where the rotor
-    sits in one sector.
-    """
-    ke = p[P_KE]
-    r = p[P_R]
-    el = p[P_L]
-    ca, cb, cc = commutation(p[P_PP] * th_m)
-    if zeta == 0.0:
-        if ca != 0:
-            return ke * (na + 1.0), r * (na + 1.0), el * (na * na + 1.0)
-        return 2.0 * ke, 2.0 * r, 2.0 * el
-    # phase weights: turns fraction times eccentricity factor of each conducting phase
-    wa = na * (1.0 + zeta * math.cos(th_m)) if ca != 0 else 0.0
-    wb = (1.0 + zeta * math.cos(th_m - PHASE_SHIFT[1])) if cb != 0 else 0.0
-    wc = (1.0 + zeta * math.cos(th_m - PHASE_SHIFT[2])) if cc != 0 else 0.0
-    if ca != 0:
-        return ke * (wa + wb + wc), r * (na + 1.0), el * (na * na + 1.0)
-    return ke * (wb + wc), 2.0 * r, 2.0 * el
+    t_start = ka * ia + kb * ib + kc * ic
+    left = dt
+    t_int = 0.0
+    i_int = 0.0
+    for _ in range(8):   # at most a few events per microsecond
+        da, db, dc, ok = _phase_rates(ia, ib, ic, sa, sb, sc, ka, kb, kc, w_m, bc)
+        if not ok:
+            ia = ib = ic = 0.0
+            break
+        ta = _time_to_event(ia, da, sa, ca * i_ref, half_band)
+        tb = _time_to_event(ib, db, sb, cb * i_ref, half_band)
+        tc = _time_to_event(ic, dc, sc, cc * i_ref, half_band)
+        h = min(ta, tb, tc, left)
+        t0 = ka * ia + kb * ib + kc * ic
+        q0 = abs(ia) + abs(ib) + abs(ic)
+        ia += h * da
+        ib += h * db
+        ic += h * dc
+        t_int += 0.5 * h * (t0 + ka * ia + kb * ib + kc * ic)
+        i_int += 0.5 * h * (q0 + abs(ia) + abs(ib) + abs(ic))
+        left -= h
+        # apply every event due now: a leg flips, a freewheeling current stops at zero
+        if ta <= h:
+            if sa == 0:
+                ia = 0.0
+            else:
+                sa = -sa
+        if tb <= h:
+            if sb == 0:
+                ib = 0.0
+            else:
+                sb = -sb
+        if tc <= h:
+            if sc == 0:
+                ic = 0.0
+            else:
+                sc = -sc
+        if left <= 0.0:
+            break
+    if left > 0.0:
+        q = abs(ia) + abs(ib) + abs(ic)
+        t_int += left * (ka * ia + kb * ib + kc * ic)
+        i_int += left * q
+    t_end = ka * ia + kb * ib + kc * ic
+    return ia, ib, ic, sa, sb, sc, t_int / dt, t_start, t_end, 0.5 * i_int / dt

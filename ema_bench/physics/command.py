@@ -45,7 +45,7 @@ def make_command(
     return np.array([KINDS[kind], amplitude, t0, freq, f1, duration], dtype=np.float64)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def command_value(cmd: np.ndarray, t: float) -> float:
     """Surface position command (rad) at time ``t`` (s)."""
     kind = int(cmd[C_KIND])
@@ -65,7 +65,7 @@ def command_value(cmd: np.ndarray, t: float) -> float:
     return amp * math.sin(2.0 * math.pi * (cmd[C_FREQ] * s + 0.5 * k * s * s))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def command_samples(cmd: np.ndarray, n: int, dt_ctrl: float) -> np.ndarray:
     """The command at the ``n`` controller sample instants ``k * dt_ctrl`` (rad).
 

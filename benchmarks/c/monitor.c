@@ -1,0 +1,504 @@
+/* The monitor model's kernel in plain C: a line-by-line port of the numba kernel
+ * (ema_bench/physics/integrator.py, ema_bench/monitor.py, ema_bench/physics/averaged_drive.py,
+ * ema_bench/physics/mechanics.py, ema_bench/physics/ace.py, ema_bench/physics/effect_terms.py,
+ * ema_bench/physics/load.py), the same floating-point operations in the same order.
+ *
+ * It exists only to measure how far the numba kernel is from C (`ema-bench bench`) and to check
+ * that the two agree (tests/test_kernel.py); it is not part of the installed package.
+ * Positions in the parameter and effect arrays come from Python (IDX_* below), so nothing here
+ * depends on the order of the parameter set.
+ *
+ * Build: cc -O2 -march=native -ffp-contract=off -fPIC -shared monitor.c -o libmonitor.so -lm
+ * (-ffp-contract=off: no fused multiply-add, which numba does not use either).
+ */
+#include <math.h>
+#include <stdbool.h>
+#include <stdint.h>
+
+/* order of the index table passed in from Python (ema_bench.c_kernel.index_table) */
+enum {
+    IDX_VDC, IDX_R, IDX_L, IDX_KE, IDX_PP, IDX_HYST, IDX_JM, IDX_JU, IDX_TAU, IDX_KS, IDX_CS,
+    IDX_CM, IDX_CU, IDX_KAERO, IDX_THSTOP, IDX_KSTOP, IDX_CSTOP, IDX_FDYN, IDX_WSTICK, IDX_KGP,
+    IDX_WMAX, IDX_KPV, IDX_KIV, IDX_TMAX, IDX_DTC, IDX_KTF,
+    IDX_E_ECC, IDX_E_OFFSET, IDX_E_VISC, IDX_E_AERO, IDX_E_DELAY, IDX_E_IGAIN, IDX_E_RRISE,
+    IDX_E_COG, IDX_E_VSAG, IDX_E_GEAR, IDX_E_QDAMP, IDX_E_HFRIC, IDX_N
+};
+#define MAX_DELAY_SAMPLES 64
+#define HINGE_FRICTION_SPEED 0.01
+
+static const double SIXTH = M_PI / 6.0;
+static const double PHASE_SHIFT[3] = {0.0, 2.0 * M_PI / 3.0, 4.0 * M_PI / 3.0};
+
+static inline int64_t pymod(int64_t a, int64_t b) { int64_t r = a % b; return r < 0 ? r + b : r; }
+static inline double dmax(double a, double b) { return a > b ? a : b; }
+
+/* ---- ace.py ------------------------------------------------------------------------------ */
+typedef struct { double k_pos, w_max, kpv, kiv, t_max, dtc, amps_per_nm; } Ctrl;
+
+static Ctrl ace_consts(const double *p, const int64_t *ix, double gprop) {
+    Ctrl c = {p[ix[IDX_KGP]] * gprop / p[ix[IDX_TAU]], p[ix[IDX_WMAX]], p[ix[IDX_KPV]],
+              p[ix[IDX_KIV]], p[ix[IDX_TMAX]], p[ix[IDX_DTC]], 1.0 / (2.0 * p[ix[IDX_KE]])};
+    return c;
+}
+
+static inline double ace_update(double theta_cmd, double theta_u_meas, double w_m_meas,
+                                double *integ, const Ctrl *cc) {
+    double w_ref = cc->k_pos * (theta_cmd - theta_u_meas);
+    if (w_ref > cc->w_max) w_ref = cc->w_max;
+    else if (w_ref < -cc->w_max) w_ref = -cc->w_max;
+    double ew = w_ref - w_m_meas;
+    double t_unsat = cc->kpv * ew + cc->kiv * *integ;
+    double t_ref = t_unsat;
+    if (t_ref > cc->t_max) t_ref = cc->t_max;
+    else if (t_ref < -cc->t_max) t_ref = -cc->t_max;
+    if (t_ref == t_unsat || (t_unsat > cc->t_max && ew < 0.0) || (t_unsat < -cc->t_max && ew > 0.0))
+        *integ += ew * cc->dtc;
+    return t_ref * cc->amps_per_nm;
+}
+
+static inline double stored(const double *buf, int64_t k) {
+    return k < 0 ? buf[0] : buf[pymod(k, MAX_DELAY_SAMPLES + 1)];
+}
+
+static inline double delayed_feedback(double *buf, int64_t k_ctrl, double value, double delay) {
+    buf[pymod(k_ctrl, MAX_DELAY_SAMPLES + 1)] = value;
+    if (delay <= 0.0) return value;
+    int64_t d0 = (int64_t)floor(delay);
+    double frac = delay - d0;
+    return (1.0 - frac) * stored(buf, k_ctrl - d0) + frac * stored(buf, k_ctrl - d0 - 1);
+}
+
+/* ---- averaged_drive.py ---------------------------------------------------------------------- */
+typedef struct {
+    double kt_a, kt_n, r_a, r_n, il_a, il_n, ltr_a, ltr_n, na, ke, pp, zeta, v_dc, ktf, half_band,
+        h, sector_width, th_0;
+} Drive;
+
+static Drive drive_consts(const double *p, const int64_t *ix, double na, double zeta,
+                          double r_scale, double v_dc, double h) {
+    double ke = p[ix[IDX_KE]], el = p[ix[IDX_L]], r = p[ix[IDX_R]] * r_scale;
+    Drive d = {ke * (na + 1.0), 2.0 * ke, r * (na + 1.0), 2.0 * r,
+               1.0 / (el * (na * na + 1.0)), 1.0 / (2.0 * el),
+               el * (na * na + 1.0) / v_dc, 2.0 * el / v_dc, na, ke, p[ix[IDX_PP]], zeta,
+               v_dc, p[ix[IDX_KTF]], 0.5 * p[ix[IDX_HYST]], h, 2.0 * SIXTH / p[ix[IDX_PP]],
+               SIXTH / p[ix[IDX_PP]]};
+    return d;
+}
+
+static inline void pair_of(int64_t sec, int *x, int *y) {
+    static const int P[6] = {0, 0, 1, 1, 2, 2}, N[6] = {1, 2, 2, 0, 0, 1};
+    *x = P[sec]; *y = N[sec];
+}
+
+static inline double kt_at(int64_t sec, double th_m, const Drive *dc) {
+    if (dc->zeta == 0.0) return pymod(sec, 3) == 2 ? dc->kt_n : dc->kt_a;
+    int x, y;
+    pair_of(sec, &x, &y);
+    double nx = x == 0 ? dc->na : 1.0, ny = y == 0 ? dc->na : 1.0;
+    return dc->ke * (nx * (1.0 + dc->zeta * cos(th_m - PHASE_SHIFT[x]))
+                     + ny * (1.0 + dc->zeta * cos(th_m - PHASE_SHIFT[y])));
+}
+
+static inline double ramp_integral(double lo, double hi, double t_tr) {
+    return (0.5 * hi * hi - hi * hi * hi / (3.0 * t_tr)) - (0.5 * lo * lo - lo * lo * lo / (3.0 * t_tr));
+}
+
+static inline int64_t sector_index(double th_m, double pole_pairs) {
+    return (int64_t)floor((pole_pairs * th_m - SIXTH) / (2.0 * SIXTH));
+}
+
+typedef struct { double cur; int64_t m; double tr_t0, tr_len, kt_from, kt_to, tr_cr; } DState;
+typedef struct { double t_mean, t_start, t_end, t_rip, i_eq; } DOut;
+
+static inline void ramp(double cur, double i_ref, double back, double il, double v_dc, double h,
+                        double *cur1_, double *f_, double *i_mean_, double *i_eq_) {
+    double up = h * (v_dc - back) * il;
+    double dn = h * (-v_dc - back) * il;
+    double cur1 = i_ref;
+    if (cur1 > cur + up) cur1 = cur + up;
+    else if (cur1 < cur + dn) cur1 = cur + dn;
+    double d = cur1 - cur, f;
+    if (up > 0.0 && dn < 0.0) f = dmax(d * (1.0 / up), d * (1.0 / dn));
+    else if (d > 0.0) f = d / up;
+    else if (d < 0.0) f = d / dn;
+    else f = 0.0;
+    double i_mean = cur1 - (0.5 * d) * f, ramp_abs;
+    if (cur * cur1 >= 0.0) ramp_abs = 0.5 * fabs(cur + cur1);
+    else ramp_abs = 0.5 * (cur * cur + cur1 * cur1) / fabs(d);
+    *cur1_ = cur1; *f_ = f; *i_mean_ = i_mean; *i_eq_ = f * ramp_abs + (1.0 - f) * fabs(cur1);
+}
+
+static void drive_step_general(DState *s, double i_ref, double th_m, double w_m, const Drive *dc,
+                               DOut *o) {
+    double h = dc->h, pp = dc->pp;
+    int64_t m = s->m;
+    double th_lo = dc->th_0 + dc->sector_width * m, th_hi = th_lo + dc->sector_width;
+    if (th_m >= th_hi || th_m < th_lo) {
+        m = sector_index(th_m, pp);
+        th_lo = dc->th_0 + dc->sector_width * m;
+        th_hi = th_lo + dc->sector_width;
+    }
+    int64_t sec = pymod(m, 6);
+    bool with_a = pymod(sec, 3) != 2;
+    double kt0 = kt_at(sec, th_m, dc);
+    double r_pair = with_a ? dc->r_a : dc->r_n, il = with_a ? dc->il_a : dc->il_n;
+    double cur = s->cur, cur1, f, i_mean, i_eq;
+    ramp(cur, i_ref, kt0 * w_m + r_pair * cur, il, dc->v_dc, h, &cur1, &f, &i_mean, &i_eq);
+    double tr_t0 = s->tr_t0, tr_len = s->tr_len, kt_from = s->kt_from, kt_to = s->kt_to,
+           tr_cr = s->tr_cr;
+    double th_end = th_m + h * w_m;
+    if (th_end >= th_hi || th_end < th_lo) {
+        bool up = th_end >= th_hi;
+        double g = ((up ? th_hi : th_lo) - th_m) / (h * w_m);
+        double th_b = up ? th_hi : th_lo;
+        kt_from = kt_at(sec, th_b, dc);
+        int64_t k3 = pymod(sec, 3);
+        double ltr, ny;
+        if (up) { ltr = k3 == 0 ? dc->ltr_n : dc->ltr_a; ny = k3 == 1 ? dc->na : 1.0; m += 1; }
+        else { ltr = k3 == 1 ? dc->ltr_n : dc->ltr_a; ny = k3 == 0 ? dc->na : 1.0; m -= 1; }
+        sec = pymod(m, 6);
+        kt_to = kt_at(sec, th_b, dc);
+        double i_tr = f > 0.0 ? fabs(cur + (cur1 - cur) * (g < f ? g : f) / f) : fabs(cur1);
+        tr_t0 = g * h;
+        tr_len = dmax(i_tr * ltr, 1e-12);
+        tr_cr = ny * dc->ke * pp * fabs(w_m) / SIXTH * i_tr;
+    }
+    double deficit = 0.0, kt_mean, kt_start, kt_end;
+    if (tr_t0 < h && tr_t0 + tr_len > 0.0) {
+        double a = tr_t0 > 0.0 ? tr_t0 : 0.0;
+        double b = tr_t0 + tr_len < h ? tr_t0 + tr_len : h;
+        double fa = (a - tr_t0) / tr_len, fb = (b - tr_t0) / tr_len;
+        double dk = kt_to - kt_from;
+        kt_mean = (kt_from * a + (b - a) * (kt_from + dk * 0.5 * (fa + fb)) + kt_to * (h - b)) / h;
+        kt_start = tr_t0 <= 0.0 ? kt_from + dk * fa : kt_from;
+        kt_end = b < h ? kt_from + dk * fb : kt_to;
+        deficit = tr_cr * ramp_integral(a - tr_t0, b - tr_t0, tr_len) / h;
+    } else {
+        kt_mean = dc->zeta == 0.0 ? kt0 : kt_at(sec, th_m + 0.5 * h * w_m, dc);
+        kt_start = kt0;
+        kt_end = kt_mean;
+    }
+    double ktf = dc->ktf;
+    double t_mean = (ktf * kt_mean) * i_mean;
+    if (deficit != 0.0) t_mean -= ktf * (i_mean > 0.0 ? deficit : -deficit);
+    s->cur = cur1; s->m = m; s->tr_t0 = tr_t0 - h; s->tr_len = tr_len; s->kt_from = kt_from;
+    s->kt_to = kt_to; s->tr_cr = tr_cr;
+    o->t_mean = t_mean; o->t_start = ktf * kt_start * cur; o->t_end = ktf * kt_end * cur1;
+    o->t_rip = ktf * fabs(kt_end) * dc->half_band; o->i_eq = i_eq;
+}
+
+static inline void drive_step(DState *s, double i_ref, double th_m, double w_m, const Drive *dc,
+                              DOut *o) {
+    double h = dc->h;
+    double th_lo = dc->th_0 + dc->sector_width * s->m, th_hi = th_lo + dc->sector_width;
+    double th_end = th_m + h * w_m;
+    if (s->tr_t0 + s->tr_len <= 0.0 && dc->zeta == 0.0 && th_lo <= th_m && th_m < th_hi &&
+        th_lo <= th_end && th_end < th_hi) {
+        int64_t sec = pymod(s->m, 6);
+        double kt, r_pair, il;
+        if (sec == 2 || sec == 5) { kt = dc->kt_n; r_pair = dc->r_n; il = dc->il_n; }
+        else { kt = dc->kt_a; r_pair = dc->r_a; il = dc->il_a; }
+        double cur = s->cur, cur1, f, i_mean, i_eq;
+        ramp(cur, i_ref, kt * w_m + r_pair * cur, il, dc->v_dc, h, &cur1, &f, &i_mean, &i_eq);
+        double kf = dc->ktf * kt;
+        s->cur = cur1; s->tr_t0 = s->tr_t0 - h;
+        o->t_mean = kf * i_mean; o->t_start = kf * cur; o->t_end = kf * cur1;
+        o->t_rip = fabs(kf) * dc->half_band; o->i_eq = i_eq;
+        return;
+    }
+    drive_step_general(s, i_ref, th_m, w_m, dc, o);
+}
+
+/* ---- mechanics.py --------------------------------------------------------------------------- */
+typedef struct {
+    double tau, jm, ju, k, c, cm, ka, cu, fst, fdyn, half, w_stick, th_stop, k_stop, c_stop, h,
+        b_c, g_h, i11, i12, i22, i_u_stuck, i_m_free, i_u_free, i11h, i12h, i_m_free_h;
+} Mech;
+
+static Mech mech_consts(const double *p, const int64_t *ix, double fst, double blk,
+                        double c_m_extra, double k_aero_extra, double ks_scale, double h) {
+    double tau = p[ix[IDX_TAU]], jm = p[ix[IDX_JM]], ju = p[ix[IDX_JU]];
+    double k = p[ix[IDX_KS]] * ks_scale, c = p[ix[IDX_CS]];
+    double cm = p[ix[IDX_CM]] + c_m_extra, ka = p[ix[IDX_KAERO]] + k_aero_extra, cu = p[ix[IDX_CU]];
+    double b_c = 0.25 * k * h + 0.5 * c, g_h = 0.25 * ka * h + 0.5 * cu;
+    double a11 = jm + 0.5 * h * cm + h * tau * tau * b_c;
+    double a12 = -h * tau * b_c;
+    double a22 = ju + h * b_c + h * g_h;
+    double det = a11 * a22 - a12 * a12;
+    double i11 = a22 / det, i12 = -a12 / det, i_m_free = 1.0 / (jm + 0.5 * h * cm);
+    Mech mc = {tau, jm, ju, k, c, cm, ka, cu, fst, p[ix[IDX_FDYN]] * fst, 0.5 * blk,
+               p[ix[IDX_WSTICK]], p[ix[IDX_THSTOP]], p[ix[IDX_KSTOP]], p[ix[IDX_CSTOP]], h, b_c,
+               g_h, i11, i12, a11 / det, 1.0 / a22, i_m_free, 1.0 / (ju + h * g_h), i11 * h,
+               i12 * h, i_m_free * h};
+    return mc;
+}
+
+static inline int contact_side(double delta, double half) {
+    return delta > half ? 1 : (delta < -half ? -1 : 0);
+}
+
+static inline double side_mean(double a, double lim, double k, double c, double d0, double dd,
+                               double h) {
+    double t1, t2;
+    if (dd == 0.0) {
+        if (d0 <= a) return 0.0;
+        t1 = 0.0; t2 = h;
+    } else {
+        double tc = (a - d0) / dd;
+        if (dd > 0.0) { t1 = tc > 0.0 ? tc : 0.0; t2 = h; }
+        else { t1 = 0.0; t2 = tc < h ? tc : h; }
+        if (t2 <= t1) return 0.0;
+    }
+    double f1 = k * (d0 + dd * t1 - lim) + c * dd;
+    double f2 = k * (d0 + dd * t2 - lim) + c * dd;
+    return 0.5 * (t2 - t1) * (f1 + f2) / h;
+}
+
+static inline double gear_mean(double delta, double d_delta, double half, double k, double c,
+                               double h) {
+    double lift = c * d_delta / k;
+    double t = side_mean(half + (lift < 0.0 ? -lift : 0.0), half, k, c, delta, d_delta, h);
+    t -= side_mean(half + (lift > 0.0 ? lift : 0.0), half, k, c, -delta, -d_delta, h);
+    return t;
+}
+
+static inline void rhs(double th_u, double w_m, double w_u, double t_ext, double sgn,
+                       const Mech *mc, double *r1, double *r2) {
+    double h = mc->h;
+    *r1 = mc->jm * w_m - h * (sgn * mc->fdyn + 0.5 * mc->cm * w_m);
+    *r2 = mc->ju * w_u + h * ((-mc->ka * th_u - mc->g_h * w_u) + t_ext);
+}
+
+static inline void contact_solve(double delta, double dd, int side, double r1, double r2,
+                                 double t_m, bool moving, const Mech *mc, double *wm1,
+                                 double *wu1, double *t_g) {
+    double h = mc->h, tau = mc->tau;
+    double off = side > 0 ? mc->half : -mc->half;
+    double a = mc->k * (delta - off) + mc->b_c * dd;
+    double b1 = r1 - h * tau * a, b2 = r2 + h * a;
+    if (moving) {
+        *wm1 = (mc->i11 * b1 + mc->i12 * b2) + mc->i11h * t_m;
+        *wu1 = (mc->i12 * b1 + mc->i22 * b2) + mc->i12h * t_m;
+    } else {
+        *wm1 = 0.0;
+        *wu1 = b2 * mc->i_u_stuck;
+    }
+    *t_g = a + mc->b_c * (tau * *wm1 - *wu1);
+}
+
+typedef struct { double th_m, w_m, th_u, w_u, m_th_m, m_w_m, m_th_u; } MOut;
+
+static void mech_step_general(double th_m, double w_m, double th_u, double w_u, double t_m,
+                              double tm0, double tm1, double t_rip, double t_ext, const Mech *mc,
+                              MOut *o) {
+    double h = mc->h, tau = mc->tau;
+    double delta = tau * th_m - th_u, dd = tau * w_m - w_u;
+    if (th_u > mc->th_stop) {
+        double s_stop = -mc->k_stop * (th_u - mc->th_stop) - mc->c_stop * w_u;
+        t_ext += s_stop < 0.0 ? s_stop : 0.0;
+    } else if (th_u < -mc->th_stop) {
+        double s_stop = -mc->k_stop * (th_u + mc->th_stop) - mc->c_stop * w_u;
+        t_ext += s_stop > 0.0 ? s_stop : 0.0;
+    }
+    bool moving = fabs(w_m) >= mc->w_stick;
+    double sgn = 0.0;
+    if (moving) sgn = w_m > 0.0 ? 1.0 : -1.0;
+    double r1, r2, wm1, wu1, t_g;
+    rhs(th_u, w_m, w_u, t_ext, sgn, mc, &r1, &r2);
+    int side = contact_side(delta, mc->half), side1 = contact_side(delta + h * dd, mc->half);
+    if (side != 0 && side1 == side) {
+        contact_solve(delta, dd, side, r1, r2, t_m, moving, mc, &wm1, &wu1, &t_g);
+        if (t_g * side < 0.0) {
+            t_g = 0.0;
+            wm1 = moving ? r1 * mc->i_m_free + mc->i_m_free_h * t_m : 0.0;
+            wu1 = r2 * mc->i_u_free;
+        }
+    } else if (side == 0 && side1 != 0) {
+        double off = side1 > 0 ? mc->half : -mc->half;
+        double t_c = (off - delta) / dd;
+        double hr = h - t_c;
+        double bf = hr / h * (0.25 * mc->k * hr + 0.5 * mc->c);
+        double a = bf * dd;
+        double b1 = r1 + h * t_m - h * tau * a, b2 = r2 + h * a;
+        double a11 = mc->jm + 0.5 * h * mc->cm + h * tau * tau * bf;
+        double a12 = -h * tau * bf;
+        double a22 = mc->ju + h * bf + h * mc->g_h;
+        if (moving) {
+            double det = a11 * a22 - a12 * a12;
+            wm1 = (b1 * a22 - a12 * b2) / det;
+            wu1 = (a11 * b2 - a12 * b1) / det;
+        } else {
+            wm1 = 0.0;
+            wu1 = b2 / a22;
+        }
+        t_g = a + bf * (tau * wm1 - wu1);
+        if (t_g * side1 < 0.0) {
+            t_g = 0.0;
+            wm1 = moving ? r1 * mc->i_m_free + mc->i_m_free_h * t_m : 0.0;
+            wu1 = r2 * mc->i_u_free;
+        }
+    } else {
+        t_g = (side != 0 || side1 != 0) ? gear_mean(delta, dd, mc->half, mc->k, mc->c, h) : 0.0;
+        wm1 = moving ? (r1 - h * tau * t_g) * mc->i_m_free + mc->i_m_free_h * t_m : 0.0;
+        wu1 = (r2 + h * t_g) * mc->i_u_free;
+    }
+    double th_u1 = th_u + 0.5 * h * (w_u + wu1);
+    double m_th_u = 0.5 * (th_u + th_u1);
+    double load = mc->cm * w_m + tau * t_g;
+    double f_break = mc->fst - t_rip;
+    if (f_break < mc->fdyn) f_break = mc->fdyn;
+    o->th_u = th_u1; o->w_u = wu1; o->m_th_u = m_th_u;
+    if (!moving) {
+        double d0 = tm0 - load, d1 = tm1 - load;
+        if (fabs(d0) <= f_break) {
+            if (fabs(d1) <= f_break) {
+                o->th_m = th_m; o->w_m = 0.0; o->m_th_m = th_m; o->m_w_m = 0.0;
+                return;
+            }
+            double s = d1 > 0.0 ? 1.0 : -1.0;
+            double g = (s * f_break - d0) / (d1 - d0);
+            double rest = (1.0 - g) * h;
+            double wb = rest * (0.5 * (s * f_break + d1) - s * mc->fdyn) / mc->jm;
+            double dth = 0.5 * rest * wb;
+            o->th_m = th_m + dth; o->w_m = wb; o->m_th_m = th_m + 0.5 * dth;
+            o->m_w_m = 0.5 * rest * wb / h;
+            return;
+        }
+        double t_drive = t_m - load;
+        double s = t_drive > 0.0 ? 1.0 : -1.0;
+        double wb = h * (t_drive - s * mc->fdyn) / mc->jm;
+        o->th_m = th_m + 0.5 * h * wb; o->w_m = wb; o->m_th_m = th_m + 0.25 * h * wb;
+        o->m_w_m = 0.5 * wb;
+        return;
+    }
+    if (wm1 * w_m >= 0.0) {
+        double th_m1 = th_m + 0.5 * h * (w_m + wm1);
+        o->th_m = th_m1; o->w_m = wm1; o->m_th_m = 0.5 * (th_m + th_m1);
+        o->m_w_m = 0.5 * (w_m + wm1);
+        return;
+    }
+    double f = w_m / (w_m - wm1);
+    double th_stop = th_m + 0.5 * f * h * w_m;
+    double t_drive = t_m - tau * t_g;
+    if (fabs(t_drive) <= f_break) {
+        o->th_m = th_stop; o->w_m = 0.0; o->m_th_m = 0.5 * (th_m + th_stop);
+        o->m_w_m = 0.5 * f * w_m;
+        return;
+    }
+    double s = t_drive > 0.0 ? 1.0 : -1.0;
+    double rest = (1.0 - f) * h;
+    double w2 = rest * (t_drive - s * mc->fdyn) / mc->jm;
+    double th_m1 = th_stop + 0.5 * rest * w2;
+    o->th_m = th_m1; o->w_m = w2; o->m_th_m = 0.5 * (th_m + th_m1);
+    o->m_w_m = 0.5 * (f * w_m + (1.0 - f) * w2);
+}
+
+static inline void mech_step(double th_m, double w_m, double th_u, double w_u, double t_m,
+                             double tm0, double tm1, double t_rip, double t_ext, const Mech *mc,
+                             MOut *o) {
+    double h = mc->h, tau = mc->tau;
+    double delta = tau * th_m - th_u, dd = tau * w_m - w_u;
+    int side = contact_side(delta, mc->half);
+    if (fabs(w_m) >= mc->w_stick && fabs(th_u) <= mc->th_stop &&
+        contact_side(delta + h * dd, mc->half) == side) {
+        double r1, r2, wm1, wu1, t_g;
+        rhs(th_u, w_m, w_u, t_ext, w_m > 0.0 ? 1.0 : -1.0, mc, &r1, &r2);
+        bool ok;
+        if (side != 0) {
+            contact_solve(delta, dd, side, r1, r2, t_m, true, mc, &wm1, &wu1, &t_g);
+            ok = t_g * side >= 0.0;
+        } else {
+            wm1 = r1 * mc->i_m_free + mc->i_m_free_h * t_m;
+            wu1 = r2 * mc->i_u_free;
+            ok = true;
+        }
+        if (ok && wm1 * w_m >= 0.0) {
+            double th_m1 = th_m + 0.5 * h * (w_m + wm1);
+            double th_u1 = th_u + 0.5 * h * (w_u + wu1);
+            o->th_m = th_m1; o->w_m = wm1; o->th_u = th_u1; o->w_u = wu1;
+            o->m_th_m = 0.5 * (th_m + th_m1); o->m_w_m = 0.5 * (w_m + wm1);
+            o->m_th_u = 0.5 * (th_u + th_u1);
+            return;
+        }
+    }
+    mech_step_general(th_m, w_m, th_u, w_u, t_m, tm0, tm1, t_rip, t_ext, mc, o);
+}
+
+/* ---- effects, load, the monitor plant and the integrator skeleton -------------------------- */
+static inline double cogging_torque(double amplitude, double th_m, double pole_pairs) {
+    if (amplitude == 0.0) return 0.0;
+    return amplitude * sin(6.0 * pole_pairs * th_m);
+}
+
+static inline double hinge_extra(double w_u, double quad, double hfric) {
+    double m = 0.0;
+    if (quad != 0.0) m -= quad * w_u * fabs(w_u);
+    if (hfric != 0.0) m -= hfric * tanh(w_u / HINGE_FRICTION_SPEED);
+    return m;
+}
+
+/* one candidate, one test (integrator.integrate with the monitor plant) */
+static bool integrate(const double *p, const int64_t *ix, const double *x, const double *e,
+                      const double *cmd, int64_t n_out, int64_t ticks_out, int64_t steps_tick,
+                      double dt, double *out) {
+    /* plant_terms, monitor_consts */
+    double zeta = e[ix[IDX_E_ECC]], v_dc = p[ix[IDX_VDC]] * (1.0 - e[ix[IDX_E_VSAG]]);
+    double r_scale = 1.0 + e[ix[IDX_E_RRISE]], ks_scale = 1.0 - e[ix[IDX_E_GEAR]];
+    double c_visc = e[ix[IDX_E_VISC]], k_aero = e[ix[IDX_E_AERO]], cog = e[ix[IDX_E_COG]];
+    double quad = e[ix[IDX_E_QDAMP]], hfric = e[ix[IDX_E_HFRIC]];
+    Drive dc = drive_consts(p, ix, x[0], zeta, r_scale, v_dc, dt);
+    Mech mc = mech_consts(p, ix, x[1], x[2], c_visc, k_aero, ks_scale, dt);
+    double pp = p[ix[IDX_PP]];
+    Ctrl cc = ace_consts(p, ix, x[3]);
+    /* sensor_terms */
+    double offset = e[ix[IDX_E_OFFSET]], gain = 1.0 + e[ix[IDX_E_IGAIN]];
+    double delay = e[ix[IDX_E_DELAY]] / p[ix[IDX_DTC]];
+    double buf[MAX_DELAY_SAMPLES + 1];
+    DState ps = {0.0, sector_index(0.0, pp), -1.0, 0.0, 0.0, 0.0, 0.0};
+    double th_m = 0.0, w_m = 0.0, th_u = 0.0, w_u = 0.0, integ = 0.0;
+    int64_t k_ctrl = 0;
+    double scale = 1.0 / (ticks_out * steps_tick);
+    for (int64_t k = 0; k < n_out; k++) {
+        double a0 = 0.0, a1 = 0.0, a2 = 0.0, a3 = 0.0;
+        for (int64_t t = 0; t < ticks_out; t++) {
+            double fb = th_u + offset;
+            if (delay > 0.0) fb = delayed_feedback(buf, k_ctrl, fb, delay);
+            double i_ref = ace_update(cmd[k_ctrl], fb, w_m, &integ, &cc);
+            k_ctrl += 1;
+            for (int64_t s = 0; s < steps_tick; s++) {
+                DOut d;
+                drive_step(&ps, i_ref, th_m, w_m, &dc, &d);
+                double t_cog = cogging_torque(cog, th_m + 0.5 * dc.h * w_m, pp);
+                MOut m;
+                mech_step(th_m, w_m, th_u, w_u, d.t_mean + t_cog, d.t_start + t_cog,
+                          d.t_end + t_cog, d.t_rip, hinge_extra(w_u, quad, hfric), &mc, &m);
+                th_m = m.th_m; w_m = m.w_m; th_u = m.th_u; w_u = m.w_u;
+                a0 += m.m_th_u; a1 += m.m_th_m; a2 += m.m_w_m; a3 += d.i_eq;
+            }
+        }
+        out[4 * k + 0] = a0 * scale + offset;
+        out[4 * k + 1] = a1 * scale;
+        out[4 * k + 2] = a2 * scale;
+        out[4 * k + 3] = gain * a3 * scale;
+        if (!(isfinite(a0) && isfinite(a1) && isfinite(a2) && isfinite(a3))) return false;
+    }
+    return true;
+}
+
+/* every candidate, every test: the layout of ema_bench.monitor.simulate_monitor */
+int64_t monitor_batch(const double *p, const int64_t *ix, const double *X, const double *E,
+                      int64_t n, int64_t n_effects, const double *cmd, const int64_t *cmd_start,
+                      const int64_t *n_out, const int64_t *out_start, int64_t n_tests,
+                      int64_t total_out, int64_t ticks_out, int64_t steps_tick, double dt,
+                      double *out, uint8_t *ok) {
+    int64_t failures = 0;
+    for (int64_t c = 0; c < n; c++) {
+        bool good = true;
+        for (int64_t t = 0; t < n_tests; t++)
+            good &= integrate(p, ix, X + 4 * c, E + n_effects * c, cmd + cmd_start[t], n_out[t],
+                              ticks_out, steps_tick, dt, out + 4 * (total_out * c + out_start[t]));
+        ok[c] = good;
+        failures += !good;
+    }
+    return failures;
+}
