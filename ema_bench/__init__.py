@@ -20,8 +20,9 @@ import sys as _sys
 if "gymnasium" in _sys.modules:
     from . import env  # noqa: E402, F401  (registers EMAFault/Identify-v0)
 from .faults import CASES, FAULT_NAMES, FAULTS  # noqa: E402
+from .instances import make_problem  # noqa: E402
 from .monitor import monitor_traces, simulate_monitor  # noqa: E402
-from .problem import BudgetExhausted, Problem, ProblemError, make_problem  # noqa: E402
+from .problem import BudgetExhausted, Problem, ProblemError  # noqa: E402
 from .reference import simulate_reference  # noqa: E402
 from .registry import (  # noqa: E402
     SolveResult,

@@ -114,9 +114,9 @@ def time_to_success(solvers: tuple[str, ...] = TTS_SOLVERS, cases: tuple[str, ..
                     seeds: int = 3, budget: int = 3000, cold: bool = True,
                     progress: Callable[[str], None] | None = None) -> dict[str, dict]:
     """Median seconds to the first successful vector, warm and cold (see module doc)."""
-    from .problem import make_problem
+    from .instances import make_problem
     from .registry import run_solver
-    from .seeding import child
+    from .seeding import run_seed
 
     warm: dict[str, dict[str, float | None]] = {}
     coldd: dict[str, dict[str, float | None]] = {}
@@ -128,11 +128,11 @@ def time_to_success(solvers: tuple[str, ...] = TTS_SOLVERS, cases: tuple[str, ..
                 if progress:
                     progress(f"time to success: {solver} {case} seed {seed}")
                 t0 = time.perf_counter()
-                # the seeds of `ema-bench solve --seed`: instance child 0, solver child 1
-                problem = make_problem(case, track="reference", seed=child(seed, 0),
+                # the run node of `ema-bench solve --seed` (root seed 0)
+                problem = make_problem(case, track="reference", seed=run_seed(0, seed),
                                        budget=budget)
                 t_setup = time.perf_counter() - t0
-                run_solver(solver, problem, seed=child(seed, 1))
+                run_solver(solver, problem, seed=run_seed(0, seed))
                 t_hit = problem.first_success_wall_s()
                 w_times.append(np.inf if t_hit is None else t_setup + t_hit)
                 if cold:

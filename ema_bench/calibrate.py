@@ -21,8 +21,8 @@ from scipy.optimize import minimize_scalar
 
 from .faults import CASES, LOWER, UPPER
 from .monitor import simulate_monitor
+from .objective import fitness_from_outputs, signal_weights
 from .params import DEFAULT_PARAMS, EMAParams
-from .problem import fitness_from_outputs, signal_scales
 from .reference import simulate_reference
 
 
@@ -33,7 +33,7 @@ def calibrate_kt_factor(case: str = "nominal", params: EMAParams = DEFAULT_PARAM
     Returns the fitted value and the fitness at it and at the shipped value."""
     x = CASES[case].x
     ref = simulate_reference(x, params=params, noise=False, adc=False)
-    weights = {t: 1.0 / s**2 for t, s in signal_scales(ref).items()}
+    weights = signal_weights(ref)
 
     def fitness(k: float) -> float:
         out, _ = simulate_monitor(x[None, :], params=params.replace(kt_factor=k))
@@ -65,7 +65,7 @@ def clean_bias(x_true: np.ndarray, evals: int = 6000, seed: int = 1,
     import cma
 
     ref = simulate_reference(x_true, noise=False, adc=False)
-    w = {t: 1.0 / s**2 for t, s in signal_scales(ref).items()}
+    w = signal_weights(ref)
 
     def fitness(U: np.ndarray) -> np.ndarray:
         X = LOWER + np.clip(np.atleast_2d(U), 0.0, 1.0) * (UPPER - LOWER)

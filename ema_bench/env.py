@@ -50,9 +50,11 @@ from gymnasium.error import ResetNeeded
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from .faults import CASES, FAULT_NAMES, FaultError, check_faults, faults_to_dict, from_unit
+from .faults import FAULT_NAMES, faults_to_dict, from_unit
+from .instances import check_settings, make_problem
+from .objective import PENALTY
 from .physics.sensors import SENSORS
-from .problem import PENALTY, TRACKS, Problem, ProblemError, make_problem, signal_scales
+from .problem import Problem, ProblemError
 from .protocol import STANDARD_TESTS
 from .traces import SIGNALS
 
@@ -71,24 +73,7 @@ def _check_config(case: Any, track: str, budget: Any, observation: str,
     """Fail at construction (not at the first reset) on a bad configuration."""
     if observation not in OBSERVATIONS:
         raise ValueError(f"unknown observation {observation!r}; known: {list(OBSERVATIONS)}")
-    _check_case_track(case, track)
-    if isinstance(budget, bool) or not isinstance(budget, int | np.integer) or budget < 1:
-        raise ProblemError(f"budget must be a positive integer, got {budget!r}")
-    if not 0.0 <= float(heterogeneity) <= 1.0:
-        raise ProblemError(f"heterogeneity must lie in [0, 1], got {heterogeneity!r}")
-
-
-def _check_case_track(case: Any, track: Any) -> None:
-    if track not in TRACKS:
-        raise ProblemError(f"unknown track {track!r}; known: {list(TRACKS)}")
-    if isinstance(case, str):
-        if case != "seeded" and case not in CASES:
-            raise ProblemError(f"unknown case {case!r}; known: {list(CASES)} or 'seeded'")
-    else:
-        try:
-            check_faults(case)
-        except FaultError as exc:
-            raise ProblemError(f"bad case: {exc}") from None
+    check_settings(case, track, budget, heterogeneity)
 
 
 def _layout_sizes() -> list[int]:
@@ -136,34 +121,13 @@ def _actions_to_physical(actions: Any, n: int | None) -> np.ndarray:
     return from_unit(np.clip(a, 0.0, 1.0))
 
 
-def _stack_outputs(problem: Problem, outputs: Mapping[str, np.ndarray]) -> np.ndarray:
-    """Monitor outputs ``test -> (n, n_samples, 4)`` -> (n, N) in ``Traces.stacked`` layout."""
-    blocks = [np.asarray(outputs[t]).transpose(0, 2, 1) for t in problem.measured.tests]
-    n = blocks[0].shape[0]
-    return np.concatenate([b.reshape(n, -1) for b in blocks], axis=1)
-
-
-def _residual_layout(problem: Problem, r: np.ndarray) -> np.ndarray:
-    """Problem residuals (test by test, sample by sample, signal by signal) -> stacked layout
-    (test by test, signal by signal, sample by sample)."""
-    parts, i = [], 0
-    for t in problem.measured.tests:
-        n = problem.measured.n_samples(t)
-        parts.append(r[i:i + n * len(SIGNALS)].reshape(n, len(SIGNALS)).T.ravel())
-        i += n * len(SIGNALS)
-    return np.concatenate(parts)
-
-
-def _residual_factors(problem: Problem) -> np.ndarray:
-    """Per-element factor ``sqrt(weight / n_samples)`` in stacked layout (the weights that
-    :meth:`Problem.evaluate` uses: 1 / signal-scale^2, or 1 with ``normalise=False``)."""
-    scales = signal_scales(problem.measured)
-    parts = []
-    for t in problem.measured.tests:
-        n = problem.measured.n_samples(t)
-        w = 1.0 / scales[t] ** 2 if problem.normalise else np.ones(len(SIGNALS))
-        parts.append(np.repeat(np.sqrt(w / n), n))
-    return np.concatenate(parts)
+def _observe(problem: Problem, outputs: Mapping[str, np.ndarray], fitness: np.ndarray,
+             observation: str) -> np.ndarray:
+    """Observations (n, N) of evaluated candidates: their monitor traces or their weighted
+    residuals, both in ``Traces.stacked`` layout (the objective's)."""
+    if observation == "residuals":
+        return problem.objective.residuals(outputs, fitness)
+    return problem.objective.stack(outputs)
 
 
 class _EpisodeMixin:
@@ -184,7 +148,6 @@ class _EpisodeMixin:
             raise ValueError(f"unknown reset option(s) {unknown}; known: {list(_OPTIONS)}")
         case = options.get("case", self.case)
         track = options.get("track", self.track)
-        _check_case_track(case, track)
         # the instance seed comes from the env's RNG: reset(seed=s) -> same instance and noise
         seed = int(rng.integers(0, 2**63 - 1))
         problem = make_problem(case, track=track, seed=seed, budget=self.budget,
@@ -261,14 +224,9 @@ class EMAFaultEnv(_EpisodeMixin, gym.Env):
             raise ResetNeeded(f"the episode's budget of {p.budget} evaluations is spent "
                               "(truncated); call reset() to start a new episode")
         x = _actions_to_physical(action, None)
-        if self.observation == "residuals":
-            r = p.residuals(x)                              # counts one evaluation
-            fitness = float(p.history()["fitness"][-1])     # the recorded (scored) value
-            obs = _residual_layout(p, r)
-        else:
-            fitness = float(p.evaluate(x))                  # counts one evaluation
-            outputs, _ = p.simulate(x[None, :])             # not counted: same candidate
-            obs = _stack_outputs(p, outputs)[0]
+        f, outputs = p.evaluate_outputs(x[None, :])         # one evaluation, one simulation
+        fitness = float(f[0])
+        obs = _observe(p, outputs, f, self.observation)[0]
         obs = self._clip(obs)
         return obs, -fitness, False, p.remaining == 0, self._info()
 
@@ -319,7 +277,6 @@ class EMAFaultVectorEnv(_EpisodeMixin, VectorEnv):
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self._problem = None
-        self._factors: np.ndarray | None = None
         self._autoreset = False
 
     def reset(self, *, seed: int | None = None,
@@ -329,8 +286,6 @@ class EMAFaultVectorEnv(_EpisodeMixin, VectorEnv):
 
     def _reset(self, options: Mapping[str, Any] | None) -> tuple[np.ndarray, dict[str, Any]]:
         self._new_problem(self.np_random, options)
-        self._factors = (_residual_factors(self._problem)
-                         if self.observation == "residuals" else None)
         self._autoreset = False
         obs = np.tile(self._problem.measured.stacked(), (self.num_envs, 1))
         return obs, self._vector_info(self._info())
@@ -344,13 +299,8 @@ class EMAFaultVectorEnv(_EpisodeMixin, VectorEnv):
             return obs, np.zeros(n), np.zeros(n, dtype=np.bool_), np.zeros(n, dtype=np.bool_), \
                 info
         X = _actions_to_physical(actions, n)
-        fitness = np.asarray(p.evaluate(X), dtype=np.float64)  # one call, n evaluations
-        outputs, _ = p.simulate(X)                              # not counted: same candidates
-        obs = _stack_outputs(p, outputs)
-        if self.observation == "residuals":
-            obs = (obs - p.measured.stacked()[None, :]) * self._factors[None, :]
-            failed = fitness >= PENALTY
-            obs[failed] = np.sqrt(PENALTY / obs.shape[1])
+        fitness, outputs = p.evaluate_outputs(X)                # one call, n evaluations
+        obs = _observe(p, outputs, fitness, self.observation)
         space = self.single_observation_space
         obs = np.clip(np.nan_to_num(obs, nan=0.0, posinf=space.high, neginf=space.low),
                       space.low, space.high)

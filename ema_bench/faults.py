@@ -32,6 +32,9 @@ FAULTS: tuple[Fault, ...] = (
 )
 FAULT_NAMES: tuple[str, ...] = tuple(f.name for f in FAULTS)
 FAULT_UNITS: dict[str, str] = {f.name: f.unit for f in FAULTS}
+FAULT_INDEX: dict[str, int] = {name: i for i, name in enumerate(FAULT_NAMES)}
+# positions in a fault vector, by name (the compiled models read the vector with these)
+F_NA, F_FST, F_BLK, F_GPROP = (FAULT_INDEX[n] for n in ("Na", "Fst", "BLK", "Gprop"))
 LOWER = np.array([f.lower for f in FAULTS])
 UPPER = np.array([f.upper for f in FAULTS])
 NOMINAL = np.array([f.nominal for f in FAULTS])
@@ -117,20 +120,6 @@ def faults_from_mapping(values: Mapping[str, float]) -> np.ndarray:
 def faults_to_dict(x: np.ndarray) -> dict[str, float]:
     """``name -> value`` for one fault vector."""
     return {n: float(v) for n, v in zip(FAULT_NAMES, np.asarray(x, dtype=float))}
-
-
-def parse_assignments(text: str) -> dict[str, float]:
-    """Parse ``"Na=0.95,Fst=0.3378"`` into a dict (used by the CLI)."""
-    out: dict[str, float] = {}
-    for item in filter(None, (s.strip() for s in text.split(","))):
-        name, sep, value = item.partition("=")
-        if not sep:
-            raise FaultError(f"expected NAME=VALUE, got {item!r}")
-        try:
-            out[name.strip()] = float(value)
-        except ValueError:
-            raise FaultError(f"value of {name.strip()!r} is not a number: {value!r}") from None
-    return out
 
 
 def get_case(name: str) -> Case:

@@ -19,7 +19,7 @@ import numpy as np
 from numba import njit, prange
 
 from .effects import N_EFFECTS
-from .faults import check_faults, faults_to_dict
+from .faults import F_BLK, F_FST, F_NA, check_faults, faults_to_dict
 from .params import DEFAULT_PARAMS, P_PP, EMAParams
 from .physics.averaged_drive import drive_consts, drive_step, sector_index
 from .physics.effect_terms import cogging_torque, plant_terms
@@ -39,8 +39,8 @@ configure_threads()
 def monitor_consts(p, x, e, dt):
     """Per-candidate constants of the monitor plant (drive, mechanics, effects)."""
     zeta, v_dc, r_scale, ks_scale, c_visc, k_aero, cog, quad, hfric = plant_terms(e, p)
-    dc = drive_consts(p, x[0], zeta, r_scale, v_dc, dt)
-    mc = mech_consts(p, x[1], x[2], c_visc, k_aero, ks_scale, dt)
+    dc = drive_consts(p, x[F_NA], zeta, r_scale, v_dc, dt)
+    mc = mech_consts(p, x[F_FST], x[F_BLK], c_visc, k_aero, ks_scale, dt)
     return dc, mc, cog, p[P_PP], quad, hfric
 
 

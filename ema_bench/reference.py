@@ -15,7 +15,7 @@ import numpy as np
 from numba import njit
 
 from .effects import N_EFFECTS, effects_to_dict, effects_vector
-from .faults import check_faults, faults_to_dict
+from .faults import F_BLK, F_FST, F_NA, check_faults, faults_to_dict
 from .params import DEFAULT_PARAMS, P_PP, EMAParams
 from .physics.bldc import bldc_consts, bldc_step
 from .physics.effect_terms import cogging_torque, plant_terms
@@ -33,8 +33,8 @@ from .traces import OUTPUT_DT, Traces
 def reference_consts(p, x, e, dt):
     """Per-candidate constants of the reference plant (three-phase drive, mechanics, effects)."""
     zeta, v_dc, r_scale, ks_scale, c_visc, k_aero, cog, quad, hfric = plant_terms(e, p)
-    bc = bldc_consts(p, x[0], zeta, r_scale, v_dc)
-    mc = mech_consts(p, x[1], x[2], c_visc, k_aero, ks_scale, dt)
+    bc = bldc_consts(p, x[F_NA], zeta, r_scale, v_dc)
+    mc = mech_consts(p, x[F_FST], x[F_BLK], c_visc, k_aero, ks_scale, dt)
     return bc, mc, cog, p[P_PP], quad, hfric, dt
 
 

@@ -16,13 +16,12 @@ from __future__ import annotations
 import importlib.metadata
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .faults import faults_to_dict
-from .seeding import SeedLike, as_seed_sequence
+from .seeding import SeedLike, as_seed_sequence, stream
 
 if TYPE_CHECKING:
     from .problem import Problem
@@ -43,10 +42,6 @@ class SolveResult:
     library: dict[str, str] = field(default_factory=dict)
     extra: dict[str, Any] = field(default_factory=dict)
 
-    def as_dict(self) -> dict[str, Any]:
-        d = asdict(self)
-        d["x"] = faults_to_dict(self.x)
-        return d
 
 
 SolveFn = Callable[["Problem", int, np.random.SeedSequence], SolveResult]
@@ -58,6 +53,7 @@ class SolverInfo:
     func: SolveFn
     description: str
     library: str  # distribution(s) the algorithm comes from, e.g. "cma" or "scipy"
+    config: dict[str, Any] = field(default_factory=dict)  # keywords passed to func
 
 
 _REGISTRY: dict[str, SolverInfo] = {}
@@ -68,15 +64,18 @@ class SolverError(LookupError):
     """Unknown solver name or a broken plugin."""
 
 
-def register_solver(name: str, *, description: str, library: str) -> Callable[[SolveFn],
-                                                                                SolveFn]:
-    """Decorator: make ``func`` available as solver ``name``."""
+def register_solver(name: str, /, *, description: str, library: str,
+                    **config: Any) -> Callable[[SolveFn], SolveFn]:
+    """Decorator: make ``func`` available as solver ``name``.
+
+    Keyword ``config`` is passed to ``func`` on every run: one function registers several
+    configured variants (``register_solver("ng-de", ..., optimizer="TwoPointsDE")(solve)``)."""
     def deco(func: SolveFn) -> SolveFn:
-        if name in _REGISTRY and _REGISTRY[name].func is not func:
+        old = _REGISTRY.get(name)
+        if old is not None and (old.func is not func or old.config != config):
             raise SolverError(f"solver name {name!r} is registered twice "
-                              f"({_REGISTRY[name].func.__module__} and {func.__module__})")
-        _REGISTRY[name] = SolverInfo(name, func, description, library)
-        func.__ema_solver__ = name  # type: ignore[attr-defined]
+                              f"({old.func.__module__} and {func.__module__})")
+        _REGISTRY[name] = SolverInfo(name, func, description, library, dict(config))
         return func
     return deco
 
@@ -164,7 +163,10 @@ def run_solver(name: str, problem: Problem, budget: int | None = None,
     problem.limit(budget)
     t0 = time.perf_counter()
     try:
-        res = info.func(problem, budget, as_seed_sequence(seed))
+        # the solver's own stream of the run node: disjoint from the streams that drew the
+        # instance and the noise, for every solver, plugins included
+        res = info.func(problem, budget, stream(as_seed_sequence(seed), "solver"),
+                        **info.config)
         stop, extra, lib = res.stop_reason, res.extra, res.library
     except BudgetExhausted:
         stop, extra, lib = "budget", {}, library_versions(*info.library.split(","))

@@ -1,4 +1,21 @@
-"""One root seed, spawned to every random consumer with ``numpy.random.SeedSequence``."""
+"""One root seed, spawned to every random consumer with ``numpy.random.SeedSequence``.
+
+The tree (the README has it as a table)::
+
+    root seed R
+    └── run node  run_seed(R, k) = SeedSequence(R, spawn_key=(k,))      leaderboard row k
+        ├── instance   child 0   random fault vector ("seeded" case)
+        ├── noise      child 1   sensor noise, one child per test
+        └── solver     child 2   the solver's seed (derived by run_solver)
+
+``make_problem(seed=node)`` draws the instance and the noise, ``run_solver(..., seed=node)``
+gives the solver ``stream(node, "solver")``: a solver cannot replay the problem's streams
+whatever it spawns.  ``ema-bench solve --root-seed R --seed k`` builds the same node as the
+leaderboard's row ``k`` of root seed ``R``, so it replays that row bit for bit.  (The
+diagnosis workflow and the blind suite still spawn their own children of the seed they are
+given; moving them onto named streams changes their committed suites, which are regenerated
+with them.)
+"""
 
 from __future__ import annotations
 
@@ -34,3 +51,29 @@ def child(seed: SeedLike, i: int) -> np.random.SeedSequence:
 def children(seed: SeedLike, n: int) -> list[np.random.SeedSequence]:
     """The first ``n`` children of ``seed`` (the same as a first ``spawn(n)``)."""
     return [child(seed, i) for i in range(n)]
+
+
+# --- the seed tree -------------------------------------------------------------------------
+#: Named streams of a run node, each a fixed child index.  A run node is
+#: ``run_seed(root_seed, seed)``; every random consumer of that run draws from one stream.
+STREAMS: dict[str, int] = {
+    "instance": 0,    # the fault vector of a random ("seeded") case
+    "noise": 1,       # sensor noise of the measured traces (one child per test)
+    "solver": 2,      # the solver (run_solver derives it: every solver, plugins included)
+}
+
+
+def run_seed(root_seed: int, seed: int) -> np.random.SeedSequence:
+    """The node of run ``seed`` under ``root_seed``: what ``ema-bench leaderboard`` runs as
+    its row ``seed`` and ``ema-bench solve --root-seed R --seed k`` replays."""
+    for name, v in (("root seed", root_seed), ("seed", seed)):
+        if isinstance(v, bool) or int(v) != v or v < 0:
+            raise ValueError(f"{name} must be a non-negative integer, got {v!r}")
+    return np.random.SeedSequence(int(root_seed), spawn_key=(int(seed),))
+
+
+def stream(seed: SeedLike, name: str) -> np.random.SeedSequence:
+    """The named stream (:data:`STREAMS`) of a run node."""
+    if name not in STREAMS:
+        raise KeyError(f"unknown seed stream {name!r}; known: {list(STREAMS)}")
+    return child(seed, STREAMS[name])

@@ -47,7 +47,6 @@ __all__ = [
     "DESCRIPTIONS",
     "OUTPUT_DT",
     "SIGNALS",
-    "TESTS",
     "UNITS",
     "UNIT_CONVERSIONS",
     "Traces",
@@ -67,7 +66,6 @@ DESCRIPTIONS: Mapping[str, str] = MappingProxyType(
         "i_eq": "equivalent (torque-producing) motor phase current",
     }
 )
-TESTS: tuple[str, ...] = ("step", "sine")
 OUTPUT_DT = 1e-3  # s; model output period (1 kHz), each sample the mean over its window
 
 # Multiply a value in the key unit by the factor to get the canonical unit.

@@ -18,28 +18,15 @@ from collections.abc import Iterator
 import numpy as np
 
 from ema_bench.problem import Problem
-from ema_bench.seeding import child as _seed_child
+from ema_bench.seeding import child, children  # noqa: F401  (the solvers' helpers)
 
 
 class StopSolver(Exception):
     """Private signal: the budget is spent; unwind out of a library's optimisation loop."""
 
 
-# Solver streams live under their own spawn-key branch: a solver given the same root seed
-# as ``make_problem`` (the documented ``run_solver(name, problem, seed=0)``) must not replay
-# the streams that drew the instance and the sensor noise (the root's children 0 and 1).
-_SOLVER_BRANCH = 0x736F6C76  # "solv"
-
-
-def child(seed: np.random.SeedSequence, i: int) -> np.random.SeedSequence:
-    """Solver stream ``i`` of ``seed``: the same whatever ``seed`` spawned before, and
-    disjoint from ``seed``'s plain children (which the problem uses)."""
-    return _seed_child(_seed_child(seed, _SOLVER_BRANCH), i)
-
-
-def children(seed: np.random.SeedSequence, n: int) -> list[np.random.SeedSequence]:
-    """The first ``n`` children of ``seed`` (see :func:`child`)."""
-    return [child(seed, i) for i in range(n)]
+# A solver receives its own stream of the run node (run_solver derives it), so it may spawn
+# freely: nothing it draws can replay the instance's or the noise's streams.
 
 
 def int_seed(seed: np.random.SeedSequence) -> int:

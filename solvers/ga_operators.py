@@ -1,4 +1,5 @@
-"""MATLAB ``ga`` operators as small pure functions (for the paper's GA, ``solvers.paper_ga``).
+"""MATLAB ``ga`` operators as small pure functions (for the paper's GA,
+``ema_bench_solvers.paper_ga``).
 
 Each function reproduces one of MATLAB's Global Optimization Toolbox operators used by the
 paper (Dalla Vedova et al. 2016): the population split of ``stepGA``, ``fitscalingrank``,

@@ -60,7 +60,10 @@ def _metamodel_float_fix() -> Iterator[None]:
         del metamodel.float
 
 
-def _run(name: str, optimizer: str, problem, seed: np.random.SeedSequence) -> SolveResult:
+def solve(problem, budget: int, seed: np.random.SeedSequence, *, optimizer: str, name: str) \
+        -> SolveResult:
+    """Run the nevergrad ``optimizer`` (a name of its registry) on ``problem``, reported as
+    solver ``name``."""
     import nevergrad as ng
 
     t0 = time.perf_counter()
@@ -87,18 +90,9 @@ def _run(name: str, optimizer: str, problem, seed: np.random.SeedSequence) -> So
     return finish(problem, name, "budget", t0, libraries=("nevergrad",), **extra)
 
 
-@register_solver("ngopt", description="nevergrad NGOpt (algorithm selector), 16 workers",
-                 library="nevergrad")
-def solve_ngopt(problem, budget: int, seed: np.random.SeedSequence) -> SolveResult:
-    return _run("ngopt", "NGOpt", problem, seed)
-
-
-@register_solver("ng-de", description="nevergrad TwoPointsDE, 16 workers", library="nevergrad")
-def solve_ng_de(problem, budget: int, seed: np.random.SeedSequence) -> SolveResult:
-    return _run("ng-de", "TwoPointsDE", problem, seed)
-
-
-@register_solver("ng-pso", description="nevergrad RealSpacePSO (particle swarm), 16 workers",
-                 library="nevergrad")
-def solve_ng_pso(problem, budget: int, seed: np.random.SeedSequence) -> SolveResult:
-    return _run("ng-pso", "RealSpacePSO", problem, seed)
+# configured variants of one function (run_solver passes the keywords)
+for _name, _optimizer, _what in (("ngopt", "NGOpt", "NGOpt (algorithm selector)"),
+                                 ("ng-de", "TwoPointsDE", "TwoPointsDE"),
+                                 ("ng-pso", "RealSpacePSO", "RealSpacePSO (particle swarm)")):
+    register_solver(_name, description=f"nevergrad {_what}, {NUM_WORKERS} workers",
+                    library="nevergrad", optimizer=_optimizer, name=_name)(solve)

@@ -5,7 +5,7 @@ scaling, stochastic uniform selection, heuristic crossover, adaptive feasible mu
 nominal vector in the initial population, initial range = bounds, and a population larger
 than MATLAB's default of 50 for the four-fault problem.  This module reproduces that loop
 (MATLAB's ``gaunc``/``stepGA``); the operators are the pure functions of
-:mod:`solvers.ga_operators`.  DEAP provides the representation and the bookkeeping
+:mod:`ema_bench_solvers.ga_operators`.  DEAP provides the representation and the bookkeeping
 (``creator`` types with a minimising fitness, a ``base.Toolbox`` holding the operators, a
 ``tools.Logbook`` per generation).  No DEAP variation or selection operator is used: DEAP has
 no rank scaling or adaptive feasible mutation, and ``tools.selStochasticUniversalSampling``
@@ -76,7 +76,6 @@ from .ga_operators import (
 
 NAME = "paper-ga"
 DEFAULT_POPULATION = 80
-STOP_REASONS = ("max_generations", "stall", "budget")
 
 
 def _individual_type() -> type:

@@ -104,8 +104,9 @@ def solve_least_squares(problem, budget: int, seed: np.random.SeedSequence) -> S
 
 
 # --- minimize ---------------------------------------------------------------------------------
-def _minimize_solver(name: str, method: str, problem, seed: np.random.SeedSequence) \
-        -> SolveResult:
+def solve_minimize(problem, budget: int, seed: np.random.SeedSequence, *, method: str,
+                   name: str) -> SolveResult:
+    """Multi-start ``scipy.optimize.minimize`` with ``method``, reported as solver ``name``."""
     from scipy.optimize import minimize
 
     dim = problem.dim
@@ -143,19 +144,10 @@ def _minimize_solver(name: str, method: str, problem, seed: np.random.SeedSequen
     return _multistart(name, problem, seed, run_one, min_evals=dim + 2)
 
 
-@register_solver("nelder-mead", description="scipy Nelder-Mead (bounded), multi-start from "
-                 "nominal then LHS", library="scipy")
-def solve_nelder_mead(problem, budget: int, seed: np.random.SeedSequence) -> SolveResult:
-    return _minimize_solver("nelder-mead", "Nelder-Mead", problem, seed)
-
-
-@register_solver("lbfgsb", description="scipy L-BFGS-B, batched finite-difference gradient, "
-                 "multi-start from nominal then LHS", library="scipy")
-def solve_lbfgsb(problem, budget: int, seed: np.random.SeedSequence) -> SolveResult:
-    return _minimize_solver("lbfgsb", "L-BFGS-B", problem, seed)
-
-
-@register_solver("powell", description="scipy Powell (bounded), multi-start from nominal then "
-                 "LHS", library="scipy")
-def solve_powell(problem, budget: int, seed: np.random.SeedSequence) -> SolveResult:
-    return _minimize_solver("powell", "Powell", problem, seed)
+# configured variants of one function (run_solver passes the keywords)
+for _name, _method, _what in (
+        ("nelder-mead", "Nelder-Mead", "Nelder-Mead (bounded)"),
+        ("lbfgsb", "L-BFGS-B", "L-BFGS-B, batched finite-difference gradient"),
+        ("powell", "Powell", "Powell (bounded)")):
+    register_solver(_name, description=f"scipy {_what}, multi-start from nominal then LHS",
+                    library="scipy", method=_method, name=_name)(solve_minimize)

@@ -99,7 +99,15 @@ def test_simulate_reference_writes_csv_and_png(tmp_path):
     tr = load_traces(out)
     assert tr.tests == ("step", "sine")
     assert tr.n_samples("step") == 300 and tr.n_samples("sine") == 1000
-    assert tr.meta["model"] == "reference" and tr.meta["seed"] == 0
+    # the noise is the run node's noise stream (root seed 0, run 0): child 1 of (0, (0,))
+    assert tr.meta["model"] == "reference"
+    assert tr.meta["seed"] == {"entropy": "0", "spawn_key": [0, 1]}
+    # ... the very traces a solve of these faults with --seed 0 fits
+    from ema_bench.instances import make_problem
+    from ema_bench.seeding import run_seed
+    fitted = make_problem(np.array([0.95, 0.3378, 0.01, 1e5]), track="reference",
+                          seed=run_seed(0, 0), budget=1).measured
+    assert tr.allclose(fitted, rtol=1e-12, atol=1e-15)
     assert tr.meta["faults"] == {"Na": 0.95, "Fst": 0.3378, "BLK": 0.01, "Gprop": 1e5}
     step = tr.data["step"]
     assert step[-50:, 0].mean() == pytest.approx(0.3, abs=2e-3)     # it moved and settled

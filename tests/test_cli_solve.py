@@ -14,7 +14,7 @@ ZOO = ("random", "cmaes", "de", "ngopt", "ng-de", "ng-pso", "least-squares", "ne
 RESULT_KEYS = {"solver", "case", "track", "seed", "x", "fitness", "evaluations", "wall_s",
                "stop_reason", "library"}
 TRUTH_KEYS = {"accuracy", "range_error", "success", "truth", "fitness_at_truth",
-              "evaluations_to_success"}
+              "evals_to_success"}
 FAULTS = {"Na", "Fst", "BLK", "Gprop"}
 
 
@@ -41,7 +41,7 @@ def test_solve_json_twin():
     assert set(out["x"]) == set(out["truth"]) == set(out["accuracy"]) == FAULTS
     assert out["truth"] == {"Na": 0.95, "Fst": 0.3378, "BLK": 0.01, "Gprop": 1e5}
     assert isinstance(out["success"], bool)
-    first = out["evaluations_to_success"]
+    first = out["evals_to_success"]
     assert first is None or 1 <= first <= out["evaluations"]
     assert out["fitness"] >= 0 and out["fitness_at_truth"] >= 0
     assert "scipy" in out["library"] and "ema-bench" in out["library"]
@@ -108,8 +108,12 @@ def test_solvers_json_and_table():
 @pytest.mark.parametrize("args, message", [
     (("--solver", "no-such-solver"), "unknown solver 'no-such-solver'"),
     (("--case", "huge"), "unknown case 'huge'"),
-    (("--budget", "0"), "--budget must be a positive integer"),
-    (("--budget", "-5"), "--budget must be a positive integer"),
+    (("--budget", "0"), "budget must be a positive integer"),
+    (("--budget", "-5"), "budget must be a positive integer"),
+    (("--heterogeneity", "2"), "heterogeneity must lie in [0, 1]"),
+    (("--seed", "-1"), "seed must be a non-negative integer"),
+    (("--faults", "Na=2"), "Na=2"),
+    (("--faults", "Na"), "expected NAME=VALUE"),
     (("--measured", "missing.csv"), "file not found"),
     (("--effect", "warp=1"), "unknown effect 'warp'"),
 ])
@@ -120,3 +124,14 @@ def test_bad_input_exits_2_with_one_line(args, message, tmp_path):
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1, r.stderr
     assert lines[0].startswith("ema-bench solve: error:") and message in lines[0]
+
+
+def test_solve_explicit_faults(tmp_path):
+    r = cli("solve", "--faults", "Na=0.9,BLK=0.02", "--track", "twin", "--solver", "powell",
+            "--budget", "30", "--json", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    from ema_bench.faults import NOMINAL, faults_to_dict
+
+    assert out["truth"] == {**faults_to_dict(NOMINAL), "Na": 0.9, "BLK": 0.02}
+    assert out["case"] == "custom" and out["evaluations"] == 30

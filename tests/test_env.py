@@ -15,8 +15,10 @@ from gymnasium.vector import AutoresetMode
 import ema_bench  # noqa: F401  (registers the id)
 from ema_bench.env import ENV_ID, EMAFaultEnv, EMAFaultVectorEnv, register
 from ema_bench.faults import CASES, FAULT_NAMES, from_unit
+from ema_bench.instances import make_problem
 from ema_bench.monitor import simulate_monitor
-from ema_bench.problem import ProblemError, make_problem
+from ema_bench.physics.sensors import SENSORS
+from ema_bench.problem import ProblemError
 from ema_bench.protocol import STANDARD_TESTS
 
 N_OBS = sum(s.n_samples() for s in STANDARD_TESTS) * 4
@@ -233,12 +235,15 @@ def test_residual_mode():
     assert problem.evaluations == 1 and not truncated
     assert obs.shape == (N_OBS,) and obs in env.observation_space
     np.testing.assert_allclose(np.sum(obs**2), -reward, rtol=1e-10)
-    # same values as Problem.residuals, rearranged to the stacked layout
+    # the same values as Problem.residuals: one layout, the stacked one (test by test, signal
+    # by signal, sample by sample): the first 300 are the step test's surface position
     r = twin.residuals(from_unit(x_unit))
-    expected = np.concatenate([
-        r[i:i + n * 4].reshape(n, 4).T.ravel()
-        for i, n in zip((0, 300 * 4), (300, 1000))])
-    np.testing.assert_allclose(obs, expected, rtol=1e-12, atol=0)
+    np.testing.assert_allclose(obs, r, rtol=1e-12, atol=0)
+    out, _ = twin.simulate(from_unit(x_unit))
+    meas = problem.measured.data["step"][:, 0]
+    w0 = 1.0 / max(np.ptp(meas), 10 * SENSORS[0].lsb) ** 2
+    np.testing.assert_allclose(obs[:300], (out["step"][0, :, 0] - meas) * np.sqrt(w0 / 300),
+                               rtol=1e-12, atol=1e-15)
     assert reward == pytest.approx(-twin.history()["fitness"][-1], rel=1e-12)
 
 
@@ -255,6 +260,39 @@ def test_make_vec_uses_the_vector_entry_point():
     assert isinstance(gym.make_vec(ENV_ID, num_envs=2, budget=4), EMAFaultVectorEnv)
 
 
+def _count_monitor_calls(monkeypatch) -> list:
+    """Record the batch shape of every monitor simulation the objective runs."""
+    import ema_bench.objective as objective_module
+
+    calls, real = [], objective_module.simulate_monitor
+
+    def counting(X, *args, **kwargs):
+        calls.append(np.shape(X))
+        return real(X, *args, **kwargs)
+
+    monkeypatch.setattr(objective_module, "simulate_monitor", counting)
+    return calls
+
+
+@pytest.mark.parametrize("observation", ["traces", "residuals"])
+def test_single_step_simulates_once(monkeypatch, observation):
+    env = gym.make(ENV_ID, observation=observation, track="twin", budget=5)
+    env.reset(seed=2)
+    calls = _count_monitor_calls(monkeypatch)
+    env.step(np.array([0.3, 0.4, 0.2, 0.6]))
+    assert calls == [(1, 4)]   # one evaluation, one simulation (it used to simulate twice)
+
+
+@pytest.mark.parametrize("observation", ["traces", "residuals"])
+def test_vector_step_simulates_once(monkeypatch, observation):
+    envs = gym.make_vec(ENV_ID, num_envs=6, vectorization_mode="vector_entry_point",
+                        track="twin", budget=20, observation=observation)
+    envs.reset(seed=2)
+    calls = _count_monitor_calls(monkeypatch)
+    envs.step(np.random.default_rng(0).random((6, 4)))
+    assert calls == [(6, 4)]
+
+
 def test_vector_step_is_one_batched_evaluation():
     n = 8
     envs = gym.make_vec(ENV_ID, num_envs=n, vectorization_mode="vector_entry_point",
@@ -265,8 +303,8 @@ def test_vector_step_is_one_batched_evaluation():
     np.testing.assert_array_equal(obs, np.tile(problem.measured.stacked(), (n, 1)))
     assert np.all(info["evaluations"] == 0) and np.all(info["_evaluations"])
     calls = []
-    evaluate = problem.evaluate
-    problem.evaluate = lambda X: (calls.append(np.shape(X)), evaluate(X))[1]
+    evaluate = problem.evaluate_outputs
+    problem.evaluate_outputs = lambda X: (calls.append(np.shape(X)), evaluate(X))[1]
 
     rng = np.random.default_rng(1)
     actions = rng.random((n, 4))

@@ -91,7 +91,7 @@ def test_cli_solve_imports_no_other_solver():
             "from ema_bench.cli import main\n"
             "rc = main(['solve', '--case', 'nominal', '--solver', 'powell', '--budget', '20',"
             " '--json', '--no-progress'])\n"
-            "mods = sorted(m for m in sys.modules if m.startswith('solvers.')"
+            "mods = sorted(m for m in sys.modules if m.startswith('ema_bench_solvers.')"
             " or m in ('cma', 'nevergrad', 'deap', 'gymnasium'))\n"
             "print(rc, ' '.join(mods))\n")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
@@ -99,8 +99,8 @@ def test_cli_solve_imports_no_other_solver():
     assert proc.returncode == 0, proc.stderr
     last = proc.stdout.strip().splitlines()[-1].split()
     assert last[0] == "0"
-    # powell lives in solvers.scipy_local (which shares solvers._common); nothing else
-    assert set(last[1:]) <= {"solvers._common", "solvers.scipy_local"}, last
-    assert "solvers.scipy_local" in last
+    # powell lives in ema_bench_solvers.scipy_local (sharing _common); nothing else
+    assert set(last[1:]) <= {"ema_bench_solvers._common", "ema_bench_solvers.scipy_local"}, last
+    assert "ema_bench_solvers.scipy_local" in last
     doc = json.loads("\n".join(proc.stdout.strip().splitlines()[:-1]))
     assert doc["solver"] == "powell"

@@ -211,3 +211,42 @@ def test_bad_arguments_exit_2(tmp_path):
         res = run(args + ["--out", str(tmp_path / "x")])
         assert res.returncode == 2, args
         assert "error" in res.stderr
+
+
+def test_leaderboard_row_replays_from_the_command_line(tmp_path):
+    """`ema-bench solve --root-seed R --seed k` is the leaderboard's row k of root seed R:
+    same instance, same noise, same solver stream, so the same result bit for bit."""
+    res = run(["--solvers", "powell", "--cases", "seeded", "--tracks", "reference",
+               "--seeds", "2", "--budget", "80", "--root-seed", "3", "--executor", "serial",
+               "--no-plots", "--out", str(tmp_path / "lb")])
+    assert res.returncode == 0, res.stdout + res.stderr
+    row = [r for r in read_records(tmp_path / "lb" / "runs.jsonl") if r["seed"] == 1][0]
+    solve = subprocess.run([sys.executable, "-m", "ema_bench.cli", "solve", "--case", "seeded",
+                            "--track", "reference", "--solver", "powell", "--budget", "80",
+                            "--seed", "1", "--root-seed", "3", "--json", "--no-progress"],
+                           capture_output=True, text=True, timeout=120)
+    assert solve.returncode == 0, solve.stderr
+    doc = json.loads(solve.stdout)
+    assert doc["truth"] == row["truth"]                 # the same seeded instance
+    assert doc["x"] == row["x"] and doc["fitness"] == row["fitness"]   # bit for bit
+    assert doc["fitness_at_truth"] == row["fitness_at_truth"]          # the same noise
+    # one record builder: the command line prints the leaderboard's record (plus extras)
+    for k in ("key", "solver", "case", "track", "seed", "budget", "root_seed",
+              "model_version", "evaluations", "stop_reason", "success", "evals_to_success",
+              "accuracy", "range_error", "trace"):
+        assert doc[k] == row[k], k
+
+
+def test_rerun_into_the_same_folder_with_another_budget_adds_runs(tmp_path):
+    out = str(tmp_path / "lb")
+    args = ["--solvers", "random", "--cases", "small", "--tracks", "twin", "--seeds", "1",
+            "--executor", "serial", "--no-plots", "--out", out, "--json"]
+    first = run(args + ["--budget", "30"])
+    assert first.returncode == 0, first.stderr
+    second = run(args + ["--budget", "40"])
+    assert second.returncode == 0, second.stdout + second.stderr
+    assert json.loads(second.stdout)["ran"] == 1       # a new run, not "already done"
+    again = run(args + ["--budget", "40"])
+    assert json.loads(again.stdout)["ran"] == 0        # the same settings: nothing to do
+    budgets = sorted(r["budget"] for r in read_records(tmp_path / "lb" / "runs.jsonl"))
+    assert budgets == [30, 40]

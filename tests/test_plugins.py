@@ -39,7 +39,7 @@ def test_zoo_is_found_through_entry_points():
     assert set(ZOO) <= set(eps)
     assert "paper-ga" in eps  # declared; its module is written separately
     for name in ZOO:
-        assert eps[name].value.startswith("solvers."), eps[name]
+        assert eps[name].value.startswith("ema_bench_solvers."), eps[name]
     registered = available_solvers()
     for name in ZOO:
         assert name in registered
@@ -156,3 +156,33 @@ def test_plugin_not_visible_without_its_path():
     r = cli("solvers", "--json")
     assert r.returncode == 0, r.stderr
     assert PLUGIN not in {s["name"] for s in json.loads(r.stdout)}
+
+
+def test_configured_variants_share_one_function():
+    """One function, several names: each run gets its variant's keywords (nevergrad's
+    optimizer, scipy's method), and a name cannot be re-registered with other keywords."""
+    import time
+
+    from ema_bench import make_problem
+    from ema_bench.registry import SolverError, finish, get_solver, register_solver, run_solver
+
+    seen = []
+
+    def solve(problem, budget, seed, *, step):
+        seen.append(step)
+        x = problem.nominal.copy()
+        problem.evaluate(x)
+        return finish(problem, "variant", "done", time.perf_counter())
+
+    register_solver("test-variant-a", description="a", library="numpy", step=0.1)(solve)
+    register_solver("test-variant-b", description="b", library="numpy", step=0.2)(solve)
+    assert get_solver("test-variant-b").config == {"step": 0.2}
+    res = run_solver("test-variant-b", make_problem("nominal", track="twin", budget=3), seed=0)
+    assert seen == [0.2] and res.solver == "test-variant-b" and res.evaluations == 1
+    register_solver("test-variant-a", description="a", library="numpy", step=0.1)(solve)
+    with pytest.raises(SolverError, match="registered twice"):
+        register_solver("test-variant-a", description="a", library="numpy", step=0.3)(solve)
+    # the zoo's variants: nevergrad and scipy minimize register keywords, not wrappers
+    assert get_solver("ng-de").config == {"optimizer": "TwoPointsDE", "name": "ng-de"}
+    assert get_solver("powell").config == {"method": "Powell", "name": "powell"}
+    assert get_solver("powell").func is get_solver("nelder-mead").func

@@ -8,18 +8,13 @@ from collections.abc import Mapping
 import numpy as np
 import pytest
 
-import ema_bench.problem as problem_module
+import ema_bench.objective as objective_module
 from ema_bench.faults import CASES, FAULT_NAMES, LOWER, NOMINAL, UPPER, random_faults
+from ema_bench.instances import make_problem
+from ema_bench.objective import PENALTY, signal_scales
 from ema_bench.physics.sensors import SENSORS
-from ema_bench.problem import (
-    PENALTY,
-    BudgetExhausted,
-    Problem,
-    ProblemError,
-    Score,
-    make_problem,
-    signal_scales,
-)
+from ema_bench.problem import BudgetExhausted, Problem, ProblemError
+from ema_bench.scoring import Score
 from ema_bench.traces import Traces
 
 DAMAGED = ("small", "full", "random")
@@ -146,7 +141,7 @@ def test_normalise_false_gives_the_raw_fitness_dominated_by_motor_signals():
 
 
 def test_simulation_failure_scores_penalty_and_is_counted(monkeypatch):
-    real = problem_module.simulate_monitor
+    real = objective_module.simulate_monitor
 
     def flaky(X, *args, **kwargs):
         outputs, ok = real(X, *args, **kwargs)
@@ -155,7 +150,7 @@ def test_simulation_failure_scores_penalty_and_is_counted(monkeypatch):
         return outputs, ok
 
     p = make_problem("small", track="twin", seed=0, budget=6)
-    monkeypatch.setattr(problem_module, "simulate_monitor", flaky)
+    monkeypatch.setattr(objective_module, "simulate_monitor", flaky)
     X = candidates(4)
     f = p.evaluate(X)  # must not raise
     np.testing.assert_array_equal(f[[0, 2]], PENALTY)
@@ -169,7 +164,7 @@ def test_simulation_failure_scores_penalty_and_is_counted(monkeypatch):
 
 
 def test_non_finite_outputs_score_penalty(monkeypatch):
-    real = problem_module.simulate_monitor
+    real = objective_module.simulate_monitor
 
     def nan_outputs(X, *args, **kwargs):
         outputs, ok = real(X, *args, **kwargs)
@@ -178,7 +173,7 @@ def test_non_finite_outputs_score_penalty(monkeypatch):
         return outputs, ok
 
     p = make_problem("small", track="twin", seed=0, budget=3)
-    monkeypatch.setattr(problem_module, "simulate_monitor", nan_outputs)
+    monkeypatch.setattr(objective_module, "simulate_monitor", nan_outputs)
     f = p.evaluate(candidates(3))
     assert f[1] == PENALTY and np.all(f[[0, 2]] < PENALTY) and p.failures == 1
 

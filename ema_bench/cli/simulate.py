@@ -15,6 +15,8 @@ import time
 
 import numpy as np
 
+from .args import add_effects, add_faults, add_json, add_seeds, effects_of, faults_of, run_node
+
 MODELS = ("reference", "monitor")
 
 
@@ -26,33 +28,31 @@ def register(sub: argparse._SubParsersAction) -> None:
     src.add_argument("--case", default=None,
                      help="paper case: nominal, small, full, random, or 'all' for the four "
                           "(default nominal)")
-    src.add_argument("--faults", default=None, metavar="NAME=VALUE,...",
-                     help="fault values, e.g. Na=0.95,Fst=0.3378,BLK=0.01,Gprop=1e5 "
-                          "(units -, N m, rad, 1/s; missing ones are nominal)")
-    p.add_argument("--effect", action="append", default=[], metavar="NAME=VALUE",
-                   help="switch on an effect in the model (repeatable); see 'ema-bench params'")
+    add_faults(src)
+    add_effects(p, "the model")
     p.add_argument("--model", choices=MODELS, default="reference",
                    help="reference (detailed, 1 us step) or monitor (cheap) (default reference)")
     p.add_argument("--tests", default="step,sine",
                    help="comma-separated protocol tests: step, sine, and the held-out sine2 "
                         "that 'ema-bench diagnose' needs (default step,sine)")
-    p.add_argument("--seed", type=int, default=0, help="root seed of the sensor noise")
+    add_seeds(p, "the sensor noise (the same noise 'ema-bench solve --seed k' fits)")
     p.add_argument("--no-noise", action="store_true",
                    help="clean outputs: no sensor noise, no ADC quantisation")
     p.add_argument("--out", default=None, metavar="PATH",
                    help="write traces (.csv or .npz; with --case all, a folder)")
     p.add_argument("--plot", default=None, metavar="PNG", help="draw the 8 signals to a PNG")
-    p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    add_json(p, "the summary")
     p.set_defaults(func=run)
 
 
-def _simulate(x, effects, model, seed, clean, tests):
+def _simulate(x, effects, model, node, clean, tests):
     from ..monitor import monitor_traces
     from ..physics.sensors import measure
     from ..reference import simulate_reference
-    from ..seeding import children
+    from ..seeding import children, seed_repr, stream
     from ..traces import Traces
 
+    seed = stream(node, "noise")
     if model == "reference":
         return simulate_reference(x, effects, seed=None if clean else seed, noise=not clean,
                                   adc=not clean, tests=tests)
@@ -61,7 +61,7 @@ def _simulate(x, effects, model, seed, clean, tests):
         return tr
     data = {t: measure(tr.data[t], np.random.default_rng(c))
             for t, c in zip(tr.tests, children(seed, len(tr.tests)))}
-    return Traces(data=data, dt=tr.dt, meta={**tr.meta, "seed": seed, "noise": True})
+    return Traces(data=data, dt=tr.dt, meta={**tr.meta, "seed": seed_repr(seed), "noise": True})
 
 
 def summarise(tr) -> dict[str, float]:
@@ -92,13 +92,13 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from ..effects import effects_vector
-    from ..faults import CASES, check_faults, faults_to_dict, get_case, parse_assignments
+    from ..faults import CASES, faults_to_dict, get_case
     from ..plots import plot_traces
     from ..protocol import HOLDOUT_TESTS, STANDARD_TESTS
     from . import CLIError, print_json
 
-    effects = effects_vector(
-        {k: v for item in args.effect for k, v in parse_assignments(item).items()})
+    node = run_node(args)
+    effects = effects_vector(effects_of(args))
     known = {t.name: t for t in STANDARD_TESTS + HOLDOUT_TESTS}
     names = [t.strip() for t in args.tests.split(",") if t.strip()]
     bad = [t for t in names if t not in known]
@@ -106,7 +106,7 @@ def run(args: argparse.Namespace) -> int:
         raise CLIError(f"unknown test(s) {bad}; known: {list(known)}")
     tests = tuple(known[t] for t in names)
     if args.faults:
-        runs = {"custom": check_faults(parse_assignments(args.faults))}
+        runs = {"custom": faults_of(args)}
     elif args.case == "all":
         runs = {n: c.x for n, c in CASES.items()}
     else:
@@ -115,7 +115,7 @@ def run(args: argparse.Namespace) -> int:
     results, traces = {}, {}
     for name, x in runs.items():
         t0 = time.perf_counter()
-        tr = _simulate(x, effects, args.model, args.seed, args.no_noise, tests)
+        tr = _simulate(x, effects, args.model, node, args.no_noise, tests)
         tr = tr.with_meta(case=name)
         traces[name] = tr
         results[name] = {"faults": faults_to_dict(x), "wall_s": time.perf_counter() - t0,

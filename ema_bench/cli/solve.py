@@ -19,10 +19,11 @@ from __future__ import annotations
 import argparse
 import sys
 import threading
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 
-from ..seeding import child
+from .args import add_effects, add_faults, add_json, add_seeds, effects_of, faults_of, run_node
 
 _SOLVE_EPILOG = "Run 'ema-bench solvers' for the registered solvers."
 
@@ -47,6 +48,7 @@ def _register_solve(sub: argparse._SubParsersAction) -> None:
                           "instance drawn from --seed (default small)")
     src.add_argument("--measured", default=None, metavar="FILE",
                      help="fit measured traces from a .csv, .npz or .mat file (no truth)")
+    add_faults(src)
     p.add_argument("--heterogeneity", type=float, default=1.0,
                    help="with --case seeded: how far faults may move from nominal, 0..1 "
                         "(default 1)")
@@ -56,30 +58,27 @@ def _register_solve(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--solver", default="cmaes", help="registered solver name (default cmaes)")
     p.add_argument("--budget", type=int, default=2000,
                    help="evaluation budget, counted by the problem (default 2000)")
-    p.add_argument("--seed", type=int, default=0,
-                   help="root seed: the instance, the sensor noise and the solver (default 0)")
-    p.add_argument("--effect", action="append", default=[], metavar="NAME=VALUE",
-                   help="switch on an effect in the model that makes the data (repeatable); "
-                        "see 'ema-bench params'")
+    add_seeds(p, "the instance, the sensor noise and the solver (a leaderboard row, bit for "
+                 "bit)")
+    add_effects(p, "the model that makes the data")
     p.add_argument("--raw", action="store_true",
                    help="raw sum of squared errors instead of the normalised fitness")
     p.add_argument("--plot", default=None, metavar="PNG",
                    help="draw measured vs fitted monitor traces to a PNG")
-    p.add_argument("--json", action="store_true", help="print the result as JSON")
+    add_json(p)
     p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     p.set_defaults(func=run)
 
 
 def _check_args(args: argparse.Namespace) -> None:
+    from ..instances import check_settings
     from ..registry import SolverError, get_solver
     from . import CLIError
 
-    if args.budget < 1:
-        raise CLIError(f"--budget must be a positive integer, got {args.budget}")
-    if args.seed < 0:
-        raise CLIError(f"--seed must be a non-negative integer, got {args.seed}")
-    if not 0.0 <= args.heterogeneity <= 1.0:
-        raise CLIError(f"--heterogeneity must lie in [0, 1], got {args.heterogeneity:g}")
+    run_node(args)   # the seeds are valid
+    # make_problem's own checks, before any work (the measured path has no case)
+    check_settings(_case(args) if args.measured is None else "small", args.track,
+                   args.budget, args.heterogeneity)
     try:
         get_solver(args.solver)   # imports this solver's plugin only
     except SolverError as exc:
@@ -89,23 +88,22 @@ def _check_args(args: argparse.Namespace) -> None:
                        "traces")
 
 
-def _effects(args: argparse.Namespace) -> dict[str, float]:
-    from ..faults import parse_assignments
-
-    return {k: v for item in args.effect for k, v in parse_assignments(item).items()}
+def _case(args: argparse.Namespace):
+    """--case (default small), or the vector of --faults."""
+    return faults_of(args) if args.faults else (args.case or "small")
 
 
 def _make_problem(args: argparse.Namespace):
-    from ..problem import make_problem
+    from ..instances import make_problem
     from ..traces import load_traces
 
     if args.measured is not None:
         return make_problem(measured=load_traces(args.measured), budget=args.budget,
                             normalise=not args.raw)
-    effects = _effects(args)
-    # the instance draws from child 0 of the root seed, the solver from child 1 (below), so
-    # a solver spawning from its seed never replays the instance's noise streams
-    return make_problem(args.case or "small", track=args.track, seed=child(args.seed, 0),
+    effects = effects_of(args)
+    # the instance and the noise come from the run node's streams, the solver from its own
+    # (run_solver derives it), as in a leaderboard row
+    return make_problem(_case(args), track=args.track, seed=run_node(args),
                         budget=args.budget, normalise=not args.raw,
                         heterogeneity=args.heterogeneity, effects=effects or None)
 
@@ -140,41 +138,32 @@ def _progress(problem, enabled: bool) -> Iterator[None]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..faults import FAULTS, faults_to_dict
-    from ..registry import run_solver
+    from ..faults import FAULTS
+    from ..records import run_record
+    from ..registry import get_solver, run_solver
     from . import print_json
 
+    t0 = time.perf_counter()
     _check_args(args)
     problem = _make_problem(args)
     show_bar = not (args.json or args.no_progress) and sys.stderr.isatty()
     with _progress(problem, show_bar):
-        res = run_solver(args.solver, problem, budget=args.budget, seed=child(args.seed, 1))
+        res = run_solver(args.solver, problem, budget=args.budget, seed=run_node(args))
 
-    out = {"solver": res.solver,
-           "case": problem.meta.get("case", problem.label),
-           "track": problem.track,
-           "seed": args.seed,
-           "x": faults_to_dict(res.x),
-           "fitness": res.fitness,
-           "evaluations": res.evaluations,
-           "budget": args.budget,
-           "failures": problem.failures,
-           "wall_s": res.wall_s,
-           "stop_reason": res.stop_reason,
-           "library": res.library,
-           "normalised": problem.normalise,
-           "extra": res.extra}
+    # the leaderboard's run record (ema_bench.records), plus what only a command line has
+    case = problem.label if args.measured is not None else \
+        ("custom" if args.faults else args.case or "small")   # the leaderboard's case name
+    out = run_record(problem, res, case=case,
+                     track=problem.track, seed=args.seed, budget=args.budget,
+                     root_seed=args.root_seed, wall_s=time.perf_counter() - t0,
+                     info=get_solver(args.solver).library)
+    out.update(normalised=problem.normalise, extra=res.extra)
     if args.measured is not None:
         out["measured"] = args.measured
     if problem.has_truth:
-        score = problem.score(res.x)
-        out.update(accuracy=score.accuracy, range_error=score.range_error,
-                   success=score.success, truth=score.truth,
-                   fitness_at_truth=problem.fitness_at_truth(),
-                   evaluations_to_success=problem.first_success(),
-                   clock_at_success=problem.first_success_clock())
+        out["clock_at_success"] = problem.first_success_clock()
         if args.effect:
-            out["effects"] = _effects(args)
+            out["effects"] = effects_of(args)
     if args.plot:
         _plot(problem, res, args)
         out["plot"] = args.plot
@@ -194,7 +183,7 @@ def run(args: argparse.Namespace) -> int:
             acc_s = "-" if acc is None else f"{acc:.2f}"
             print(f"{name:<6} {units[name]:<4} {v:12.6g} {out['truth'][name]:12.6g} "
                   f"{acc_s:>11} {100 * out['range_error'][name]:11.3f}")
-        first = out["evaluations_to_success"]
+        first = out["evals_to_success"]
         print(f"fitness at the truth {out['fitness_at_truth']:.6g}; success (every range "
               f"error <= 1 %): {'yes' if out['success'] else 'no'}"
               + ("" if first is None else f"; first successful vector at evaluation {first}"))
@@ -209,14 +198,14 @@ def run(args: argparse.Namespace) -> int:
 
 def _plot(problem, res, args: argparse.Namespace) -> None:
     from ..monitor import monitor_traces
+    from ..objective import KNOWN_TESTS, N_FAULTS
     from ..plots import plot_traces
-    from ..problem import KNOWN_TESTS
     from ..reference import SimulationError
     from . import CLIError
 
     tests = tuple(KNOWN_TESTS[t] for t in problem.measured.tests)
     try:
-        fitted = monitor_traces(res.x[:4], tests=tests)
+        fitted = monitor_traces(res.x[:N_FAULTS], tests=tests)
     except SimulationError as exc:
         raise CLIError(f"cannot plot: {exc}") from None
     plot_traces([problem.measured, fitted], ["measured", f"fitted ({res.solver})"], args.plot,

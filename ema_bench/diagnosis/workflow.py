@@ -23,8 +23,9 @@ import numpy as np
 
 from ..effects import EFFECT_NAMES, EFFECTS, LIBRARY, N_EFFECTS
 from ..faults import FAULT_NAMES
+from ..instances import make_problem
 from ..monitor import simulate_monitor
-from ..problem import KNOWN_TESTS, make_problem, signal_scales
+from ..objective import KNOWN_TESTS, N_FAULTS, SearchSpace, signal_weights
 from ..reference import simulate_reference
 from ..registry import run_solver
 from ..seeding import SeedLike, child
@@ -70,11 +71,11 @@ class Fit:
 
     @property
     def faults(self) -> dict[str, float]:
-        return dict(zip(FAULT_NAMES, map(float, self.x[:4])))
+        return dict(zip(FAULT_NAMES, map(float, self.x[:N_FAULTS])))
 
     @property
     def effects(self) -> dict[str, float]:
-        return dict(zip(self.augment, map(float, self.x[4:])))
+        return dict(zip(self.augment, map(float, self.x[N_FAULTS:])))
 
     def effects_vector(self) -> np.ndarray:
         e = np.zeros(N_EFFECTS)
@@ -160,11 +161,8 @@ def _simulate(x: np.ndarray, augment: tuple[str, ...], tests: tuple[str, ...]
               ) -> dict[str, np.ndarray]:
     """Monitor outputs of one or more parameter vectors (rows) on ``tests``: (k, n, 4)."""
     X = np.atleast_2d(x)
-    E = np.zeros((X.shape[0], N_EFFECTS))
-    for j, n in enumerate(augment):
-        E[:, EFFECT_NAMES.index(n)] = X[:, 4 + j]
-    out, _ = simulate_monitor(X[:, :4], E, tests=tuple(KNOWN_TESTS[t] for t in tests),
-                              check=False)
+    out, _ = simulate_monitor(X[:, :4], SearchSpace.of(augment).effects_for(X),
+                              tests=tuple(KNOWN_TESTS[t] for t in tests), check=False)
     return out
 
 
@@ -182,7 +180,7 @@ def fit(measured: Traces, augment: tuple[str, ...], settings: Settings, seed: Se
 def assess(measured: Traces, model: Fit, weights: dict[str, np.ndarray],
            settings: Settings, seed: SeedLike) -> tuple[Assessment, Envelope]:
     """Compare the residuals of a fit with bootstrap envelopes of that fit."""
-    clean = simulate_reference(model.x[:4], model.effects_vector(),
+    clean = simulate_reference(model.x[:N_FAULTS], model.effects_vector(),
                                tests=tuple(KNOWN_TESTS[t] for t in measured.tests),
                                noise=False, adc=False)
     commands = _commands(measured.tests)
@@ -254,7 +252,7 @@ def screen(measured: Traces, model: Fit, lower: np.ndarray, upper: np.ndarray,
     y0, J = _jacobian(model.x, model.augment, lower, upper, tests)
     data = np.concatenate([whiten(measured.data[t]).ravel() for t in tests])
     base_e = model.effects_vector()
-    X = np.tile(model.x[:4], (len(names), 1))
+    X = np.tile(model.x[:N_FAULTS], (len(names), 1))
     E = np.tile(base_e, (len(names), 1))
     steps = {}
     for i, n in enumerate(names):
@@ -278,8 +276,8 @@ def _closed(before: float, after: float, floor: float) -> float:
 
 
 def _bounds(augment: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
-    p = make_problem("nominal", track="twin", budget=1, augment=augment)
-    return np.asarray(p.lower), np.asarray(p.upper)
+    space = SearchSpace.of(augment)
+    return np.asarray(space.lower), np.asarray(space.upper)
 
 
 def diagnose(measured: Traces, settings: Settings | None = None, seed: SeedLike = 0
@@ -292,8 +290,7 @@ def diagnose(measured: Traces, settings: Settings | None = None, seed: SeedLike 
         raise DiagnosisError(f"the workflow needs the tests {list(TRAIN + HOLDOUT)} (the last "
                              f"one held out for validation); missing {missing}")
     measured = _subset(measured, TRAIN + HOLDOUT)
-    scales = signal_scales(measured)
-    weights = {t: 1.0 / scales[t] ** 2 for t in measured.tests}
+    weights = signal_weights(measured)
     evals = 0
     base = fit(measured, (), settings, child(seed, 0))
     evals += base.evaluations

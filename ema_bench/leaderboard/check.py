@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .scores import ALL, score_records
-from .store import RUNS_FILE, is_current, read_records
+from .store import RUNS_FILE, is_current, read_records, run_identity
 
 
 @dataclass(frozen=True)
@@ -50,8 +50,10 @@ def truncate(records: list[dict], budget: int, seeds: int) -> list[dict]:
 
 
 def run_id(r: dict) -> tuple:
-    """What identifies a run apart from its budget."""
-    return r["solver"], r["case"], r["track"], r["seed"], r.get("root_seed", 0)
+    """What identifies a run apart from its budget (and model version): a committed run at a
+    larger budget can be re-scored at a smaller one."""
+    ident = run_identity(r)
+    return ident[:4] + ident[5:6]
 
 
 def committed_files(folder: str | Path) -> list[Path]:

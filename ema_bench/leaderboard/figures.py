@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from ..faults import CASES, FAULT_NAMES, NOMINAL, check_faults
+from ..instances import make_problem
 from ..plots import plot_traces, plt
-from ..problem import make_problem
 from ..traces import Traces
 
 
@@ -99,7 +99,7 @@ def overlay_plot(record: dict, path: Path) -> None:
 
     task = Task(record["solver"], record["case"], record["track"], record["seed"],
                 record["budget"], record["root_seed"])
-    problem = make_problem(task.case, track=task.track, seed=task.instance_seed(), budget=1)
+    problem = make_problem(task.case, track=task.track, seed=task.node(), budget=1)
     x = check_faults([record["x"][n] for n in FAULT_NAMES])
     outs, _ = problem.simulate(np.vstack([NOMINAL, x]))
     before = Traces({t: v[0] for t, v in outs.items()})

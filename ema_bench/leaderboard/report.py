@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from ..faults import CASES, FAULT_NAMES, FAULT_UNITS
-from .scores import ALL, Score
+from .scores import ALL, SolverScore
 
 
 def _fmt(v: float, digits: int = 3) -> str:
@@ -23,10 +23,10 @@ def _fmt(v: float, digits: int = 3) -> str:
     return f"{v:.{digits}g}"
 
 
-def write_leaderboards(scores: list[Score], out: Path, header: str) -> list[Path]:
+def write_leaderboards(scores: list[SolverScore], out: Path, header: str) -> list[Path]:
     """One Markdown and one CSV leaderboard per track; returns the paths written."""
     written = []
-    by_track: dict[str, list[Score]] = defaultdict(list)
+    by_track: dict[str, list[SolverScore]] = defaultdict(list)
     for s in scores:
         by_track[s.track].append(s)
     for track, rows in by_track.items():
@@ -69,7 +69,7 @@ def _track_note(track: str) -> str:
             "paper.")
 
 
-def write_paper_tables(records: list[dict], scores: list[Score], out: Path, header: str,
+def write_paper_tables(records: list[dict], scores: list[SolverScore], out: Path, header: str,
                        paper: dict | None) -> Path:
     """The paper's Tables 2-5 beside ours (reference track, medians over seeds) for the
     paper GA and for the best solver of each case."""

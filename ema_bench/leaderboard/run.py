@@ -18,7 +18,7 @@ from .figures import (
 )
 from .report import load_paper_results, write_leaderboards, write_paper_tables
 from .scores import score_records
-from .store import RUNS_FILE, RunStore, is_current, read_records
+from .store import RUNS_FILE, RunStore, read_records, run_identity
 from .tasks import Task, make_tasks
 
 
@@ -29,7 +29,7 @@ def run_tasks(tasks: list[Task], out: Path, executor: str = "processes",
 
     Returns how many runs were executed now (0 when everything was already done)."""
     with RunStore(out / RUNS_FILE) as store:
-        todo = [t for t in tasks if t.key not in store.done]
+        todo = [t for t in tasks if t.identity not in store.done]
         for rec in execute(todo, executor, workers, scheduler, progress):
             store.append(rec)
     return len(todo)
@@ -38,11 +38,9 @@ def run_tasks(tasks: list[Task], out: Path, executor: str = "processes",
 def select(records: list[dict], tasks: list[Task]) -> list[dict]:
     """The current-model records of these tasks (same key, budget and root seed), in task
     order."""
-    want = {(t.key, t.budget, t.root_seed) for t in tasks}
-    recs = [r for r in records
-            if (r["key"], r["budget"], r["root_seed"]) in want and is_current(r)]
-    order = {t.key: i for i, t in enumerate(tasks)}
-    return sorted(recs, key=lambda r: order[r["key"]])
+    order = {t.identity: i for i, t in enumerate(tasks)}
+    recs = [r for r in records if run_identity(r) in order]
+    return sorted(recs, key=lambda r: order[run_identity(r)])
 
 
 def write_outputs(records: list[dict], out: Path, command: str, plots: bool = True,

@@ -20,7 +20,7 @@ ALL = "all"
 
 
 @dataclass(frozen=True)
-class Score:
+class SolverScore:
     track: str
     case: str
     solver: str
@@ -60,9 +60,9 @@ def _median(values) -> float:
     return float(np.median(v)) if v else math.nan
 
 
-def score_group(track: str, case: str, solver: str, records: list[dict]) -> Score:
+def score_group(track: str, case: str, solver: str, records: list[dict]) -> SolverScore:
     ok = [r for r in records if r["success"]]
-    return Score(
+    return SolverScore(
         track=track, case=case, solver=solver, runs=len(records), successes=len(ok),
         success_rate=len(ok) / len(records), ert=ert(records),
         median_evals_to_success=_median([run_cost(r) for r in ok]),
@@ -73,7 +73,7 @@ def score_group(track: str, case: str, solver: str, records: list[dict]) -> Scor
     )
 
 
-def score_records(records: list[dict]) -> list[Score]:
+def score_records(records: list[dict]) -> list[SolverScore]:
     """Scores per (track, case, solver) and per (track, all cases, solver), ranked within
     each (track, case) by ERT, ties by success rate."""
     groups: dict[tuple[str, str, str], list[dict]] = defaultdict(list)
@@ -84,6 +84,6 @@ def score_records(records: list[dict]) -> list[Score]:
     return sorted(scores, key=rank_key)
 
 
-def rank_key(s: Score) -> tuple:
+def rank_key(s: SolverScore) -> tuple:
     return (s.track, s.case != ALL, s.case, s.ert, -s.success_rate, s.median_fitness,
             s.solver)

@@ -18,6 +18,21 @@ def model_version(record: dict) -> str:
     return str(record.get("model_version", "1"))
 
 
+#: What identifies a solver run, with the model version: every place that asks "is this run
+#: done / the same run?" (the store, the selection of a sweep, ``--check``) uses these.
+IDENTITY_FIELDS = ("solver", "case", "track", "seed", "budget", "root_seed")
+
+
+def run_identity(record: dict) -> tuple:
+    """The one identity of a run record: solver, case, track, seed, budget, root seed and
+    model version (records without a solver, e.g. blind-suite cases: key and model version).
+    """
+    if "solver" not in record:
+        return record["key"], model_version(record)
+    return (*(record.get(f, 0) if f == "root_seed" else record[f] for f in IDENTITY_FIELDS),
+            model_version(record))
+
+
 def is_current(record: dict) -> bool:
     """Whether a record was run on this installation's models (others are stale: they
     are neither reused on resume nor compared by ``--check``)."""
@@ -65,17 +80,19 @@ class RunStore:
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         _repair(self.path)
-        # a stale record (another model version) does not count as done: the run is redone
-        self.done = {r["key"] for r in read_records(self.path) if is_current(r)}
+        # identities of the runs recorded: another budget, root seed or model version is
+        # another run, recorded beside the old one
+        self.done = {run_identity(r) for r in read_records(self.path)}
         self._fh = open(self.path, "a", encoding="utf-8")
 
     def append(self, record: dict) -> None:
-        if record["key"] in self.done:
+        ident = run_identity(record)
+        if ident in self.done:
             return
         self._fh.write(json.dumps(record, sort_keys=True, allow_nan=False) + "\n")
         self._fh.flush()
         os.fsync(self._fh.fileno())
-        self.done.add(record["key"])
+        self.done.add(ident)
 
     def close(self) -> None:
         self._fh.close()

@@ -3,17 +3,15 @@
 from __future__ import annotations
 
 import time
-import zlib
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 
 import numpy as np
 
-from ..problem import make_problem
+from ..instances import make_problem
+from ..records import run_record
 from ..registry import get_solver, run_solver
+from ..seeding import run_seed
 from ..trace_cache import MODEL_VERSION
-
-# best-so-far checkpoints kept per run: every improvement, thinned to at most this many
-MAX_TRACE_POINTS = 200
 
 
 @dataclass(frozen=True)
@@ -29,16 +27,19 @@ class Task:
     root_seed: int = 0
 
     @property
+    def identity(self) -> tuple:
+        """:func:`~ema_bench.leaderboard.store.run_identity` of this task's record."""
+        return (self.solver, self.case, self.track, self.seed, self.budget, self.root_seed,
+                MODEL_VERSION)
+
+    @property
     def key(self) -> str:
         return f"{self.solver}|{self.case}|{self.track}|{self.seed}"
 
-    def instance_seed(self) -> np.random.SeedSequence:
-        return np.random.SeedSequence(self.root_seed, spawn_key=(self.seed,))
-
-    def solver_seed(self) -> np.random.SeedSequence:
-        # a stable (not Python-hash-randomised) child per solver name
-        return np.random.SeedSequence(self.root_seed,
-                                      spawn_key=(self.seed, zlib.crc32(self.solver.encode())))
+    def node(self) -> np.random.SeedSequence:
+        """The run node: instance, noise and solver streams all come from it (every solver
+        sees the same instance; ``ema-bench solve --root-seed R --seed k`` replays it)."""
+        return run_seed(self.root_seed, self.seed)
 
 
 def make_tasks(solvers, cases, tracks, seeds: int, budget: int, root_seed: int = 0,
@@ -55,46 +56,11 @@ def make_tasks(solvers, cases, tracks, seeds: int, budget: int, root_seed: int =
     return all_tasks[i::n]
 
 
-def _thin_trace(best: np.ndarray) -> list[list[float]]:
-    """``[evaluation, best-so-far]`` at each improvement (and the last evaluation)."""
-    if best.size == 0:
-        return []
-    idx = np.flatnonzero(np.r_[True, best[1:] < best[:-1]])
-    if idx.size > MAX_TRACE_POINTS:
-        keep = np.unique(np.geomspace(1, idx.size, MAX_TRACE_POINTS).astype(int) - 1)
-        idx = idx[keep]
-    if idx[-1] != best.size - 1:
-        idx = np.r_[idx, best.size - 1]
-    return [[int(i) + 1, float(best[i])] for i in idx]
-
-
 def run_task(task: Task) -> dict:
     """Run one task and return its JSON record (deterministic apart from ``wall_s``)."""
     t0 = time.perf_counter()
-    problem = make_problem(task.case, track=task.track, seed=task.instance_seed(),
-                           budget=task.budget)
-    result = run_solver(task.solver, problem, task.budget, seed=task.solver_seed())
-    hist = problem.history()
-    score = problem.score(result.x)
-    first = problem.first_success()
-    return {
-        "key": task.key,
-        **asdict(task),
-        "model_version": MODEL_VERSION,
-        "x": score.x,
-        "truth": score.truth,
-        "fitness": result.fitness,
-        "fitness_at_truth": problem.fitness_at_truth(),
-        "evaluations": result.evaluations,
-        "stop_reason": result.stop_reason,
-        "success": score.success,
-        "evals_to_success": first,
-        "accuracy": score.accuracy,
-        "range_error": score.range_error,
-        "failures": problem.failures,
-        "trace": _thin_trace(hist["best"]),
-        "wall_s": time.perf_counter() - t0,
-        "solver_wall_s": result.wall_s,
-        "library": result.library,
-        "info": get_solver(task.solver).library,
-    }
+    problem = make_problem(task.case, track=task.track, seed=task.node(), budget=task.budget)
+    result = run_solver(task.solver, problem, task.budget, seed=task.node())
+    return run_record(problem, result, case=task.case, track=task.track, seed=task.seed,
+                      budget=task.budget, root_seed=task.root_seed,
+                      wall_s=time.perf_counter() - t0, info=get_solver(task.solver).library)

@@ -29,6 +29,7 @@ import numpy as np
 from numba import njit
 
 from ..effects import MAX_DELAY_SAMPLES
+from ..faults import F_GPROP
 from .ace import ace_consts, ace_update, delayed_feedback
 from .effect_terms import sensor_terms
 
@@ -66,7 +67,7 @@ def integrate(plant_consts, plant_init, plant_step, p, x, e, cmd, n_out, ticks_o
         False if the state became non-finite (the caller scores that as a failure).
     """
     pc = plant_consts(p, x, e, dt)
-    cc = ace_consts(p, x[3])
+    cc = ace_consts(p, x[F_GPROP])
     offset, gain, delay = sensor_terms(e, p)
     buf = np.empty(MAX_DELAY_SAMPLES + 1)
     ps = plant_init(pc)

@@ -1,0 +1,145 @@
+"""The instances of the benchmark: measured traces for a case, a track and a seed, wrapped in
+a :class:`~ema_bench.problem.Problem` by :func:`make_problem`."""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from .effects import effects_vector
+from .faults import CASES, FaultError, check_faults, faults_to_dict, random_faults
+from .monitor import simulate_monitor
+from .objective import KNOWN_TESTS, ProblemError
+from .params import DEFAULT_PARAMS
+from .physics.sensors import measure
+from .problem import Problem
+from .protocol import STANDARD_TESTS, TestSpec
+from .reference import SimulationError, simulate_reference
+from .seeding import SeedLike, as_seed_sequence, children, stream
+from .trace_cache import cache_key, cached_traces, expected_shapes
+from .traces import Traces
+
+TRACKS = ("reference", "twin")
+
+
+@functools.lru_cache(maxsize=32)
+def _reference_traces(x: tuple, e: tuple, seed_entropy: int, spawn_key: tuple,
+                      tests: tuple[TestSpec, ...]) -> Traces:
+    """Measured reference traces, cached in memory and on disk (:mod:`~ema_bench.trace_cache`)."""
+    ss = np.random.SeedSequence(seed_entropy, spawn_key=spawn_key)
+    key = cache_key(x=x, e=e, entropy=seed_entropy, spawn_key=spawn_key,
+                    tests=[repr(t) for t in tests],
+                    params=DEFAULT_PARAMS.to_array().tolist())
+    return cached_traces(lambda: simulate_reference(np.array(x), np.array(e), seed=ss,
+                                                    tests=tests), key, expected_shapes(tests))
+
+
+def _twin_traces(x: np.ndarray, e: np.ndarray, seed: np.random.SeedSequence,
+                 tests: tuple[TestSpec, ...]) -> Traces:
+    outputs, ok = simulate_monitor(x[None, :], e[None, :], tests=tests)
+    if not ok[0]:
+        raise SimulationError(f"monitor model diverged at the true faults {faults_to_dict(x)}")
+    data = {t: measure(v[0], np.random.default_rng(c))
+            for (t, v), c in zip(outputs.items(), children(seed, len(outputs)))}
+    return Traces(data=data, meta={"model": "monitor", "noise": True, "adc": True})
+
+
+def check_settings(case: object = "small", track: str = "reference", budget: object = 1,
+                   heterogeneity: float = 1.0) -> None:
+    """The checks of :func:`make_problem`'s settings, for callers that must fail early (the
+    environment at construction, the command line before any work): ProblemError."""
+    if isinstance(budget, bool) or not isinstance(budget, int | np.integer) or budget < 1:
+        raise ProblemError(f"budget must be a positive integer, got {budget!r}")
+    if track not in TRACKS:
+        raise ProblemError(f"unknown track {track!r}; known: {list(TRACKS)}")
+    if not 0.0 <= float(heterogeneity) <= 1.0:
+        raise ProblemError(f"heterogeneity must lie in [0, 1], got {heterogeneity!r}")
+    if case is None:
+        raise ProblemError("give a case, or measured traces")
+    if isinstance(case, str):
+        if case != "seeded" and case not in CASES:
+            raise ProblemError(f"unknown case {case!r}; known: {list(CASES)} or 'seeded'")
+    else:
+        try:
+            check_faults(case)
+        except FaultError as exc:
+            raise ProblemError(f"bad case: {exc}") from None
+
+
+def make_problem(
+    case: str | Mapping[str, float] | np.ndarray | None = "small",
+    *,
+    track: str = "reference",
+    seed: SeedLike = 0,
+    budget: int = 1000,
+    normalise: bool = True,
+    heterogeneity: float = 1.0,
+    effects: Mapping[str, float] | None = None,
+    measured: Traces | None = None,
+    augment: Sequence[str] = (),
+    tests: Sequence[str] | None = None,
+    start: np.ndarray | None = None,
+) -> Problem:
+    """Build an identification problem.
+
+    Parameters
+    ----------
+    case : str, mapping or array
+        A paper case (``nominal``, ``small``, ``full``, ``random``), ``"seeded"`` for a random
+        instance drawn from ``seed`` with ``heterogeneity``, or explicit true faults.
+    track : {"reference", "twin"}
+        ``reference``: measured traces come from the detailed reference model (model-form
+        mismatch, as in the paper); ``twin``: from the monitor model itself plus sensor noise
+        (a pure optimisation problem whose optimum is the truth).
+    seed : int or SeedSequence
+        The run node (:func:`~ema_bench.seeding.run_seed`; an int is a node of its own):
+        its ``instance`` stream draws a seeded case, its ``noise`` stream the sensor noise.
+    budget : int
+        Hard evaluation budget.
+    normalise : bool
+        Normalised (default) or raw fitness.
+    effects : mapping, optional
+        Effects switched on in the *reference* model that makes the data (unmodelled physics).
+    measured : Traces, optional
+        Fit these traces instead (file data); ``case`` and ``track`` are then ignored and
+        there is no truth to score against.
+    augment : sequence of str
+        Library effects fitted with the faults (see :class:`Problem`).
+    tests : sequence of str, optional
+        Protocol tests that make the data (default: the standard step and sine; add
+        ``"sine2"`` for held-out validation).
+    start : array, optional
+        Warm start for solvers (see :class:`Problem`).
+    """
+    if measured is not None:
+        if not isinstance(measured, Traces):
+            raise ProblemError("measured must be a Traces (see ema_bench.load_traces)")
+        return Problem(measured, budget, normalise=normalise, augment=augment, start=start,
+                       label=str(measured.meta.get("source", "measured")), track="measured",
+                       _meta={"source": measured.meta.get("source")})
+    check_settings(case, track, budget, heterogeneity)
+    ss = as_seed_sequence(seed)
+    s_instance, s_noise = stream(ss, "instance"), stream(ss, "noise")
+    if isinstance(case, str) and case == "seeded":
+        truth, label = random_faults(s_instance, heterogeneity), f"seeded(h={heterogeneity:g})"
+    elif isinstance(case, str):
+        truth, label = CASES[case].x, case
+    else:
+        truth, label = check_faults(case), "custom"
+    e = effects_vector(effects)
+    names = tuple(tests) if tests is not None else tuple(s.name for s in STANDARD_TESTS)
+    unknown = [n for n in names if n not in KNOWN_TESTS]
+    if unknown or not names:
+        raise ProblemError(f"unknown test(s) {unknown}; known: {list(KNOWN_TESTS)}")
+    specs = tuple(KNOWN_TESTS[n] for n in names)
+    if track == "reference":
+        measured = _reference_traces(tuple(truth), tuple(e), int(s_noise.entropy),
+                                     tuple(s_noise.spawn_key), specs).with_meta(faults=None)
+    else:
+        measured = _twin_traces(truth, e, s_noise, specs)
+    # public: nothing a solver could use to recover the truth (no seed, no effects)
+    meta = {"case": label, "track": track}
+    return Problem(measured, budget, normalise=normalise, label=label, track=track,
+                   augment=augment, start=start, _truth=truth, _meta=meta)

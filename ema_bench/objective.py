@@ -1,0 +1,238 @@
+"""The objective of the identification: the one place the fitness is defined.
+
+A :class:`SearchSpace` says what is searched: the four faults, optionally followed by library
+effects fitted with them (an *augmented* monitor), with names, units, bounds, the nominal
+vector, the validity check and the maps to and from the unit box.  An :class:`Objective` says
+what is minimised: it owns the weighting of the outputs (:func:`signal_weights`), runs the
+monitor model once per batch and returns the fitness *and* the outputs, and lays residuals out
+in one order (:meth:`Objective.residuals`).  :class:`~ema_bench.problem.Problem` wraps an
+objective with the budget, the log and the hidden truth; the environment, the diagnosis
+workflow and the calibration use the objective directly, so none rebuilds it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from .effects import EFFECT_NAMES, EFFECTS, LIBRARY, N_EFFECTS
+from .faults import FAULT_NAMES, FAULT_UNITS, LOWER, NOMINAL, UPPER, FaultError, check_faults
+from .monitor import simulate_monitor
+from .physics.sensors import SENSORS
+from .protocol import HOLDOUT_TESTS, STANDARD_TESTS, TestSpec
+from .traces import OUTPUT_DT, SIGNALS, Traces
+
+#: Fitness of a failed simulation; valid values are clipped below ``VALID_CAP``.
+PENALTY = 1e12
+VALID_CAP = 1e11
+KNOWN_TESTS: dict[str, TestSpec] = {s.name: s for s in STANDARD_TESTS + HOLDOUT_TESTS}
+N_FAULTS = len(FAULT_NAMES)
+
+
+class ProblemError(ValueError):
+    """A problem (or objective, or search space) that cannot be built, or a request it cannot
+    serve: wrong shapes, NaN, out-of-bounds vectors, unknown names."""
+
+
+# --- the weighting -------------------------------------------------------------------------
+def signal_scales(traces: Traces) -> dict[str, np.ndarray]:
+    """Normalising scale of each measured output: its range, floored at 10 ADC steps so that
+    a flat signal cannot blow the fitness up."""
+    floor = np.array([10.0 * s.lsb for s in SENSORS])
+    return {t: np.maximum(np.ptp(traces.data[t], axis=0), floor) for t in traces.tests}
+
+
+def signal_weights(measured: Traces, normalise: bool = True) -> dict[str, np.ndarray]:
+    """Weight of each test's four outputs: ``1 / scale**2`` (normalised fitness), or 1 (the
+    raw sum of squared errors that shows the paper's Na/Fst valley)."""
+    if not normalise:
+        return {t: np.ones(len(SIGNALS)) for t in measured.tests}
+    return {t: 1.0 / s**2 for t, s in signal_scales(measured).items()}
+
+
+def fitness_from_outputs(outputs: Mapping[str, np.ndarray], measured: Traces,
+                         weights: Mapping[str, np.ndarray]) -> np.ndarray:
+    """Sum over tests and signals of ``weight * mean((model - measured)^2)``.
+
+    ``outputs[test]`` has shape (n, n_samples, 4); returns shape (n,)."""
+    n = next(iter(outputs.values())).shape[0]
+    f = np.zeros(n)
+    for test in measured.tests:
+        d = outputs[test] - measured.data[test][None, :, :]
+        f += np.einsum("nsk,k->n", d * d, weights[test]) / d.shape[1]
+    return f
+
+
+# --- what is searched ----------------------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class SearchSpace:
+    """The searched parameters: the faults, then the ``augment`` library effects.
+
+    Build it with :meth:`of`.  ``lower``, ``upper`` and ``nominal`` are read-only arrays in
+    ``names`` order; ``units`` maps each name to its unit."""
+
+    names: tuple[str, ...]
+    units: dict[str, str]
+    lower: np.ndarray
+    upper: np.ndarray
+    nominal: np.ndarray
+    augment: tuple[str, ...]
+
+    @classmethod
+    def of(cls, augment: Sequence[str] = ()) -> SearchSpace:
+        """The faults plus the named library effects (zero = off, so the augmented monitor
+        contains the base model)."""
+        augment = tuple(augment)
+        bad = [n for n in augment if n not in LIBRARY]
+        if bad or len(set(augment)) != len(augment):
+            raise ProblemError(f"augment takes distinct library effects {list(LIBRARY)}, "
+                               f"got {list(augment)}")
+        specs = [EFFECTS[EFFECT_NAMES.index(n)] for n in augment]
+        arrays = (np.r_[LOWER, [e.lower for e in specs]], np.r_[UPPER, [e.upper for e in specs]],
+                  np.r_[NOMINAL, np.zeros(len(specs))])
+        for a in arrays:
+            a.flags.writeable = False
+        return cls(FAULT_NAMES + augment, {**FAULT_UNITS, **{e.name: e.unit for e in specs}},
+                   *arrays, augment)
+
+    @property
+    def dim(self) -> int:
+        return len(self.names)
+
+    def check(self, X: np.ndarray) -> np.ndarray:
+        """A validated copy of the batch ``X`` (n, dim): finite and inside the bounds (effect
+        columns within 1e-9 of their range are clipped in); :class:`ProblemError` otherwise."""
+        X = np.asarray(X, dtype=float)
+        if X.ndim != 2 or X.shape[1] != self.dim:
+            raise ProblemError(f"expected a batch of shape (n, {self.dim}) for parameters "
+                               f"{list(self.names)}, got {X.shape}")
+        try:
+            faults = check_faults(X[:, :N_FAULTS], batch=True)
+        except FaultError as exc:
+            raise ProblemError(str(exc)) from None
+        lo, hi = self.lower[N_FAULTS:], self.upper[N_FAULTS:]
+        extra = X[:, N_FAULTS:]
+        slack = 1e-9 * (hi - lo)
+        bad = ~np.isfinite(extra) | (extra < lo - slack) | (extra > hi + slack)
+        if bad.any():
+            i, j = np.argwhere(bad)[0]
+            raise ProblemError(f"effect {self.augment[j]}={extra[i, j]:g} in row {i} is not "
+                               f"finite or outside [{lo[j]:g}, {hi[j]:g}]")
+        return np.hstack([faults, np.clip(extra, lo, hi)])
+
+    def effects_for(self, X: np.ndarray, base: np.ndarray | None = None) -> np.ndarray:
+        """Effects vector of every candidate (n, N_EFFECTS): ``base`` plus the augmented
+        columns of ``X``."""
+        E = np.zeros((X.shape[0], N_EFFECTS)) if base is None else np.tile(base, (len(X), 1))
+        for j, name in enumerate(self.augment):
+            E[:, EFFECT_NAMES.index(name)] = X[:, N_FAULTS + j]
+        return E
+
+    def to_unit(self, X: np.ndarray) -> np.ndarray:
+        """Physical vector(s) -> the normalised box [0, 1]^dim."""
+        return (np.asarray(X, dtype=float) - self.lower) / (self.upper - self.lower)
+
+    def from_unit(self, U: np.ndarray) -> np.ndarray:
+        """Normalised box [0, 1]^dim -> physical vector(s)."""
+        return self.lower + np.asarray(U, dtype=float) * (self.upper - self.lower)
+
+
+# --- what is minimised ---------------------------------------------------------------------
+def check_measured(measured: Traces) -> tuple[TestSpec, ...]:
+    """The protocol tests of ``measured``; :class:`ProblemError` if the monitor cannot
+    simulate them at the traces' rate and length."""
+    if not isinstance(measured, Traces):
+        raise ProblemError("measured must be a Traces (see ema_bench.load_traces)")
+    if not np.isclose(measured.dt, OUTPUT_DT, rtol=1e-9, atol=0.0):
+        raise ProblemError(f"measured traces are sampled at {1 / measured.dt:g} Hz; the "
+                           f"monitor model outputs {1 / OUTPUT_DT:g} Hz (load finer data "
+                           f"with load_traces, which block-averages it to that rate)")
+    unknown = [t for t in measured.tests if t not in KNOWN_TESTS]
+    if unknown:
+        raise ProblemError(f"measured traces hold unknown test(s) {unknown}; the monitor "
+                           f"model knows {list(KNOWN_TESTS)}")
+    for t in measured.tests:
+        expected = KNOWN_TESTS[t].n_samples(measured.dt)
+        if measured.n_samples(t) != expected:
+            raise ProblemError(f"test {t!r} has {measured.n_samples(t)} samples at "
+                               f"{1 / measured.dt:g} Hz, the protocol expects {expected}")
+    return tuple(KNOWN_TESTS[t] for t in measured.tests)
+
+
+class Objective:
+    """The fitness of candidates against measured traces (lower is better).
+
+    Parameters
+    ----------
+    measured : Traces
+        The traces to fit.
+    space : SearchSpace, optional
+        What is searched (default: the four faults).
+    normalise : bool
+        Normalised (default) or raw fitness (:func:`signal_weights`).
+    effects : array (N_EFFECTS,), optional
+        Effects switched on in the monitor for every candidate.
+
+    Notes
+    -----
+    Residual layout (:meth:`residuals`, the environment's observations): test by test, signal
+    by signal, sample by sample, as :meth:`~ema_bench.traces.Traces.stacked`.
+    """
+
+    def __init__(self, measured: Traces, space: SearchSpace | None = None, *,
+                 normalise: bool = True, effects: np.ndarray | None = None) -> None:
+        self.tests = check_measured(measured)
+        self.measured = measured
+        self.space = space or SearchSpace.of()
+        self.normalise = bool(normalise)
+        self.effects = np.zeros(N_EFFECTS) if effects is None else np.asarray(effects, float)
+        if self.effects.shape != (N_EFFECTS,):
+            raise ProblemError(f"effects must have shape ({N_EFFECTS},)")
+        self.weights = signal_weights(measured, normalise)
+        # sqrt(weight / n_samples) per residual element, stacked layout
+        self._factors = np.concatenate([
+            np.repeat(np.sqrt(self.weights[t] / measured.n_samples(t)),
+                      measured.n_samples(t)) for t in measured.tests])
+        self._stacked = measured.stacked()
+
+    @property
+    def n_residuals(self) -> int:
+        return self._stacked.size
+
+    def outputs(self, X: np.ndarray) -> tuple[dict[str, np.ndarray], np.ndarray]:
+        """Monitor outputs of a validated batch (test -> (n, n_samples, 4)) and the
+        success flags of the simulations."""
+        return simulate_monitor(X[:, :N_FAULTS], self.space.effects_for(X, self.effects),
+                                tests=self.tests, check=False)
+
+    def evaluate(self, X: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray], np.ndarray]:
+        """Fitness (n,), outputs and the failed mask of a validated batch: one monitor call.
+
+        A failed (non-finite) simulation scores :data:`PENALTY`; valid values are clipped to
+        :data:`VALID_CAP`, so a failure always ranks last."""
+        outputs, ok = self.outputs(X)
+        with np.errstate(over="ignore", invalid="ignore"):
+            f = fitness_from_outputs(outputs, self.measured, self.weights)
+        failed = ~ok | ~np.isfinite(f)
+        return np.where(failed, PENALTY, np.minimum(f, VALID_CAP)), outputs, failed
+
+    def stack(self, outputs: Mapping[str, np.ndarray]) -> np.ndarray:
+        """Outputs (test -> (n, n_samples, 4)) in the stacked layout, shape (n, n_residuals)."""
+        return np.concatenate([np.swapaxes(outputs[t.name], 1, 2).reshape(
+            outputs[t.name].shape[0], -1) for t in self.tests], axis=1)
+
+    def residuals(self, outputs: Mapping[str, np.ndarray], fitness: np.ndarray) -> np.ndarray:
+        """Weighted residuals (n, n_residuals), stacked layout, with ``sum(r**2) == fitness``
+        row by row (rescaled where the fitness was capped; a failed row is the uniform vector
+        of that sum)."""
+        r = (self.stack(outputs) - self._stacked[None, :]) * self._factors[None, :]
+        fitness = np.asarray(fitness, dtype=float)
+        with np.errstate(over="ignore", invalid="ignore"):
+            raw = np.einsum("ij,ij->i", r, r)
+        failed = fitness >= PENALTY
+        capped = ~failed & (raw > fitness) & (fitness > 0.0)
+        r[capped] *= np.sqrt(fitness[capped] / raw[capped])[:, None]
+        r[failed] = np.sqrt(PENALTY / r.shape[1])
+        return r
