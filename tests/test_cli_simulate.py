@@ -202,3 +202,29 @@ def test_bench_time_to_success_reports_every_solver_and_case():
 def test_bench_rejects_zero_batch():
     line = one_line_error(run("bench", "--batch", "0"))
     assert "--batch" in line
+
+
+@pytest.mark.parametrize("model", ["monitor", "reference"])
+def test_simulate_effects_reach_the_model(tmp_path, model):
+    """`simulate --effect` switches the effect on in the chosen model: the traces written
+    are the API's for the same effect (clean, so exactly), and differ from the healthy ones."""
+    from ema_bench.effects import effects_vector
+    from ema_bench.faults import CASES
+    from ema_bench.monitor import monitor_traces
+    from ema_bench.reference import simulate_reference
+    from ema_bench.traces import load_traces
+
+    out = tmp_path / "t.npz"
+    proc = run("simulate", "--case", "small", "--model", model, "--effect", "cogging=0.05",
+               "--no-noise", "--out", str(out))
+    assert proc.returncode == 0, proc.stderr
+    got = load_traces(out)
+    e = effects_vector({"cogging": 0.05})
+    x = CASES["small"].x
+    if model == "monitor":
+        want, healthy = monitor_traces(x, e), monitor_traces(x)
+    else:
+        want = simulate_reference(x, e, noise=False, adc=False)
+        healthy = simulate_reference(x, noise=False, adc=False)
+    assert got.allclose(want, rtol=0.0, atol=0.0)
+    assert not got.allclose(healthy, rtol=0.0, atol=1e-6)

@@ -135,3 +135,22 @@ def test_solve_explicit_faults(tmp_path):
 
     assert out["truth"] == {**faults_to_dict(NOMINAL), "Na": 0.9, "BLK": 0.02}
     assert out["case"] == "custom" and out["evaluations"] == 30
+
+
+def test_solve_effects_reach_the_data(tmp_path):
+    """`solve --effect` switches the effect on in the model that makes the data: the fitness
+    at the truth is the API's for the same effect, and not the one without it."""
+    from ema_bench.instances import make_problem
+    from ema_bench.seeding import run_seed
+
+    r = cli("solve", "--case", "small", "--track", "twin", "--effect", "delay=6e-4",
+            "--solver", "random", "--budget", "2", "--json", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    with_effect = make_problem("small", track="twin", seed=run_seed(0, 0), budget=1,
+                               effects={"delay": 6e-4}).fitness_at_truth()
+    without = make_problem("small", track="twin", seed=run_seed(0, 0),
+                           budget=1).fitness_at_truth()
+    assert out["fitness_at_truth"] == with_effect
+    assert with_effect > 2 * without
+    assert out["effects"] == {"delay": 6e-4}

@@ -148,3 +148,46 @@ def test_diagnose_cli_on_a_file(tmp_path):
     bad = subprocess.run(cli + ["diagnose", str(tmp_path / "missing.csv")],
                          capture_output=True, text=True)
     assert bad.returncode == 2 and "missing.csv" in bad.stderr
+
+
+# --- the verdict's rules at their edges (constructed cases, no fitting) -----------------------
+def _reasons(**changes):
+    from ema_bench.diagnosis.workflow import Settings, acceptance_reasons
+
+    # a clear acceptance: closes 90 % of the gap, beats the noise band, improves the
+    # training fit, a value well outside the trivial band with an interval excluding zero
+    kw = dict(closed=0.9, improvement=5.0, noise_band=1.0, fit_before=2.0, fit_after=1.0,
+              value=0.02, trivial=0.001, ci=(0.015, 0.025),
+              accept_closed=Settings().accept_closed)
+    return acceptance_reasons(**{**kw, **changes})
+
+
+def test_acceptance_rules_at_their_edges():
+    from ema_bench.diagnosis.workflow import Settings
+
+    assert Settings().accept_closed == 0.7
+    assert _reasons() == []
+    # an interval containing zero is never accepted, however much it closes
+    assert _reasons(ci=(-0.001, 0.03)) == ["interval includes zero"]
+    assert _reasons(ci=(0.0, 0.03)) == ["interval includes zero"]
+    # 60 % of the held-out gap is not enough (the rule asks 70 %); 70 % is
+    assert any("closes 60 %" in r for r in _reasons(closed=0.6))
+    assert _reasons(closed=0.7) == []
+    # an improvement inside the noise band is not evidence
+    assert _reasons(improvement=1.0) == ["held-out improvement within the bootstrap spread"]
+    assert _reasons(fit_after=2.0) == ["does not improve the training fit"]
+    assert any("trivial band" in r for r in _reasons(value=-0.0005, ci=(-0.0006, -0.0004)))
+
+
+def test_an_effect_seen_only_on_the_held_out_test_is_detected():
+    from ema_bench.diagnosis.workflow import detected, holdout_test
+
+    rng = np.random.default_rng(0)
+    boot = 1.0 + 0.01 * rng.standard_normal(200)       # held-out fitness of model + noise
+    med, z, threshold = holdout_test(1.5, boot, z_max=4.0)
+    assert med == pytest.approx(np.median(boot))
+    assert threshold >= boot.max() and threshold < 1.5 and z > 4.0
+    # no training feature leaves its envelope, yet the held-out test shows the effect
+    assert detected([], 1.5, threshold)
+    assert not detected([], float(np.median(boot)), threshold)
+    assert detected([("feature", 1.0, 9.0)], float(np.median(boot)), threshold)

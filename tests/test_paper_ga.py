@@ -309,3 +309,30 @@ def test_approaches_the_optimum_of_the_small_case():
         assert max(score.range_error.values()) < 0.05, score.range_error
         wins += score.success
     assert wins >= 1
+
+
+def test_generation_loop_keeps_the_elites_and_adapts_the_step_as_matlab():
+    """The loop wires the operators as MATLAB's ga does, traced by hand from the logbook:
+    elitism (the best score of the population never worsens: the elites are the best
+    individuals, carried over unevaluated) and mutationadaptfeasible's step rule (1 for
+    generations 1-2, then x4 after a generation that improved the best, /4 otherwise,
+    within [sqrt(eps), 1])."""
+    p = make_problem("small", track="twin", seed=0, budget=40 * 20)
+    run = run_paper_ga(p, seed=3, population=20, stall_generations=1000)
+    log = run.logbook
+    best = np.array(log.select("best"))
+    steps = np.array(log.select("step"))
+    nevals = np.array(log.select("nevals"))
+    assert run.generations >= 30
+    assert np.all(np.diff(best) <= 0.0)                   # elitism
+    # each generation evaluates N - elites = 20 - ceil(0.05 * 20) = 19 new individuals
+    assert nevals[0] == 20 and np.all(nevals[1:-1] == 19)
+    assert steps[1] == steps[2] == 1.0
+    improved_seen = shrunk_seen = False
+    for g in range(3, len(steps)):
+        improved = best[g - 1] < best[g - 2]
+        want = min(1.0, 4.0 * steps[g - 1]) if improved else max(MIN_STEP, steps[g - 1] / 4.0)
+        assert steps[g] == want, (g, improved, steps[g - 1], steps[g])
+        improved_seen |= improved
+        shrunk_seen |= not improved
+    assert improved_seen and shrunk_seen                 # both branches were exercised

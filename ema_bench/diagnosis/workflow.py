@@ -196,14 +196,49 @@ def assess(measured: Traces, model: Fit, weights: dict[str, np.ndarray],
     f_ho = fitness_of({t: model.outputs[t] for t in HOLDOUT},
                       {t: measured.data[t] for t in HOLDOUT}, weights)
     ho = sum(f_ho.values())
-    boot_ho = sum(boot_fit[t] for t in HOLDOUT)
+    med, z, threshold = holdout_test(ho, sum(boot_fit[t] for t in HOLDOUT), settings.z_max)
+    return Assessment(flagged, ho, med, z, threshold, detected(flagged, ho, threshold)), env
+
+
+def holdout_test(ho: float, boot_ho: np.ndarray, z_max: float) -> tuple[float, float, float]:
+    """The held-out fitness ``ho`` against its bootstrap distribution ``boot_ho`` (the fitted
+    model plus noise): median, robust z-score and the detection threshold (``z_max`` robust
+    spreads above the median, and never below the largest bootstrap value)."""
     med = float(np.median(boot_ho))
     spread = max(1.4826 * float(np.median(np.abs(boot_ho - med))), 0.5 * float(boot_ho.std()),
                  1e-12)
-    z = (ho - med) / spread
-    threshold = max(med + settings.z_max * spread, float(boot_ho.max()))
-    detected = bool(flagged) or ho > threshold
-    return Assessment(flagged, ho, med, float(z), threshold, detected), env
+    return med, float((ho - med) / spread), max(med + z_max * spread, float(boot_ho.max()))
+
+
+def detected(flagged: list, ho: float, threshold: float) -> bool:
+    """Something is missing when a training feature leaves its envelope *or* the held-out
+    fitness exceeds its threshold (an effect may show only on the held-out test)."""
+    return bool(flagged) or ho > threshold
+
+
+def acceptance_reasons(*, closed: float, improvement: float, noise_band: float,
+                       fit_before: float, fit_after: float, value: float, trivial: float,
+                       ci: tuple[float, float], accept_closed: float) -> list[str]:
+    """Why a candidate effect is *not* accepted (empty: accepted).
+
+    ``closed``: share of the held-out gap the augmented fit closes; ``improvement``: the
+    held-out fitness it gains, which must beat ``noise_band`` (what noise alone moves it);
+    ``fit_before``/``fit_after``: training fitness; ``value``: the fitted effect, outside
+    ``+-trivial``; ``ci``: its 95 % interval, which must exclude zero."""
+    reasons = []
+    if closed < accept_closed:
+        reasons.append(f"closes {100 * closed:.0f} % of the held-out gap "
+                       f"(< {100 * accept_closed:.0f} %)")
+    elif improvement <= noise_band:
+        # the improvement must beat what noise alone moves the held-out fitness
+        reasons.append("held-out improvement within the bootstrap spread")
+    if fit_after >= fit_before:
+        reasons.append("does not improve the training fit")
+    if abs(value) <= trivial:
+        reasons.append(f"value {value:.3g} inside the trivial band +-{trivial:g}")
+    if ci[0] <= 0.0 <= ci[1]:
+        reasons.append("interval includes zero")
+    return reasons
 
 
 def _jacobian(x: np.ndarray, augment: tuple[str, ...], lower: np.ndarray,
@@ -331,19 +366,11 @@ def diagnose(measured: Traces, settings: Settings | None = None, seed: SeedLike 
             flo, fhi = _bounds(aug)
             ci = interval(f, measured, flo, fhi, len(aug) + 3)
             value = float(f.x[-1])
-            reasons = []
-            if closed < settings.accept_closed:
-                reasons.append(f"closes {100 * closed:.0f} % of the held-out gap "
-                               f"(< {100 * settings.accept_closed:.0f} %)")
-            elif status.holdout_fitness - ho_after <= status.holdout_threshold - floor:
-                # the improvement must beat what noise alone moves the held-out fitness
-                reasons.append("held-out improvement within the bootstrap spread")
-            if f.fitness >= current.fitness:
-                reasons.append("does not improve the training fit")
-            if abs(value) <= spec.trivial:
-                reasons.append(f"value {value:.3g} inside the trivial band +-{spec.trivial:g}")
-            if ci[0] <= 0.0 <= ci[1]:
-                reasons.append("interval includes zero")
+            reasons = acceptance_reasons(
+                closed=closed, improvement=status.holdout_fitness - ho_after,
+                noise_band=status.holdout_threshold - floor, fit_before=current.fitness,
+                fit_after=f.fitness, value=value, trivial=spec.trivial, ci=tuple(ci),
+                accept_closed=settings.accept_closed)
             finding = EffectFinding(
                 cand.name, {cand.name: value}, ci, before, after, closed,
                 (current.fitness, f.fitness), (status.holdout_fitness, ho_after), cand.score,

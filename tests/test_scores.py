@@ -1,0 +1,202 @@
+"""COCO scores and the regression check against hand-computed values from hand-written
+records (not via the scoring module): the cases where the formulas of plausible bugs differ.
+
+ERT = (evaluations to the first success of each successful run + the budget of each failed
+run) / successes.  A group where all runs succeed or all fail cannot tell "divide by runs"
+from "divide by successes", nor "charge the budget" from "charge the evaluations to success":
+every group here mixes successes and failures with evaluations to success below the budget.
+"""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from ema_bench.leaderboard.check import compare
+from ema_bench.leaderboard.scores import ALL, ert, score_records
+from ema_bench.trace_cache import MODEL_VERSION
+
+FAULTS = ("Na", "Fst", "BLK", "Gprop")
+
+
+def rec(solver: str, seed: int, first: int | None, budget: int = 1000, case: str = "small",
+        track: str = "twin", fitness: float = 1e-4) -> dict:
+    """A hand-written run record: success iff ``first`` (evaluations to success) is given."""
+    return {"solver": solver, "case": case, "track": track, "seed": seed, "budget": budget,
+            "root_seed": 0, "model_version": MODEL_VERSION, "success": first is not None,
+            "evals_to_success": first, "fitness": fitness, "wall_s": 1.0,
+            "accuracy": dict.fromkeys(FAULTS, 99.0), "range_error": dict.fromkeys(FAULTS, 0.001)}
+
+
+MIXED = [rec("a", 0, 100), rec("a", 1, None), rec("a", 2, 300)]
+
+
+def test_ert_by_hand():
+    # (100 + 1000 + 300) / 2 successes = 700 (dividing by the 3 runs would give 466.7;
+    # charging successful runs their budget, (1000 + 1000 + 1000) / 2 = 1500)
+    assert ert(MIXED) == pytest.approx(700.0)
+    assert ert([rec("a", 0, None), rec("a", 1, None)]) == math.inf
+    assert ert([rec("a", 0, 40)]) == pytest.approx(40.0)
+
+
+def test_group_score_by_hand():
+    (s,) = [x for x in score_records(MIXED) if x.case == "small"]
+    assert (s.runs, s.successes) == (3, 2)
+    assert s.success_rate == pytest.approx(2 / 3)
+    assert s.ert == pytest.approx(700.0)
+    assert s.median_evals_to_success == pytest.approx(200.0)   # median of 100 and 300
+    # the all-cases row pools the runs of every case: (100 + 1000 + 300 + 50 + 1000) / 3
+    pooled = MIXED + [rec("a", 0, 50, case="full"), rec("a", 1, None, case="full")]
+    (row,) = [x for x in score_records(pooled) if x.case == ALL]
+    assert row.ert == pytest.approx(2450.0 / 3)
+    assert row.success_rate == pytest.approx(3 / 5)
+
+
+def test_check_flags_an_ert_regression_at_equal_success():
+    committed = [rec("a", k, 100) for k in range(3)] + [rec("a", 3, None)]
+    # the same successes, each found 9x later: ERT (900*3 + 1000)/3 = 1233 against
+    # (100*3 + 1000)/3 = 433, more than the 2x tolerance
+    now = [rec("a", k, 900) for k in range(3)] + [rec("a", 3, None)]
+    bad = compare(now, committed)
+    assert [(r.solver, r.what) for r in bad] == [("a", "ERT")]
+    assert bad[0].committed == pytest.approx(1300 / 3) and bad[0].now == pytest.approx(3700 / 3)
+    # within the factor (2x) nothing is flagged
+    close = [rec("a", k, 150) for k in range(3)] + [rec("a", 3, None)]
+    assert compare(close, committed) == []
+
+
+def test_check_flags_a_success_regression_and_ignores_improvements():
+    committed = [rec("b", k, 100) for k in range(3)]
+    now = [rec("b", 0, 100), rec("b", 1, None), rec("b", 2, None)]   # 3/3 -> 1/3
+    kinds = [r.what for r in compare(now, committed)]
+    assert "success" in kinds
+    assert compare(committed, now) == []   # better than the baseline: no regression
+
+
+def test_run_cost_of_a_run_that_lost_its_success():
+    # a run that hit the target once but ended outside it is a failure: it costs its budget
+    lost = {**rec("a", 0, None), "evals_to_success": 50}
+    assert ert([lost, rec("a", 1, 100)]) == pytest.approx((1000 + 100) / 1)
+
+
+def test_group_score_reports_every_field():
+    recs = [{**rec("a", 0, 100, fitness=1e-4), "wall_s": 1.0},
+            {**rec("a", 1, None, fitness=3e-4), "wall_s": 3.0},
+            {**rec("a", 2, 300, fitness=2e-4), "wall_s": 2.0}]
+    recs[1]["accuracy"] = dict.fromkeys(FAULTS, 90.0)
+    recs[1]["range_error"] = dict.fromkeys(FAULTS, 0.02)
+    (s,) = [x for x in score_records(recs) if x.case == "small"]
+    assert (s.track, s.case, s.solver) == ("twin", "small", "a")
+    assert s.median_fitness == pytest.approx(2e-4) and s.median_wall_s == pytest.approx(2.0)
+    assert s.accuracy == dict.fromkeys(FAULTS, 99.0)
+    assert s.range_error == dict.fromkeys(FAULTS, 0.001)
+
+
+def test_check_regression_records_and_edges():
+    committed = [rec("a", k, 100) for k in range(2)]
+    now = [rec("a", 0, 100), rec("a", 1, None)]          # success 1.0 -> 0.5
+    (r,) = [x for x in compare(now, committed, success_tol=0.4) if x.what == "success"]
+    assert (r.track, r.case, r.solver) == ("twin", ALL, "a")
+    assert (r.committed, r.now) == (1.0, 0.5)
+    # a drop of exactly the tolerance is tolerated
+    assert not [x for x in compare(now, committed, success_tol=0.5) if x.what == "success"]
+    # an ERT of exactly the factor is tolerated; the regression names its values
+    c2 = [rec("b", 0, 100), rec("b", 1, None, budget=100)]    # ERT (100 + 100) / 1 = 200
+    n2 = [rec("b", 0, 300), rec("b", 1, None, budget=100)]    # ERT 400 = 2 x 200
+    assert compare(n2, c2, ert_factor=2.0) == []
+    (e,) = compare(n2, c2, ert_factor=1.5)
+    assert (e.track, e.case, e.solver, e.what, e.committed, e.now) == \
+        ("twin", ALL, "b", "ERT", 200.0, 400.0)
+
+
+def test_check_compares_only_the_runs_both_hold():
+    committed = [rec("a", 0, 100), rec("a", 1, 100)]
+    # today's sweep also ran seed 2 (a failure) and another solver: neither has a committed
+    # counterpart, so neither is compared
+    now = committed + [rec("a", 2, None), rec("z", 0, None)]
+    assert compare(now, committed) == []
+    # two cases: the check pools them per (track, solver), it does not compare case by case
+    two = [rec("c", 0, 100, case="small"), rec("c", 0, None, case="full")]
+    worse_small = [rec("c", 0, 150, case="small"), rec("c", 0, None, case="full")]
+    assert compare(worse_small, two, ert_factor=1.2) == []   # pooled ERT 1150 vs 1100
+
+
+def test_baseline_truncation_edges():
+    from ema_bench.leaderboard.check import baseline
+
+    records = [rec("a", 5, 10, budget=5000),       # a seed beyond the check, listed first
+               rec("a", 0, 400, budget=5000),      # success exactly at the truncated budget
+               rec("a", 1, 401, budget=5000),      # one evaluation too late
+               rec("a", 2, 10, budget=5000)]       # seed == seeds: beyond the check
+    base, used = baseline(records, 400, 2)
+    got = {r["seed"]: (r["budget"], r["success"]) for r in base}
+    assert got == {0: (400, True), 1: (400, False)}
+    assert used["re_scored"] == 2
+
+
+def test_ranking_puts_the_pooled_rows_first_and_breaks_ert_ties_by_success():
+    p = [rec("p", 0, 100), rec("p", 1, 100), rec("p", 2, None)]        # ERT 600, 2/3
+    q = [rec("q", 0, 100), rec("q", 1, None, budget=500)]               # ERT 600, 1/2
+    order = [(s.case, s.solver) for s in score_records(q + p)]
+    assert order == [(ALL, "p"), (ALL, "q"), ("small", "p"), ("small", "q")]
+
+
+def test_medians_skip_undefined_accuracies():
+    # the paper's accuracy is undefined (None) where the truth is 0 and the estimate is not
+    recs = [rec("a", 0, 100), rec("a", 1, 100), rec("a", 2, 100)]
+    recs[0]["accuracy"] = {**recs[0]["accuracy"], "BLK": None}
+    recs[1]["accuracy"] = {**recs[1]["accuracy"], "BLK": 97.0}
+    (s,) = [x for x in score_records(recs) if x.case == "small"]
+    assert s.accuracy["BLK"] == pytest.approx(98.0)   # median of 97 and 99, None skipped
+
+
+def test_baseline_identity_and_staleness_edges():
+    from ema_bench.leaderboard.check import baseline
+
+    old = {**rec("a", 1, 10), "model_version": "0"}
+    records = [old, old, rec("a", 0, 100, budget=400),
+               rec("a", 0, 50, budget=100),                 # smaller budget: never used
+               {**rec("a", 1, 20, budget=400), "root_seed": 7}]
+    base, used = baseline(records, 400, 2)
+    assert used["other_model_version"] == 2                 # both stale records counted
+    got = {(r["seed"], r["root_seed"]): r["budget"] for r in base}
+    assert got == {(0, 0): 400, (1, 7): 400}                # the stale ones did not stop it
+    # keys select runs: root seed is part of a run's identity
+    base, _ = baseline(records, 400, 2, keys={("a", "small", "twin", 1, 7)})
+    assert [(r["seed"], r["root_seed"]) for r in base] == [(1, 7)]
+    # a committed run under another root seed is another run: not compared
+    assert compare([rec("a", 1, None)], [{**rec("a", 1, 10), "root_seed": 7}]) == []
+
+
+def test_table_row_flattens_the_per_fault_figures():
+    (s,) = [x for x in score_records(MIXED) if x.case == "small"]
+    row = s.row()
+    assert "accuracy" not in row and "range_error" not in row
+    for n in FAULTS:
+        assert row[f"accuracy_{n}"] == 99.0 and row[f"range_error_{n}"] == 0.001
+    assert (row["solver"], row["runs"], row["successes"]) == ("a", 3, 2)
+    assert row["ert"] == pytest.approx(700.0)
+
+
+def test_committed_run_files_are_found_and_read(tmp_path):
+    import json
+
+    from ema_bench.leaderboard.check import committed_files, load_baseline
+
+    def write(path, records):
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text("".join(json.dumps(r) + "\n" for r in records))
+
+    write(tmp_path / "runs.jsonl", [rec("a", 0, 100, budget=400)])
+    write(tmp_path / "quick" / "runs.jsonl", [rec("b", 0, None, budget=400)])
+    write(tmp_path / "deep" / "er" / "runs.jsonl", [rec("c", 0, 5, budget=400)])  # too deep
+    (tmp_path / "empty").mkdir()
+    files = committed_files(tmp_path)
+    assert files == [tmp_path / "runs.jsonl", tmp_path / "quick" / "runs.jsonl"]
+    base, used = load_baseline(tmp_path, 400, 1)
+    assert sorted(r["solver"] for r in base) == ["a", "b"]
+    assert used == {"same_budget": 2, "re_scored": 0, "other_model_version": 0}
+    base, _ = load_baseline(tmp_path, 400, 1, keys={("b", "small", "twin", 0, 0)})
+    assert [r["solver"] for r in base] == ["b"]                # the keys select
+    assert committed_files(tmp_path / "empty") == []
