@@ -19,9 +19,9 @@ import json
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from .faults import CASES, LOWER, UPPER
+from .faults import CASES
 from .monitor import simulate_monitor
-from .objective import fitness_from_outputs, signal_weights
+from .objective import Objective, fitness_from_outputs, signal_weights
 from .params import DEFAULT_PARAMS, EMAParams
 from .reference import simulate_reference
 
@@ -64,15 +64,13 @@ def clean_bias(x_true: np.ndarray, evals: int = 6000, seed: int = 1,
     """
     import cma
 
-    ref = simulate_reference(x_true, noise=False, adc=False)
-    w = signal_weights(ref)
+    objective = Objective(simulate_reference(x_true, noise=False, adc=False))
+    space = objective.space
 
     def fitness(U: np.ndarray) -> np.ndarray:
-        X = LOWER + np.clip(np.atleast_2d(U), 0.0, 1.0) * (UPPER - LOWER)
-        out, _ = simulate_monitor(X, check=False)
-        return fitness_from_outputs(out, ref, w)
+        return objective.evaluate(space.from_unit(np.clip(np.atleast_2d(U), 0.0, 1.0)))[0]
 
-    u0 = (np.asarray(x_true, dtype=float) - LOWER) / (UPPER - LOWER)
+    u0 = space.to_unit(np.asarray(x_true, dtype=float))
     f0 = float(fitness(u0)[0])
     best_u, best_f = u0, f0
     for sigma in sigmas:

@@ -33,6 +33,7 @@ FAULTS: tuple[Fault, ...] = (
 FAULT_NAMES: tuple[str, ...] = tuple(f.name for f in FAULTS)
 FAULT_UNITS: dict[str, str] = {f.name: f.unit for f in FAULTS}
 FAULT_INDEX: dict[str, int] = {name: i for i, name in enumerate(FAULT_NAMES)}
+N_FAULTS = len(FAULT_NAMES)
 # positions in a fault vector, by name (the compiled models read the vector with these)
 F_NA, F_FST, F_BLK, F_GPROP = (FAULT_INDEX[n] for n in ("Na", "Fst", "BLK", "Gprop"))
 LOWER = np.array([f.lower for f in FAULTS])

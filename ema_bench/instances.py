@@ -36,8 +36,10 @@ def _reference_traces(x: tuple, e: tuple, seed_entropy: int, spawn_key: tuple,
                                                     tests=tests), key, expected_shapes(tests))
 
 
-def _twin_traces(x: np.ndarray, e: np.ndarray, seed: np.random.SeedSequence,
-                 tests: tuple[TestSpec, ...]) -> Traces:
+def twin_traces(x: np.ndarray, e: np.ndarray, seed: np.random.SeedSequence,
+                tests: tuple[TestSpec, ...]) -> Traces:
+    """Measured traces of the twin track: the monitor model at faults ``x`` with effects
+    ``e``, through the sensors (noise and ADC; one child of ``seed`` per test)."""
     outputs, ok = simulate_monitor(x[None, :], e[None, :], tests=tests)
     if not ok[0]:
         raise SimulationError(f"monitor model diverged at the true faults {faults_to_dict(x)}")
@@ -138,7 +140,7 @@ def make_problem(
         measured = _reference_traces(tuple(truth), tuple(e), int(s_noise.entropy),
                                      tuple(s_noise.spawn_key), specs).with_meta(faults=None)
     else:
-        measured = _twin_traces(truth, e, s_noise, specs)
+        measured = twin_traces(truth, e, s_noise, specs)
     # public: nothing a solver could use to recover the truth (no seed, no effects)
     meta = {"case": label, "track": track}
     return Problem(measured, budget, normalise=normalise, label=label, track=track,

@@ -12,6 +12,7 @@ the calling thread, where waking the worker threads would cost more than it save
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 
 import numba
@@ -98,7 +99,13 @@ def monitor_batch_serial(p, X, E, cmd, cmd_start, n_out, out_start, ticks_out, s
 def test_layout(tests: Sequence[TestSpec], dt_ctrl: float) -> tuple[np.ndarray, ...]:
     """Commands of ``tests`` concatenated, with where each test's command and outputs start.
 
-    Returns ``(cmd, cmd_start, n_out, out_start)``."""
+    Returns ``(cmd, cmd_start, n_out, out_start)``, computed once per (tests, step): the
+    arrays are shared between calls (the kernels only read them)."""
+    return _layout(tuple(tests), float(dt_ctrl))
+
+
+@functools.lru_cache(maxsize=16)
+def _layout(tests: tuple[TestSpec, ...], dt_ctrl: float) -> tuple[np.ndarray, ...]:
     cmds = [spec.command_at_samples(dt_ctrl) for spec in tests]
     n_out = np.array([spec.n_samples() for spec in tests], dtype=np.int64)
     cmd_start = np.concatenate([[0], np.cumsum([c.size for c in cmds])]).astype(np.int64)
@@ -148,8 +155,9 @@ def simulate_monitor(
     n = X.shape[0]
     if E is None:
         E = np.zeros((n, N_EFFECTS))
-    # a writeable copy: one compiled signature (a read-only broadcast view would be another)
-    E = np.array(np.broadcast_to(np.asarray(E, dtype=np.float64), (n, N_EFFECTS)), order="C")
+    else:   # a writeable copy: one compiled signature (a read-only view would be another)
+        E = np.array(np.broadcast_to(np.asarray(E, dtype=np.float64), (n, N_EFFECTS)),
+                     order="C")
     dt = params.dt_mon if dt is None else float(dt)
     ticks_out = steps_per(OUTPUT_DT, params.dt_ctrl)
     steps_tick = steps_per(params.dt_ctrl, dt)

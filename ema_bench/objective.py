@@ -18,7 +18,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from .effects import EFFECT_NAMES, EFFECTS, LIBRARY, N_EFFECTS
-from .faults import FAULT_NAMES, FAULT_UNITS, LOWER, NOMINAL, UPPER, FaultError, check_faults
+from .faults import (  # noqa: F401  (N_FAULTS re-exported with the search space)
+    FAULT_NAMES,
+    FAULT_UNITS,
+    LOWER,
+    N_FAULTS,
+    NOMINAL,
+    UPPER,
+    FaultError,
+    check_faults,
+)
 from .monitor import simulate_monitor
 from .physics.sensors import SENSORS
 from .protocol import HOLDOUT_TESTS, STANDARD_TESTS, TestSpec
@@ -28,7 +37,6 @@ from .traces import OUTPUT_DT, SIGNALS, Traces
 PENALTY = 1e12
 VALID_CAP = 1e11
 KNOWN_TESTS: dict[str, TestSpec] = {s.name: s for s in STANDARD_TESTS + HOLDOUT_TESTS}
-N_FAULTS = len(FAULT_NAMES)
 
 
 class ProblemError(ValueError):

@@ -12,8 +12,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .faults import faults_to_dict
-from .objective import N_FAULTS
+from .faults import N_FAULTS, faults_to_dict
 from .trace_cache import MODEL_VERSION
 
 if TYPE_CHECKING:

@@ -46,22 +46,21 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _simulate(x, effects, model, node, clean, tests):
+    from ..faults import faults_to_dict
+    from ..instances import twin_traces
     from ..monitor import monitor_traces
-    from ..physics.sensors import measure
     from ..reference import simulate_reference
-    from ..seeding import children, seed_repr, stream
-    from ..traces import Traces
+    from ..seeding import seed_repr, stream
 
     seed = stream(node, "noise")
     if model == "reference":
         return simulate_reference(x, effects, seed=None if clean else seed, noise=not clean,
                                   adc=not clean, tests=tests)
-    tr = monitor_traces(x, effects, tests=tests)
     if clean:
-        return tr
-    data = {t: measure(tr.data[t], np.random.default_rng(c))
-            for t, c in zip(tr.tests, children(seed, len(tr.tests)))}
-    return Traces(data=data, dt=tr.dt, meta={**tr.meta, "seed": seed_repr(seed), "noise": True})
+        return monitor_traces(x, effects, tests=tests)
+    # the twin track's data maker: the same noise `solve --track twin --seed k` fits
+    return twin_traces(x, effects, seed, tests).with_meta(faults=faults_to_dict(x),
+                                                           seed=seed_repr(seed))
 
 
 def summarise(tr) -> dict[str, float]:
