@@ -49,11 +49,23 @@ class CLIError(Exception):
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    from ..progress import configure_logging
+
+    configure_logging(quiet=getattr(args, "quiet", False))
     try:
         return int(args.func(args) or 0)
-    except (CLIError, ValueError, LookupError, FileNotFoundError) as exc:
-        print(f"ema-bench {args.command}: error: {exc}", file=sys.stderr)
+    except (CLIError, ValueError, LookupError, OSError, MemoryError) as exc:
+        # OSError: a write that fails late (disk full, folder removed) is one line too
+        print(f"ema-bench {args.command}: error: {_message(exc)}", file=sys.stderr)
         return 2
+
+
+def _message(exc: BaseException) -> str:
+    if isinstance(exc, MemoryError):
+        return f"out of memory{f': {exc}' if str(exc) else ''}"
+    if isinstance(exc, OSError) and exc.filename and exc.strerror:
+        return f"{exc.filename}: {exc.strerror}"
+    return str(exc)
 
 
 def print_json(obj: object) -> None:

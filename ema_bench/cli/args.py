@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import os
+import tempfile
+from pathlib import Path
 
 import numpy as np
 
@@ -67,3 +70,50 @@ def effects_of(args: argparse.Namespace) -> dict[str, float]:
 
 def add_json(p: argparse.ArgumentParser, what: str = "the result") -> None:
     p.add_argument("--json", action="store_true", help=f"print {what} as JSON")
+
+
+def add_quiet(p: argparse.ArgumentParser) -> None:
+    """``--quiet``: no progress bar and no progress lines (errors are still printed)."""
+    p.add_argument("--quiet", "-q", action="store_true",
+                   help="no progress output (a bar in a terminal, one line per finished "
+                        "task otherwise)")
+
+
+def check_output(path: str | os.PathLike[str] | None, option: str, *, folder: bool
+                 ) -> Path | None:
+    """Check before any work that ``path`` can be written (``folder``: created and filled).
+
+    A folder is created now (with its parents); a file is not created, but its folder is, and
+    must accept a new file.  Raises :class:`~ema_bench.cli.CLIError` (one line naming
+    ``option``, exit code 2) for an existing file where a folder is expected or the reverse,
+    a read-only place, or a parent that is a file.  ``None`` passes through.
+    """
+    from . import CLIError
+
+    if path is None:
+        return None
+    path = Path(path)
+    what = "folder" if folder else "file"
+    if folder and path.exists() and not path.is_dir():
+        raise CLIError(f"{option} {path}: exists and is not a folder")
+    if not folder and path.is_dir():
+        raise CLIError(f"{option} {path}: is a folder; give a file name")
+    place = path if folder else path.parent
+    try:
+        place.mkdir(parents=True, exist_ok=True)
+        # a real write, not os.access: it also catches read-only mounts and full disks
+        with tempfile.NamedTemporaryFile(dir=place, prefix=".ema-bench-write-check-"):
+            pass
+        if not folder and path.exists():
+            with open(path, "ab"):
+                pass
+    except FileExistsError:
+        raise CLIError(f"{option} {path}: cannot create the {what}: a file stands in its "
+                       "path") from None
+    except NotADirectoryError:
+        raise CLIError(f"{option} {path}: cannot create the {what}: a file stands in its "
+                       "path") from None
+    except OSError as exc:
+        raise CLIError(f"{option} {path}: cannot write the {what}: "
+                       f"{exc.strerror or exc}") from None
+    return path
