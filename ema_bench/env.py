@@ -29,7 +29,9 @@ Observation (a float64 vector of ``N = sum over tests of n_samples * 4`` values,
 
 ``info`` holds ``evaluations``, ``budget``, ``remaining``, ``best_fitness`` (``inf`` before any
 evaluation), ``best_x`` (physical, ``name -> value``; after the first evaluation), ``case`` (the
-case *label*) and ``track``; never the true faults.  The problem itself, for the scorer after
+case *label*), ``track``, and ``seed`` and ``root_seed``: the episode is run ``seed`` of the
+seed tree (``ema_bench.seeding``), the problem ``ema-bench solve --root-seed R --seed k``
+fits; never the true faults.  The problem itself, for the scorer after
 the episode, is ``env.unwrapped.problem`` (``problem.score(x)``).
 
 :class:`EMAFaultVectorEnv` (``gymnasium.make_vec(..., vectorization_mode="vector_entry_point")``)
@@ -56,6 +58,7 @@ from .objective import PENALTY
 from .physics.sensors import SENSORS
 from .problem import Problem, ProblemError
 from .protocol import STANDARD_TESTS
+from .seeding import run_seed
 from .traces import SIGNALS
 
 __all__ = ["ENV_ID", "OBSERVATIONS", "EMAFaultEnv", "EMAFaultVectorEnv", "register"]
@@ -141,16 +144,21 @@ class _EpisodeMixin:
     heterogeneity: float
     _problem: Problem | None
 
-    def _new_problem(self, rng: np.random.Generator, options: Mapping[str, Any] | None) -> None:
+    def _new_problem(self, rng: np.random.Generator, options: Mapping[str, Any] | None,
+                     seed: int | None = None) -> None:
         options = dict(options or {})
         unknown = sorted(set(options) - set(_OPTIONS))
         if unknown:
             raise ValueError(f"unknown reset option(s) {unknown}; known: {list(_OPTIONS)}")
         case = options.get("case", self.case)
         track = options.get("track", self.track)
-        # the instance seed comes from the env's RNG: reset(seed=s) -> same instance and noise
-        seed = int(rng.integers(0, 2**63 - 1))
-        problem = make_problem(case, track=track, seed=seed, budget=self.budget,
+        # the seed tree's run node: reset(seed=k) is run k of root_seed, the instance and noise
+        # of `ema-bench solve --root-seed R --seed k`; a reset without a seed draws k from the
+        # env's RNG (seeded by the last reset seed, as Gymnasium wants)
+        k = int(rng.integers(0, 2**63 - 1)) if seed is None else seed
+        self._episode_seed = k
+        problem = make_problem(case, track=track, seed=run_seed(self.root_seed, k),
+                               budget=self.budget,
                                normalise=self.normalise, heterogeneity=self.heterogeneity)
         if problem.measured.stacked().shape != (sum(_layout_sizes()) * len(SIGNALS),):
             raise ProblemError("the problem's traces do not follow the standard test protocol")
@@ -165,7 +173,8 @@ class _EpisodeMixin:
         p = self._require_problem()
         info: dict[str, Any] = {"evaluations": p.evaluations, "budget": p.budget,
                                 "remaining": p.remaining, "best_fitness": float("inf"),
-                                "case": p.label, "track": p.track}
+                                "case": p.label, "track": p.track,
+                                "seed": self._episode_seed, "root_seed": self.root_seed}
         if p.evaluations:
             x, f = p.best
             info["best_fitness"], info["best_x"] = f, faults_to_dict(x)
@@ -194,16 +203,22 @@ class EMAFaultEnv(_EpisodeMixin, gym.Env):
         What ``step`` observes.
     normalise : bool
         Normalised (default) or raw fitness.
+    root_seed : int
+        Root of the seed tree: ``reset(seed=k)`` builds run ``k`` of it, the problem that
+        ``ema-bench solve --root-seed R --seed k`` fits (``info["seed"]`` names the run).
     """
 
     metadata: dict[str, Any] = {"render_modes": []}
 
     def __init__(self, case: Any = "small", track: str = "reference", budget: int = 1000,
                  observation: str = "traces", normalise: bool = True,
-                 heterogeneity: float = 1.0, render_mode: str | None = None) -> None:
+                 heterogeneity: float = 1.0, render_mode: str | None = None,
+                 root_seed: int = 0) -> None:
         if render_mode is not None:
             raise ValueError(f"render_mode {render_mode!r} is not supported (no rendering)")
         _check_config(case, track, budget, observation, heterogeneity)
+        run_seed(root_seed, 0)  # a valid root seed, checked now
+        self.root_seed = int(root_seed)
         self.case, self.track, self.budget = case, track, int(budget)
         self.observation, self.normalise = observation, bool(normalise)
         self.heterogeneity = float(heterogeneity)
@@ -215,7 +230,7 @@ class EMAFaultEnv(_EpisodeMixin, gym.Env):
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
-        self._new_problem(self.np_random, options)
+        self._new_problem(self.np_random, options, seed)
         return self._problem.measured.stacked(), self._info()
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
@@ -258,9 +273,12 @@ class EMAFaultVectorEnv(_EpisodeMixin, VectorEnv):
 
     def __init__(self, num_envs: int = 1, case: Any = "small", track: str = "reference",
                  budget: int = 1000, observation: str = "traces", normalise: bool = True,
-                 heterogeneity: float = 1.0, render_mode: str | None = None) -> None:
+                 heterogeneity: float = 1.0, render_mode: str | None = None,
+                 root_seed: int = 0) -> None:
         if render_mode is not None:
             raise ValueError(f"render_mode {render_mode!r} is not supported (no rendering)")
+        run_seed(root_seed, 0)  # a valid root seed, checked now
+        self.root_seed = int(root_seed)
         if isinstance(num_envs, bool) or not isinstance(num_envs, int | np.integer) \
                 or num_envs < 1:
             raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
@@ -282,10 +300,11 @@ class EMAFaultVectorEnv(_EpisodeMixin, VectorEnv):
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
-        return self._reset(options)
+        return self._reset(options, seed)
 
-    def _reset(self, options: Mapping[str, Any] | None) -> tuple[np.ndarray, dict[str, Any]]:
-        self._new_problem(self.np_random, options)
+    def _reset(self, options: Mapping[str, Any] | None, seed: int | None = None
+               ) -> tuple[np.ndarray, dict[str, Any]]:
+        self._new_problem(self.np_random, options, seed)
         self._autoreset = False
         obs = np.tile(self._problem.measured.stacked(), (self.num_envs, 1))
         return obs, self._vector_info(self._info())

@@ -93,10 +93,14 @@ def check_faults(x: np.ndarray | Mapping[str, float], *, batch: bool = False) ->
     elif arr.shape != (len(FAULTS),):
         raise FaultError(f"expected a fault vector of shape ({len(FAULTS)},), got {arr.shape}")
     rows = arr.reshape(-1, len(FAULTS))
+
+    def where(i: int) -> str:  # a row number means something only in a batch
+        return f" in row {i}" if batch else ""
+
     bad = ~np.isfinite(rows)
     if bad.any():
         i, j = np.argwhere(bad)[0]
-        raise FaultError(f"fault {FAULT_NAMES[j]} is not finite ({rows[i, j]}) in row {i}")
+        raise FaultError(f"fault {FAULT_NAMES[j]} is not finite ({rows[i, j]}){where(i)}")
     # a relative slack absorbs round-off from the [0,1] <-> physical mapping
     slack = 1e-9 * (UPPER - LOWER)
     out = (rows < LOWER - slack) | (rows > UPPER + slack)
@@ -104,7 +108,7 @@ def check_faults(x: np.ndarray | Mapping[str, float], *, batch: bool = False) ->
         i, j = np.argwhere(out)[0]
         f = FAULTS[j]
         raise FaultError(
-            f"fault {f.name}={rows[i, j]:g} {f.unit} in row {i} is outside its bounds "
+            f"fault {f.name}={rows[i, j]:g} {f.unit}{where(i)} is outside its bounds "
             f"[{f.lower:g}, {f.upper:g}]"
         )
     return np.clip(arr, LOWER, UPPER)

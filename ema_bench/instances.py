@@ -8,13 +8,13 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from .effects import effects_vector
+from .effects import effects_to_dict, effects_vector
 from .faults import CASES, FaultError, check_faults, faults_to_dict, random_faults
 from .monitor import simulate_monitor
 from .objective import KNOWN_TESTS, ProblemError
 from .params import DEFAULT_PARAMS
 from .physics.sensors import measure
-from .problem import Problem
+from .problem import Problem, check_budget
 from .protocol import STANDARD_TESTS, TestSpec
 from .reference import SimulationError, simulate_reference
 from .seeding import SeedLike, as_seed_sequence, children, stream
@@ -45,15 +45,15 @@ def twin_traces(x: np.ndarray, e: np.ndarray, seed: np.random.SeedSequence,
         raise SimulationError(f"monitor model diverged at the true faults {faults_to_dict(x)}")
     data = {t: measure(v[0], np.random.default_rng(c))
             for (t, v), c in zip(outputs.items(), children(seed, len(outputs)))}
-    return Traces(data=data, meta={"model": "monitor", "noise": True, "adc": True})
+    return Traces(data=data, meta={"model": "monitor", "faults": faults_to_dict(x),
+                                   "effects": effects_to_dict(e), "noise": True, "adc": True})
 
 
 def check_settings(case: object = "small", track: str = "reference", budget: object = 1,
                    heterogeneity: float = 1.0) -> None:
     """The checks of :func:`make_problem`'s settings, for callers that must fail early (the
     environment at construction, the command line before any work): ProblemError."""
-    if isinstance(budget, bool) or not isinstance(budget, int | np.integer) or budget < 1:
-        raise ProblemError(f"budget must be a positive integer, got {budget!r}")
+    check_budget(budget)
     if track not in TRACKS:
         raise ProblemError(f"unknown track {track!r}; known: {list(TRACKS)}")
     if not 0.0 <= float(heterogeneity) <= 1.0:
@@ -68,6 +68,10 @@ def check_settings(case: object = "small", track: str = "reference", budget: obj
             check_faults(case)
         except FaultError as exc:
             raise ProblemError(f"bad case: {exc}") from None
+
+
+#: What a problem's measured traces say about how they were made (never the truth).
+_PUBLIC_META = ("model", "noise", "adc")
 
 
 def make_problem(
@@ -138,9 +142,12 @@ def make_problem(
     specs = tuple(KNOWN_TESTS[n] for n in names)
     if track == "reference":
         measured = _reference_traces(tuple(truth), tuple(e), int(s_noise.entropy),
-                                     tuple(s_noise.spawn_key), specs).with_meta(faults=None)
+                                     tuple(s_noise.spawn_key), specs)
     else:
         measured = twin_traces(truth, e, s_noise, specs)
+    # the data makers record faults, effects and seeds; a solver sees none of them
+    measured = Traces(measured.data, dt=measured.dt,
+                      meta={k: v for k, v in measured.meta.items() if k in _PUBLIC_META})
     # public: nothing a solver could use to recover the truth (no seed, no effects)
     meta = {"case": label, "track": track}
     return Problem(measured, budget, normalise=normalise, label=label, track=track,

@@ -19,7 +19,7 @@ import numba
 import numpy as np
 from numba import njit, prange
 
-from .effects import N_EFFECTS
+from .effects import N_EFFECTS, effects_to_dict
 from .faults import F_BLK, F_FST, F_NA, check_faults, faults_to_dict
 from .params import DEFAULT_PARAMS, P_PP, EMAParams
 from .physics.averaged_drive import drive_consts, drive_step, sector_index
@@ -183,4 +183,6 @@ def monitor_traces(x: np.ndarray, effects: np.ndarray | None = None, *,
     if not ok[0]:
         raise SimulationError(f"monitor model diverged at faults {faults_to_dict(x)}")
     return Traces(data={k: np.ascontiguousarray(v[0]) for k, v in outputs.items()},
-                  dt=OUTPUT_DT, meta={"model": "monitor", "faults": faults_to_dict(x)})
+                  dt=OUTPUT_DT, meta={"model": "monitor", "faults": faults_to_dict(x),
+                                      "effects": {} if effects is None else
+                                      effects_to_dict(effects)})

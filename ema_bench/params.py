@@ -28,7 +28,8 @@ class EMAParams:
 
     # --- power electronics and motor (per phase, star connection) ---
     V_dc: float = _p(270.0, "V", "aircraft HVDC bus (MIL-STD-704F 270 V DC)")
-    R: float = _p(0.5, "ohm", "phase resistance of a ~1 kW servo BLDC (DESIGN 8)")
+    R: float = _p(0.5, "ohm", "phase resistance of a ~1 kW servo BLDC; 20 A costs 20 V of "
+                  "the 270 V bus")
     L: float = _p(0.5e-3, "H", "phase inductance; 2 mH made commutation eat the 60 deg sector")
     Ke: float = _p(0.05, "V s/rad", "phase back-EMF peak per motor rad/s; 2 Ke = 0.1 N m/A")
     pole_pairs: float = _p(2.0, "-", "4-pole rotor, typical of small servo BLDCs")

@@ -31,6 +31,24 @@ from .traces import SIGNALS, Traces
 log = logging.getLogger(__name__)
 
 
+#: The largest evaluation budget a problem accepts: about 12 days of single evaluations at
+#: 1 ms; a larger number is a typo, not an experiment.
+MAX_BUDGET = 10**9
+
+# evaluations the log holds before it first grows (then it doubles, up to the budget)
+_LOG_CHUNK = 4096
+
+
+def check_budget(budget: object) -> int:
+    """The budget as an int; ProblemError unless ``1 <= budget <= MAX_BUDGET``."""
+    if isinstance(budget, bool) or not isinstance(budget, int | np.integer) or budget < 1:
+        raise ProblemError(f"budget must be a positive integer, got {budget!r}")
+    if budget > MAX_BUDGET:
+        raise ProblemError(f"budget {budget} is beyond the maximum of {MAX_BUDGET:.0e} "
+                           "evaluations (about 12 days at 1 ms each)")
+    return int(budget)
+
+
 class BudgetExhausted(RuntimeError):
     """The evaluation would exceed the problem's budget; nothing was scored."""
 
@@ -68,8 +86,7 @@ class Problem:
                  label: str = "measured",
                  track: str = "measured", _truth: np.ndarray | None = None,
                  _meta: Mapping[str, object] | None = None) -> None:
-        if not isinstance(budget, int | np.integer) or budget < 1:
-            raise ProblemError(f"budget must be a positive integer, got {budget!r}")
+        budget = check_budget(budget)
         self.space = SearchSpace.of(augment)
         self.objective = Objective(measured, self.space, normalise=normalise,
                                    effects=monitor_effects)
@@ -91,9 +108,10 @@ class Problem:
         self.__truth = None if _truth is None else check_faults(_truth).copy()
         self._count = 0
         self._failures = 0
-        self._X = np.empty((self.budget, self.dim))
-        self._f = np.empty(self.budget)
-        self._t = np.empty(self.budget)
+        # the evaluation log grows with use (a huge budget costs nothing up front)
+        self._X = np.empty((min(self.budget, _LOG_CHUNK), self.dim))
+        self._f = np.empty(self._X.shape[0])
+        self._t = np.empty(self._X.shape[0])
         self._t0 = time.perf_counter()
 
     def __repr__(self) -> str:
@@ -154,6 +172,11 @@ class Problem:
 
     def _record(self, X: np.ndarray, f: np.ndarray) -> None:
         i, n = self._count, X.shape[0]
+        if i + n > self._f.size:
+            cap = min(self.budget, max(2 * self._f.size, i + n))
+            self._X = np.resize(self._X, (cap, self.dim))  # copies; the tail is overwritten
+            self._f = np.resize(self._f, cap)
+            self._t = np.resize(self._t, cap)
         self._X[i:i + n] = X
         self._f[i:i + n] = f
         self._t[i:i + n] = time.perf_counter() - self._t0

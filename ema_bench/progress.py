@@ -21,7 +21,7 @@ log = logging.getLogger("ema_bench")
 class Progress:
     """Count finished items of ``total``; see :func:`progress`."""
 
-    total: int
+    total: int | None
     desc: str
     unit: str
     bar: object | None = None
@@ -37,7 +37,8 @@ class Progress:
             if label:
                 self.bar.set_postfix_str(label, refresh=False)
         elif not self.quiet:
-            log.info("%s: %d/%d %s%s (%.0f s)", self.desc, self.done, self.total, self.unit,
+            of = "" if self.total is None else f"/{self.total}"
+            log.info("%s: %d%s %s%s (%.0f s)", self.desc, self.done, of, self.unit,
                      f" {label}" if label else "", time.perf_counter() - self.t0)
 
     def note(self, message: str) -> None:
@@ -49,10 +50,11 @@ class Progress:
 
 
 @contextmanager
-def progress(total: int, desc: str, unit: str = "item", quiet: bool = False,
+def progress(total: int | None, desc: str, unit: str = "item", quiet: bool = False,
              tty: bool | None = None) -> Iterator[Progress]:
-    """A :class:`Progress` over ``total`` items: a tqdm bar on stderr when it is a terminal
-    (``tty`` overrides the check), log lines otherwise, nothing when ``quiet``."""
+    """A :class:`Progress` over ``total`` items (None: unknown): a tqdm bar on stderr when
+    it is a terminal (``tty`` overrides the check), log lines otherwise, nothing when
+    ``quiet``."""
     tty = sys.stderr.isatty() if tty is None else tty
     bar = None
     if tty and not quiet:
@@ -81,5 +83,6 @@ class _Stderr(logging.StreamHandler):
     """Writes to whatever ``sys.stderr`` is now (tests and redirections replace it)."""
 
     def emit(self, record: logging.LogRecord) -> None:
-        self.setStream(sys.stderr)
+        # not setStream: it flushes the old stream, which may be closed by now (a test's)
+        self.stream = sys.stderr
         super().emit(record)

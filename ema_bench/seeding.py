@@ -11,7 +11,8 @@ The tree (the README has it as a table)::
 ``make_problem(seed=node)`` draws the instance and the noise, ``run_solver(..., seed=node)``
 gives the solver ``stream(node, "solver")``: a solver cannot replay the problem's streams
 whatever it spawns.  ``ema-bench solve --root-seed R --seed k`` builds the same node as the
-leaderboard's row ``k`` of root seed ``R``, so it replays that row bit for bit.  (The
+leaderboard's row ``k`` of root seed ``R``, so it replays that row bit for bit; the Gymnasium
+environment's ``reset(seed=k)`` (``root_seed=R``) plays the same problem.  (The
 diagnosis workflow and the blind suite still spawn their own children of the seed they are
 given; moving them onto named streams changes their committed suites, which are regenerated
 with them.)

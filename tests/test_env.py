@@ -117,7 +117,8 @@ def test_reset_observation_is_the_measured_traces_and_is_seeded():
     np.testing.assert_array_equal(obs_a, env_a.unwrapped.problem.measured.stacked())
     assert obs_a in env_a.observation_space
     assert info == {"evaluations": 0, "budget": 1000, "remaining": 1000,
-                    "best_fitness": float("inf"), "case": "small", "track": "reference"}
+                    "best_fitness": float("inf"), "case": "small", "track": "reference",
+                    "seed": 7, "root_seed": 0}
     # unseeded resets continue the seeded RNG: same sequence on both envs, new noise each time
     next_a, _ = env_a.reset()
     next_b, _ = env_b.reset()
@@ -129,6 +130,24 @@ def test_reset_observation_is_the_measured_traces_and_is_seeded():
     assert diff.max() > 0
     span = env_a.observation_space.high - env_a.observation_space.low
     assert np.all(diff <= 0.02 * span)
+
+
+@pytest.mark.parametrize("case", ["seeded", "full"])
+def test_reset_seed_k_is_run_k_of_the_seed_tree(case):
+    """reset(seed=k) under root_seed R plays the problem `ema-bench solve --root-seed R
+    --seed k` fits: same instance, same noise (one seed tree, issue 11)."""
+    from ema_bench import make_problem
+    from ema_bench.seeding import run_seed
+
+    env = gym.make(ENV_ID, case=case, track="twin", root_seed=5)
+    obs, info = env.reset(seed=3)
+    assert (info["seed"], info["root_seed"]) == (3, 5)
+    p = make_problem(case, track="twin", seed=run_seed(5, 3))
+    np.testing.assert_array_equal(obs, p.measured.stacked())
+    assert info["case"] == p.label
+    obs_unseeded, info = env.reset()   # a drawn run number, reported so it can be replayed
+    p2 = make_problem(case, track="twin", seed=run_seed(5, info["seed"]))
+    np.testing.assert_array_equal(obs_unseeded, p2.measured.stacked())
 
 
 def test_reset_options_override_case_and_track_for_one_episode():

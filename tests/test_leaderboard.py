@@ -128,7 +128,7 @@ def test_dask_reruns_a_task_whose_worker_dies(quick, tmp_path):
         return run_task(task)
 
     tasks = make_tasks(["random"], ["small"], ["reference", "twin"], 2, 60)
-    records = list(execute(tasks, "dask", workers=2, progress=False, runner=dies_once))
+    records = list(execute(tasks, "dask", workers=2, runner=dies_once))
     assert marker.exists()
     want = stable(read_records(quick / "runs.jsonl"))
     got = stable(records)

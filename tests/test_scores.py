@@ -200,3 +200,21 @@ def test_committed_run_files_are_found_and_read(tmp_path):
     base, _ = load_baseline(tmp_path, 400, 1, keys={("b", "small", "twin", 0, 0)})
     assert [r["solver"] for r in base] == ["b"]                # the keys select
     assert committed_files(tmp_path / "empty") == []
+
+
+def test_a_failed_run_is_unsuccessful_at_its_budget_and_left_out_of_medians():
+    """A run recorded as an error (the solver raised, its worker died) has no fitness: it is
+    an unsuccessful run at its budget in runs, success rate and ERT, and no median sees it."""
+    failed = {k: v for k, v in rec("a", 2, None).items()
+              if k not in ("fitness", "accuracy", "range_error")}
+    failed.update(status="error", error="boom", error_type="RuntimeError", wall_s=50.0)
+    runs = [rec("a", 0, 100, fitness=1e-4), rec("a", 1, None, fitness=3e-4), failed]
+    (s,) = [x for x in score_records(runs) if x.case == "small"]
+    assert (s.runs, s.successes, s.errors) == (3, 1, 1)
+    assert s.success_rate == pytest.approx(1 / 3)
+    assert s.ert == pytest.approx(100 + 1000 + 1000)       # the failed run at its budget
+    assert s.median_fitness == pytest.approx(2e-4)          # of the two finished runs
+    assert s.median_wall_s == pytest.approx(1.0)
+    assert s.accuracy["Na"] == pytest.approx(99.0)
+    (plain,) = [x for x in score_records(MIXED) if x.case == "small"]
+    assert plain.errors == 0

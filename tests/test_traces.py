@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 import copy
+import io
 import json
 import math
+import struct
+import zipfile
 
 import numpy as np
 import pytest
@@ -17,6 +20,8 @@ from ema_bench.traces import (
     Traces,
     TracesError,
     load_traces,
+    mat_format,
+    npz_format,
 )
 
 HEADER = "time [s],theta_u [rad],theta_m [rad],omega_m [rad/s],i_eq [A]"
@@ -254,6 +259,8 @@ CSV_ERRORS = [
      "integer multiple.*2500 Hz"),
     ("too short", HEADER, ramp_rows(9), "too short, 9 sample"),
     ("header only", HEADER, [], "empty"),
+    ("too fine", HEADER, [[1e-6 * k, *r[1:]] for k, r in enumerate(ramp_rows())],
+     "sample rate too high.*at most 100 times"),
 ]
 
 
@@ -329,3 +336,218 @@ def test_npz_content_errors(tmp_path):
         load_with(**(good | {"step/i_eq": np.zeros(19)}), units=units)
     with pytest.raises(TracesError, match=r"'step/theta_u'.*shape \(20, 2\)"):
         load_with(**(good | {"step/theta_u": np.zeros((20, 2))}), units=units)
+
+
+# ---- crafted and corrupt files: refused from their declared sizes, one clear error each --------
+
+UNIT_STRINGS = np.array([f"{s}={UNITS[s]}" for s in SIGNALS])
+
+
+def npy(arr: np.ndarray) -> bytes:
+    buf = io.BytesIO()
+    np.save(buf, arr, allow_pickle=False)
+    return buf.getvalue()
+
+
+def npy_claiming(shape: tuple[int, ...], payload: bytes) -> bytes:
+    """A .npy file whose header declares ``shape`` (float64) whatever ``payload`` holds."""
+    buf = io.BytesIO()
+    np.lib.format.write_array_header_1_0(
+        buf, {"descr": "<f8", "fortran_order": False, "shape": shape})
+    return buf.getvalue() + payload
+
+
+def npz_members(n: int = 20, time_values: np.ndarray | None = None) -> dict[str, bytes]:
+    """The members of a valid one-test .npz (test 'step'), as .npy bytes."""
+    arrays = {f"step/{s}": np.zeros(n) for s in SIGNALS} | {"units": UNIT_STRINGS}
+    arrays["time/step"] = np.arange(n) * OUTPUT_DT if time_values is None else time_values
+    return {f"{k}.npy": npy(v) for k, v in arrays.items()}
+
+
+def write_zip(path, members: dict[str, bytes], method: int = zipfile.ZIP_STORED):
+    with zipfile.ZipFile(path, "w", method) as z:
+        for name, data in members.items():
+            z.writestr(name, data)
+    return path
+
+
+def test_npz_header_claiming_a_huge_array_is_refused_before_allocation(tmp_path):
+    # 28 kB of data, 80 GB declared: refused from the header, not a MemoryError
+    members = npz_members() | {"time/step.npy": npy_claiming((10**10,), bytes(28_000))}
+    path = write_zip(tmp_path / "huge.npz", members)
+    assert path.stat().st_size < 32_000
+    with pytest.raises(TracesError, match=r"huge\.npz: key 'time/step' claims 10000000000 "
+                                          r"samples of 8 bytes, larger than the limit"):
+        load_traces(path)
+
+
+def test_npz_header_declaring_more_than_the_member_holds_is_refused(tmp_path):
+    members = npz_members() | {"time/step.npy": npy_claiming((1000,), bytes(160))}
+    with pytest.raises(TracesError, match=r"key 'time/step': its header declares 8000 bytes "
+                                          r"of data but the archive holds 160"):
+        load_traces(write_zip(tmp_path / "lying.npz", members, zipfile.ZIP_DEFLATED))
+
+
+def test_npz_array_above_the_size_limit_is_refused(tmp_path, monkeypatch):
+    monkeypatch.setattr(npz_format, "MAX_ARRAY_BYTES", 100)
+    path = write_zip(tmp_path / "big.npz", npz_members())
+    with pytest.raises(TracesError, match="claims 20 samples of 8 bytes, larger than the "
+                                          "limit of 100 bytes"):
+        load_traces(path)
+
+
+def test_npz_of_random_bytes_is_reported_as_corrupt_not_as_pickle(tmp_path):
+    path = tmp_path / "junk.npz"
+    path.write_bytes(np.random.default_rng(1).bytes(3000))
+    with pytest.raises(TracesError, match=r"junk\.npz: cannot read as \.npz: not a zip "
+                                          r"archive \(the file is corrupt") as info:
+        load_traces(path)
+    assert "pickle" not in str(info.value)
+
+
+def test_npz_member_that_is_not_npy_or_is_corrupt(tmp_path):
+    rng = np.random.default_rng(2)
+    members = npz_members() | {"time/step.npy": rng.bytes(200)}
+    with pytest.raises(TracesError, match="key 'time/step' is not a .npy array") as info:
+        load_traces(write_zip(tmp_path / "member.npz", members))
+    assert "pickle" not in str(info.value)
+
+    path = write_zip(tmp_path / "deflated.npz", npz_members(200), zipfile.ZIP_DEFLATED)
+    with zipfile.ZipFile(path) as z:  # one byte of the first member's deflate stream flipped
+        info = z.infolist()[0]
+    blob = bytearray(path.read_bytes())
+    start = info.header_offset + 30 + len(info.filename) + len(info.extra)
+    blob[start + info.compress_size // 2] ^= 0xFF
+    path.write_bytes(bytes(blob))
+    with pytest.raises(TracesError, match=r"deflated\.npz: corrupt \.npz archive"):
+        load_traces(path)
+
+
+def plain_mat_bytes(n: int = 20) -> bytes:
+    """An uncompressed MATLAB file of one plain test, 'units' a cell array."""
+    variables = {"time": np.arange(n) * OUTPUT_DT, "units": np.array(UNIT_STRINGS, dtype=object)}
+    variables |= {s: np.zeros(n) for s in SIGNALS}
+    buf = io.BytesIO()
+    scipy.io.savemat(buf, variables)
+    return buf.getvalue()
+
+
+def patched(blob: bytes, old: bytes, new: bytes) -> bytes:
+    assert old in blob
+    return blob.replace(old, new, 1)
+
+
+DIMS_1x20 = struct.pack("<IIii", 5, 8, 1, 20)  # miINT32 tag, 8 bytes, dimensions 1 x 20
+DOUBLES_20 = struct.pack("<II", 9, 160)  # miDOUBLE tag, 160 bytes
+
+
+@pytest.mark.parametrize(("edit", "match"), [
+    # a vector of 10**9 samples declared in 4 bytes
+    (lambda b: patched(b, DIMS_1x20, struct.pack("<IIii", 5, 8, 1, 10**9)),
+     r"a variable claims 1000000000 samples \(1 x 1000000000\), larger than the limit"),
+    # a cell array of 3000 x 3000: scipy would fill 9 million cells before reading one
+    (lambda b: patched(b, struct.pack("<IIii", 5, 8, 1, 4), struct.pack("<IIii", 5, 8, 3000, 3000)),
+     r"a variable claims 9000000 samples \(3000 x 3000\) but holds \d+ bytes"),
+    # a data element claiming 4 GB: scipy would allocate it before finding the file short
+    (lambda b: patched(b, DOUBLES_20, struct.pack("<II", 9, 2**32 - 8)),
+     "a data element declares 4294967288 bytes but only"),
+    # an unknown data type: scipy indexes a fixed-size table with it (garbage or a segfault)
+    (lambda b: patched(b, DOUBLES_20, struct.pack("<II", 0xFF93, 160)),
+     "unknown MATLAB data type 65427"),
+], ids=["huge-vector", "huge-cell", "huge-element", "unknown-type"])
+def test_crafted_mat_sizes_are_refused_before_scipy_allocates(tmp_path, edit, match):
+    path = tmp_path / "crafted.mat"
+    path.write_bytes(edit(plain_mat_bytes()))
+    with pytest.raises(TracesError, match=r"crafted\.mat: " + match):
+        load_traces(path, test="step")
+
+
+def test_compressed_mat_variable_above_the_size_limit_is_refused(tmp_path, monkeypatch):
+    monkeypatch.setattr(mat_format, "MAX_ARRAY_BYTES", 64)
+    monkeypatch.setattr(mat_format, "_MAT_HEADER_ROOM", 64)
+    variables = {"time": np.arange(200) * OUTPUT_DT, "units": UNIT_STRINGS}
+    scipy.io.savemat(tmp_path / "z.mat", variables | {s: np.zeros(200) for s in SIGNALS},
+                     do_compression=True)
+    with pytest.raises(TracesError, match="a compressed variable holds more than the limit "
+                                          "of 64 bytes"):
+        load_traces(tmp_path / "z.mat", test="step")
+
+
+# ---- seconds and milliseconds mixed up -----------------------------------------------------------
+
+
+@pytest.mark.parametrize(("header", "step", "match"), [
+    # 1 kHz data written in ms under an [s] label
+    (HEADER, 1.0, r"the time column looks like milliseconds but is labelled \[s\]; relabel it "
+                  r"'time \[ms\]'"),
+    # 10 kHz in ms under [s]
+    (HEADER, 0.1, r"the time column looks like milliseconds but is labelled \[s\]"),
+    # seconds under [ms]: read as 1 MHz, it would have been averaged into 12 samples
+    ("t [ms]" + HEADER.removeprefix("time [s]"), 1e-3,
+     r"the time column looks like seconds but is labelled \[ms\]; relabel it 't \[s\]'"),
+], ids=["ms-as-s", "ms-as-s-10kHz", "s-as-ms"])
+def test_csv_time_unit_mix_up_is_named(tmp_path, header, step, match):
+    rows = [[k * step, 0.0, 0.0, 0.0, 0.0] for k in range(12_000)]
+    path = plain_csv(tmp_path / "m.csv", rows, header=header)
+    with pytest.raises(TracesError, match=r"m\.csv: test 'step': " + match):
+        load_traces(path, test="step")
+
+
+@pytest.mark.parametrize(("time_unit", "time_values", "match"), [
+    ("time=s", np.arange(20) * 1.0,
+     r"time looks like milliseconds but is labelled \[s\]; relabel it 'time=ms' in 'units'"),
+    (None, np.arange(20) * 1.0, r"looks like milliseconds but is labelled \[s\]"),
+    ("time=ms", np.arange(12_000) * 1e-3,
+     r"time looks like seconds but is labelled \[ms\]; relabel it 'time=s' in 'units'"),
+], ids=["ms-as-s", "ms-no-time-unit", "s-as-ms"])
+def test_npz_time_unit_mix_up_is_named(tmp_path, time_unit, time_values, match):
+    members = npz_members(len(time_values), time_values)
+    units = [*UNIT_STRINGS, time_unit] if time_unit else list(UNIT_STRINGS)
+    members["units.npy"] = npy(np.array(units))
+    with pytest.raises(TracesError, match=match):
+        load_traces(write_zip(tmp_path / "m.npz", members))
+
+
+# ---- what the fuzz test (test_traces_fuzz.py) found: other exceptions escaping -------------------
+
+FUZZ_FOUND = [
+    # (id, file content, match)
+    ("csv field over the csv module's limit", HEADER + '\n"' + "1" * 200_000 + '",0,0,0,0\n',
+     r"line 2: malformed CSV: field larger than field limit"),  # was _csv.Error
+    ("meta nested too deep", "# meta = " + "[" * 100_000 + "\n" + HEADER + "\n",
+     r"line 1: meta is not valid JSON: maximum recursion"),  # was RecursionError
+    ("meta integer too long", '# meta = {"a": ' + "1" * 5000 + "}\n" + HEADER + "\n",
+     r"line 1: meta is not valid JSON: Exceeds the limit"),  # was a ValueError without file
+    ("subnormal time step",
+     HEADER + "\n" + "\n".join(f"{k * 5e-324!r},0,0,0,0" for k in range(20)) + "\n",
+     r"sample rate too high"),  # was OverflowError, then ZeroDivisionError
+    ("time step of 1e-300 s",
+     HEADER + "\n" + "\n".join(f"{k * 1e-300!r},0,0,0,0" for k in range(20)) + "\n",
+     r"sample rate too high"),  # was ValueError: Maximum allowed dimension exceeded
+]
+
+
+@pytest.mark.parametrize(("text", "match"), [c[1:] for c in FUZZ_FOUND],
+                         ids=[c[0] for c in FUZZ_FOUND])
+def test_pathological_csv_raises_traces_error(tmp_path, text, match):
+    path = tmp_path / "odd.csv"
+    path.write_text(text)
+    with pytest.raises(TracesError, match=r"odd\.csv: (test 'step': )?" + match):
+        load_traces(path, test="step")
+
+
+def test_npz_found_by_the_fuzz_test(tmp_path):
+    members = npz_members()
+    # a header numpy cannot tokenize (was tokenize.TokenError)
+    good = members["time/step.npy"]
+    members["time/step.npy"] = good[:10] + good[10:].replace(b"'shape': (20,)", b"'shape': (20,(")
+    with pytest.raises(TracesError, match="key 'time/step': corrupt .npy header"):
+        load_traces(write_zip(tmp_path / "token.npz", members))
+    # a member compressed with bzip2: numpy never writes one
+    path = write_zip(tmp_path / "bz2.npz", npz_members(), zipfile.ZIP_BZIP2)
+    with pytest.raises(TracesError, match="unsupported zip compression method 12"):
+        load_traces(path)
+    # a key whose test name ends in a newline (was accepted as test 'step\n')
+    renamed = {k.replace("step", "step\n"): v for k, v in npz_members().items()}
+    with pytest.raises(TracesError, match="invalid test name"):
+        load_traces(write_zip(tmp_path / "newline.npz", renamed))

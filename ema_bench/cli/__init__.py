@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import json
+import re
 import sys
 from collections.abc import Sequence
 
@@ -39,7 +40,22 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for module in dict.fromkeys(COMMANDS.values()):  # a module may add two commands
         importlib.import_module(f"{__name__}.{module}").register(sub)
+    for p in sub.choices.values():  # descriptions are module docstrings: show plain text
+        p.description = plain_text(p.description)
+        p.epilog = plain_text(p.epilog)
     return parser
+
+
+_ROLE = re.compile(r":(?:func|class|meth|mod|data|attr|obj|exc):`~?([^`]+)`")
+
+
+def plain_text(doc: str | None) -> str | None:
+    """reST of a docstring as terminal text: ````x```` and roles lose their markup,
+    ``Examples::`` its double colon."""
+    if not doc:
+        return doc
+    doc = _ROLE.sub(r"\1", doc).replace("``", "'")
+    return re.sub(r"::$", ":", doc, flags=re.MULTILINE)
 
 
 class CLIError(Exception):

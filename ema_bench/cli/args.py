@@ -5,24 +5,37 @@ from __future__ import annotations
 import argparse
 import os
 import tempfile
+from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+if TYPE_CHECKING:
+    from ..traces import Traces
 
-def parse_assignments(text: str) -> dict[str, float]:
+
+def parse_assignments(text: str, option: str = "--faults") -> dict[str, float]:
     """Parse ``"Na=0.95,Fst=0.3378"`` into ``{"Na": 0.95, "Fst": 0.3378}``.
 
-    Raises ValueError (the CLI's one-line error) on a malformed item."""
+    Raises ValueError (the CLI's one-line error, naming ``option``) on a malformed item, a
+    name given twice or an empty list: nothing is silently dropped or replaced."""
     out: dict[str, float] = {}
     for item in filter(None, (s.strip() for s in text.split(","))):
         name, sep, value = item.partition("=")
-        if not sep:
-            raise ValueError(f"expected NAME=VALUE, got {item!r}")
+        name = name.strip()
+        if not sep or not name:
+            raise ValueError(f"{option}: expected NAME=VALUE, got {item!r}")
+        if name in out:
+            raise ValueError(f"{option}: {name} is given twice ({name}={out[name]:g} and "
+                             f"{item!r}); give each name once")
         try:
-            out[name.strip()] = float(value)
+            out[name] = float(value)
         except ValueError:
-            raise ValueError(f"value of {name.strip()!r} is not a number: {value!r}") from None
+            raise ValueError(f"{option}: value of {name!r} is not a number: "
+                             f"{value.strip()!r}") from None
+    if not out:
+        raise ValueError(f"{option}: empty; expected NAME=VALUE[,NAME=VALUE...]")
     return out
 
 
@@ -52,9 +65,12 @@ def add_faults(group: argparse._ActionsContainer) -> None:
 
 def faults_of(args: argparse.Namespace) -> np.ndarray:
     """The validated fault vector of ``--faults``."""
-    from ..faults import check_faults
+    from ..faults import FaultError, check_faults
 
-    return check_faults(parse_assignments(args.faults))
+    try:
+        return check_faults(parse_assignments(args.faults, "--faults"))
+    except FaultError as exc:
+        raise ValueError(f"--faults: {exc}") from None
 
 
 def add_effects(p: argparse.ArgumentParser, where: str) -> None:
@@ -64,8 +80,16 @@ def add_effects(p: argparse.ArgumentParser, where: str) -> None:
 
 
 def effects_of(args: argparse.Namespace) -> dict[str, float]:
-    """``--effect`` options as ``name -> value`` (validated where they are used)."""
-    return {k: v for item in args.effect for k, v in parse_assignments(item).items()}
+    """``--effect`` options as ``name -> value``, validated (names, bounds)."""
+    from ..effects import EffectError, effects_vector
+
+    # one merge, so a name repeated across --effect options is refused too
+    effects = parse_assignments(",".join(args.effect), "--effect") if args.effect else {}
+    try:
+        effects_vector(effects)
+    except EffectError as exc:
+        raise ValueError(f"--effect: {exc}") from None
+    return effects
 
 
 def add_json(p: argparse.ArgumentParser, what: str = "the result") -> None:
@@ -79,14 +103,47 @@ def add_quiet(p: argparse.ArgumentParser) -> None:
                         "task otherwise)")
 
 
-def check_output(path: str | os.PathLike[str] | None, option: str, *, folder: bool
-                 ) -> Path | None:
+def add_test_names(p: argparse.ArgumentParser, files: str) -> None:
+    """``--test NAME[,NAME...]`` (repeatable): one test name per file of ``files``."""
+    p.add_argument("--test", action="extend", type=_names, default=None,
+                   metavar="NAME[,NAME...]",
+                   help=f"one test name per {files} file, in order (step, sine or sine2): the "
+                        "name of the single test of a file without a 'test' column, or the "
+                        "one test to take from a file with one")
+
+
+def _names(text: str) -> list[str]:
+    return [s.strip() for s in text.split(",") if s.strip()]
+
+
+def load_measured_files(paths: Sequence[str], tests: Sequence[str] | None) -> Traces:
+    """:func:`~ema_bench.traces.load_measured` for a command line: a file holding an unnamed
+    test is told to name it with ``--test``, not with the Python ``test=`` argument."""
+    from ..traces import TracesError, load_measured
+    from . import CLIError
+
+    try:
+        return load_measured(paths, tests)
+    except TracesError as exc:
+        if exc.unnamed_test is None:
+            raise
+        how = "--test NAME" if len(paths) == 1 else "--test NAME,NAME,... (one per file)"
+        raise CLIError(f"{exc.unnamed_test}; name its test with {how}") from None
+
+
+#: What ``--plot`` files may be (matplotlib picks the format from the suffix).
+PLOT_SUFFIXES = (".png", ".pdf", ".svg")
+
+
+def check_output(path: str | os.PathLike[str] | None, option: str, *, folder: bool,
+                 suffixes: tuple[str, ...] = ()) -> Path | None:
     """Check before any work that ``path`` can be written (``folder``: created and filled).
 
     A folder is created now (with its parents); a file is not created, but its folder is, and
     must accept a new file.  Raises :class:`~ema_bench.cli.CLIError` (one line naming
     ``option``, exit code 2) for an existing file where a folder is expected or the reverse,
-    a read-only place, or a parent that is a file.  ``None`` passes through.
+    a read-only place, a parent that is a file, or a file suffix not in ``suffixes`` (when
+    given).  ``None`` passes through.
     """
     from . import CLIError
 
@@ -98,6 +155,9 @@ def check_output(path: str | os.PathLike[str] | None, option: str, *, folder: bo
         raise CLIError(f"{option} {path}: exists and is not a folder")
     if not folder and path.is_dir():
         raise CLIError(f"{option} {path}: is a folder; give a file name")
+    if suffixes and path.suffix.lower() not in suffixes:
+        raise CLIError(f"{option} {path}: the file name must end in "
+                       f"{' or '.join(suffixes)}")
     place = path if folder else path.parent
     try:
         place.mkdir(parents=True, exist_ok=True)

@@ -5,7 +5,9 @@ the library) with random faults, runs ``diagnose`` on each without showing it th
 reports naming accuracy, false alarms, held-out gap closed and parameter error.  A decoy
 counts as handled when it is reported unexplained, or named with the nearest effect flagged
 partial (the model with that effect still leaves the bootstrap envelopes).  Results are
-appended to OUT/blind.jsonl as cases finish; rerunning resumes.
+appended to OUT/blind.jsonl as cases finish; rerunning the same command resumes (OUT defaults
+to ema-bench-blind-seed<S>-n<N> in the current folder).  Progress: a bar in a terminal, one
+line per finished case otherwise (--quiet: none).
 """
 
 from __future__ import annotations
@@ -15,15 +17,25 @@ import sys
 
 
 def register(sub: argparse._SubParsersAction) -> None:
+    from .args import add_quiet
+
     p = sub.add_parser("blind", help="blind test of the missing-physics workflow",
                        description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--cases", type=int, default=30, help="hidden cases (default 30)")
     p.add_argument("--seed", type=int, default=0, help="root seed (default 0)")
     p.add_argument("--out", default=None, metavar="DIR",
-                   help="write blind.jsonl and summary.json here (resumable)")
+                   help="write blind.jsonl and summary.json here, resumable (default "
+                        "ema-bench-blind-seed<S>-n<N>)")
     p.add_argument("--json", action="store_true", help="print summary and cases as JSON")
+    add_quiet(p)
     p.set_defaults(func=run)
+
+
+def default_out(seed: int, cases: int) -> str:
+    """The folder a blind suite writes to without ``--out``: named by what it holds, so the
+    same command resumes and another seed or size never mixes in."""
+    return f"ema-bench-blind-seed{seed}-n{cases}"
 
 
 def run(args: argparse.Namespace) -> int:
@@ -32,13 +44,17 @@ def run(args: argparse.Namespace) -> int:
 
     from ..diagnosis.blind import run_blind
     from . import CLIError, print_json
+    from .args import check_output
 
     if args.cases < 1:
         raise CLIError("--cases must be >= 1")
-    res = run_blind(args.cases, args.seed, args.out, progress=sys.stderr.isatty())
-    if args.out:
-        (Path(args.out) / "summary.json").write_text(json.dumps(
-            {"command": "ema-bench " + " ".join(sys.argv[1:]), **res["summary"]}, indent=1))
+    # before any work: the suite takes minutes per case
+    out = check_output(args.out or default_out(args.seed, args.cases), "--out", folder=True)
+    if args.out is None and not args.quiet:
+        print(f"writing to {out}/ (rerun the same command to resume)", file=sys.stderr)
+    res = run_blind(args.cases, args.seed, out, quiet=args.quiet)
+    (Path(out) / "summary.json").write_text(json.dumps(
+        {"command": "ema-bench " + " ".join(sys.argv[1:]), **res["summary"]}, indent=1))
     if args.json:
         print_json(res)
         return 0

@@ -3,18 +3,23 @@
 The traces must hold the step and sine tests (fitted) and the held-out sine ``sine2``
 (never fitted, used to judge candidates), e.g. from
 ``ema-bench simulate --tests step,sine,sine2 --out traces.csv``.  Any format load_traces reads
-(CSV, NPZ, MAT).  Verdicts: none, effect (named, with its value and interval), unexplained
-(the gap left open, and the nearest library effect if it explains part of it).
+(CSV, NPZ, MAT), in one file or several: a file holding one unnamed test (no 'test' column)
+gets its name from ``--test``, one name per file in order.  Verdicts: none, effect (named,
+with its value and interval), unexplained (the gap left open, and the nearest library effect
+if it explains part of it).
 
 Examples::
 
     ema-bench simulate --case small --effect delay=6e-4 --tests step,sine,sine2 --out d.csv
     ema-bench diagnose d.csv --report report/ --json
+    ema-bench diagnose step.csv sine.csv sine2.csv --test step,sine,sine2
 """
 
 from __future__ import annotations
 
 import argparse
+
+from .args import add_quiet, add_test_names, check_output, load_measured_files
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -24,7 +29,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("diagnose", help="find and name physics the monitor model misses",
                        description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("traces", help="measured traces (.csv, .npz, .mat) with step, sine, sine2")
+    p.add_argument("traces", nargs="+", metavar="TRACES",
+                   help="measured traces (.csv, .npz, .mat): one or more files that together "
+                        "hold step, sine and sine2")
+    add_test_names(p, "TRACES")
     p.add_argument("--report", default=None, metavar="DIR",
                    help="write report.md, diagnosis.json and plots to DIR")
     p.add_argument("--solver", default=d.solver, help=f"fitting solver (default {d.solver})")
@@ -34,24 +42,28 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help=f"bootstrap replicates (default {d.n_boot})")
     p.add_argument("--seed", type=int, default=0, help="root seed (default 0)")
     p.add_argument("--json", action="store_true", help="print the diagnosis as JSON")
+    add_quiet(p)
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     from ..diagnosis.report import write_report
     from ..diagnosis.workflow import Settings, diagnose
+    from ..progress import progress
     from ..registry import get_solver
-    from ..traces import load_traces
     from . import CLIError, print_json
 
     if args.budget < 100 or args.bootstrap < 10:
         raise CLIError("--budget must be >= 100 and --bootstrap >= 10")
     get_solver(args.solver)
-    measured = load_traces(args.traces)
-    d = diagnose(measured, Settings(solver=args.solver, budget=args.budget,
-                                    n_boot=args.bootstrap), seed=args.seed)
+    check_output(args.report, "--report", folder=True)
+    measured = load_measured_files(args.traces, args.test)
+    with progress(None, "diagnose", unit="stage", quiet=args.quiet) as bar:
+        d = diagnose(measured, Settings(solver=args.solver, budget=args.budget,
+                                        n_boot=args.bootstrap), seed=args.seed,
+                     on_stage=bar.note)
     if args.report:
-        write_report(d, measured, args.report, source=str(args.traces))
+        write_report(d, measured, args.report, source=", ".join(args.traces))
     if args.json:
         out = d.as_dict()
         out["effects"] = [{k: e[k] for k in ("name", "params", "interval", "gap_before",

@@ -1,14 +1,19 @@
 """``ema-bench leaderboard``: run solvers x cases x tracks x seeds and score them COCO-style.
 
 Each run is appended to OUT/runs.jsonl as it finishes; rerunning the same command resumes
-(finished runs are skipped).  Writes leaderboard_<track>.md/.csv, paper_tables.md, convergence,
-ECDF, fit-overlay and Figure 5 plots under OUT.
+(finished runs are skipped, runs that failed with an error are tried again).  Several sweeps
+may share one OUT at once (e.g. on two machines sharing a disk): each run is claimed by one
+of them, runs once and is counted once.  A run that raises (a broken solver) or whose worker
+dies is recorded as failed, scored as an unsuccessful run at its budget, and listed at the
+end; the sweep goes on.  Writes leaderboard_<track>.md/.csv, paper_tables.md, convergence,
+ECDF, fit-overlay and Figure 5 plots under OUT.  Progress: a bar in a terminal, one line
+per finished run otherwise (--quiet: none).
 
 Examples::
 
     ema-bench leaderboard --quick --out /tmp/lb              # small, for CI
-    ema-bench leaderboard --seeds 10 --budget 5000           # the committed leaderboard
-    ema-bench leaderboard --executor dask --scheduler tcp://10.0.0.5:8786 --shard 0/4
+    ema-bench leaderboard --seeds 10 --budget 5000 --out leaderboards   # the committed one
+    ema-bench leaderboard --executor dask --scheduler tcp://10.0.0.5:8786 --shard 0/4 --out lb
     ema-bench leaderboard --quick --check leaderboards/      # non-zero exit on regression
 """
 
@@ -38,6 +43,7 @@ def _shard(text: str) -> tuple[int, int]:
 
 def register(sub: argparse._SubParsersAction) -> None:
     from ..leaderboard.executors import EXECUTORS
+    from .args import add_quiet
 
     p = sub.add_parser("leaderboard", help="compare solvers on cases x tracks x seeds",
                        description=__doc__,
@@ -55,8 +61,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help=f"evaluations per run (default {DEFAULT['budget']}, "
                         f"quick {QUICK['budget']})")
     p.add_argument("--root-seed", type=int, default=0, help="root seed of the sweep")
-    p.add_argument("--out", default=None,
-                   help="output folder (default leaderboards/; with --check a temp folder)")
+    p.add_argument("--out", default=None, metavar="DIR",
+                   help="output folder, required (with --check: a temp folder by default); "
+                        "rerun with the same DIR to resume")
     p.add_argument("--executor", choices=EXECUTORS, default="processes",
                    help="serial, processes (local cores, default) or dask")
     p.add_argument("--workers", type=int, default=None, help="worker processes (default: cores)")
@@ -76,6 +83,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="run nothing: rebuild tables and plots from the records already in "
                         "OUT (e.g. after merging shards or to publish a partial sweep)")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
+    add_quiet(p)
     p.set_defaults(func=run)
 
 
@@ -86,22 +94,28 @@ def run(args: argparse.Namespace) -> int:
     from ..leaderboard.tasks import make_tasks
     from ..registry import available_solvers
     from . import CLIError, print_json
+    from .args import check_output
 
     preset = QUICK if args.quick else DEFAULT
     seeds = args.seeds if args.seeds is not None else preset["seeds"]
     budget = args.budget if args.budget is not None else preset["budget"]
     if seeds < 1 or budget < 1:
         raise CLIError("--seeds and --budget must be >= 1")
+    if args.out is None and not args.check:
+        # no default: a sweep written into the committed leaderboards/ by accident would
+        # mix with (and be resumed from) the published runs
+        raise CLIError("--out DIR is required: the folder for runs.jsonl, tables and plots "
+                       "(rerun with the same DIR to resume)")
     solvers = args.solvers or list(available_solvers())
-    out = Path(args.out) if args.out else (
-        Path(tempfile.mkdtemp(prefix="ema-lb-")) if args.check else Path("leaderboards"))
+    # before any work: a sweep must not fail at its first write, hours in
+    out = check_output(args.out or tempfile.mkdtemp(prefix="ema-lb-"), "--out", folder=True)
     command = "ema-bench " + " ".join(shlex.quote(a) for a in sys.argv[1:]) \
         if sys.argv[0].endswith("ema-bench") else None
     summary = leaderboard(solvers, args.cases, args.tracks, seeds, budget, out,
                           executor=args.executor, workers=args.workers,
                           scheduler=args.scheduler, shard=args.shard,
                           root_seed=args.root_seed, plots=not args.no_plots,
-                          progress=not args.json, command=command,
+                          quiet=args.quiet, command=command,
                           run=not args.report_only)
     status = 0
     if args.check:
@@ -142,4 +156,14 @@ def run(args: argparse.Namespace) -> int:
         print(f"{summary['runs']} runs ({summary['ran']} new) -> {out}")
         for f in summary.get("files", []):
             print(f"  {f}")
+        _print_failures(summary["errors"])
     return status
+
+
+def _print_failures(errors: list[dict]) -> None:
+    """The runs that failed, one line each (they are scored as unsuccessful)."""
+    if errors:
+        print(f"{len(errors)} runs FAILED with an error (scored as unsuccessful at their "
+              "budget; rerun the command to retry them):")
+    for e in errors:
+        print(f"  {e['key']} (budget {e['budget']}): {e['error_type']}: {e['error']}")

@@ -15,7 +15,17 @@ import time
 
 import numpy as np
 
-from .args import add_effects, add_faults, add_json, add_seeds, effects_of, faults_of, run_node
+from .args import (
+    PLOT_SUFFIXES,
+    add_effects,
+    add_faults,
+    add_json,
+    add_seeds,
+    check_output,
+    effects_of,
+    faults_of,
+    run_node,
+)
 
 MODELS = ("reference", "monitor")
 
@@ -104,13 +114,17 @@ def run(args: argparse.Namespace) -> int:
     if bad or not names:
         raise CLIError(f"unknown test(s) {bad}; known: {list(known)}")
     tests = tuple(known[t] for t in names)
-    if args.faults:
+    if args.faults is not None:
         runs = {"custom": faults_of(args)}
     elif args.case == "all":
         runs = {n: c.x for n, c in CASES.items()}
     else:
         case = get_case(args.case or "nominal")
         runs = {case.name: case.x}
+    # every output is checked before the (reference: seconds-long) simulation
+    check_output(args.out, "--out", folder=len(runs) > 1,
+                 suffixes=() if len(runs) > 1 else (".csv", ".npz"))
+    check_output(args.plot, "--plot", folder=False, suffixes=PLOT_SUFFIXES)
     results, traces = {}, {}
     for name, x in runs.items():
         t0 = time.perf_counter()

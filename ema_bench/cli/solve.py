@@ -7,11 +7,13 @@ Examples::
     ema-bench solve --case seeded --heterogeneity 0.5 --seed 3 --solver de --json
     ema-bench solve --case full --effect eccentricity=0.05 --solver least-squares
     ema-bench solve --measured traces.csv --solver cmaes --plot fit.png
+    ema-bench solve --measured step.csv sine.csv --test step,sine --solver cmaes
     ema-bench solvers
 
 Twin track: the data come from the monitor model itself plus sensor noise (the optimum is the
 truth); reference track: from the detailed reference model (model-form mismatch, as in the
-paper).  With ``--measured`` the traces come from a file and there is no truth to score.
+paper).  With ``--measured`` the traces come from one or more files and there is no truth to
+score; ``--test`` names the single test of each file without a 'test' column, in file order.
 """
 
 from __future__ import annotations
@@ -23,7 +25,19 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 
-from .args import add_effects, add_faults, add_json, add_seeds, effects_of, faults_of, run_node
+from .args import (
+    PLOT_SUFFIXES,
+    add_effects,
+    add_faults,
+    add_json,
+    add_seeds,
+    add_test_names,
+    check_output,
+    effects_of,
+    faults_of,
+    load_measured_files,
+    run_node,
+)
 
 _SOLVE_EPILOG = "Run 'ema-bench solvers' for the registered solvers."
 
@@ -46,9 +60,11 @@ def _register_solve(sub: argparse._SubParsersAction) -> None:
     src.add_argument("--case", default=None,
                      help="paper case (nominal, small, full, random) or 'seeded' for a random "
                           "instance drawn from --seed (default small)")
-    src.add_argument("--measured", default=None, metavar="FILE",
-                     help="fit measured traces from a .csv, .npz or .mat file (no truth)")
+    src.add_argument("--measured", nargs="+", action="extend", default=None, metavar="FILE",
+                     help="fit measured traces from one or more .csv, .npz or .mat files (no "
+                          "truth)")
     add_faults(src)
+    add_test_names(p, "--measured")
     p.add_argument("--heterogeneity", type=float, default=1.0,
                    help="with --case seeded: how far faults may move from nominal, 0..1 "
                         "(default 1)")
@@ -86,20 +102,22 @@ def _check_args(args: argparse.Namespace) -> None:
     if args.measured is not None and args.effect:
         raise CLIError("--effect changes the simulated data; it cannot apply to --measured "
                        "traces")
+    if args.measured is None and args.test is not None:
+        raise CLIError("--test names the tests of --measured files; it needs --measured")
+    check_output(args.plot, "--plot", folder=False, suffixes=PLOT_SUFFIXES)
 
 
 def _case(args: argparse.Namespace):
     """--case (default small), or the vector of --faults."""
-    return faults_of(args) if args.faults else (args.case or "small")
+    return faults_of(args) if args.faults is not None else (args.case or "small")
 
 
 def _make_problem(args: argparse.Namespace):
     from ..instances import make_problem
-    from ..traces import load_traces
 
     if args.measured is not None:
-        return make_problem(measured=load_traces(args.measured), budget=args.budget,
-                            normalise=not args.raw)
+        return make_problem(measured=load_measured_files(args.measured, args.test),
+                            budget=args.budget, normalise=not args.raw)
     effects = effects_of(args)
     # the instance and the noise come from the run node's streams, the solver from its own
     # (run_solver derives it), as in a leaderboard row
@@ -150,16 +168,17 @@ def run(args: argparse.Namespace) -> int:
     with _progress(problem, show_bar):
         res = run_solver(args.solver, problem, budget=args.budget, seed=run_node(args))
 
-    # the leaderboard's run record (ema_bench.records), plus what only a command line has
+    # the leaderboard's run record (ema_bench.records), plus what only a command line has;
+    # case: the leaderboard's case name
     case = problem.label if args.measured is not None else \
-        ("custom" if args.faults else args.case or "small")   # the leaderboard's case name
+        ("custom" if args.faults is not None else args.case or "small")
     out = run_record(problem, res, case=case,
                      track=problem.track, seed=args.seed, budget=args.budget,
                      root_seed=args.root_seed, wall_s=time.perf_counter() - t0,
                      info=get_solver(args.solver).library)
     out.update(normalised=problem.normalise, extra=res.extra)
-    if args.measured is not None:
-        out["measured"] = args.measured
+    if args.measured is not None:  # one file: its path, as before several were accepted
+        out["measured"] = args.measured[0] if len(args.measured) == 1 else args.measured
     if problem.has_truth:
         out["clock_at_success"] = problem.first_success_clock()
         if args.effect:

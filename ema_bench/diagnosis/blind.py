@@ -19,6 +19,7 @@ import numpy as np
 from ..effects import DECOYS, EFFECT_NAMES, EFFECTS, LIBRARY
 from ..faults import faults_to_dict, random_faults
 from ..leaderboard.store import RunStore, read_records
+from ..progress import progress
 from ..protocol import HOLDOUT_TESTS, STANDARD_TESTS
 from ..reference import simulate_reference
 from ..seeding import SeedLike, child
@@ -132,23 +133,36 @@ def summarise(records: list[dict]) -> dict[str, object]:
 
 
 def run_blind(n: int, seed: int, out: str | Path | None = None,
-              settings: Settings | None = None, progress: bool = False) -> dict[str, object]:
-    """Run (or resume, with ``out``) a blind suite of ``n`` cases and summarise it."""
+              settings: Settings | None = None, quiet: bool = True) -> dict[str, object]:
+    """Run (or resume, with ``out``) a blind suite of ``n`` cases and summarise it; progress
+    as :func:`~ema_bench.progress.progress` shows it unless ``quiet``."""
     settings = settings or Settings()
     cases = draw_cases(n, seed)
     records: list[dict] = []
     store = RunStore(Path(out) / "blind.jsonl") if out else None
     done = {r["key"]: r for r in read_records(store.path)} if store else {}
     try:
-        from tqdm import tqdm
-        for case in tqdm(cases, desc="blind", unit="case", disable=not progress):
-            rec = done.get(f"case{case.index}")
-            if rec is None:
-                rec = run_case(case, seed, settings)
-                if store:
-                    store.append(rec)
-            records.append(rec)
+        with progress(len(cases), "blind", "case", quiet=quiet) as bar:
+            for case in cases:
+                rec = done.get(f"case{case.index}")
+                if rec is None:
+                    rec = run_case(case, seed, settings)
+                    if store:
+                        store.append(rec)
+                else:
+                    _check_resumed(rec, case, store.path)
+                records.append(rec)
+                bar.update(f"case{case.index} {rec['verdict']}")
     finally:
         if store:
             store.close()
     return {"seed": seed, "summary": summarise(records), "records": records}
+
+
+def _check_resumed(rec: dict, case: BlindCase, path: Path) -> None:
+    """A recorded case reused on resume must be the case drawn now (the file does not say
+    which seed and size it was drawn for)."""
+    drawn = asdict(case)
+    if any(rec.get(k) != v for k, v in drawn.items()):
+        raise ValueError(f"{path}: case{case.index} there is not the case drawn for this "
+                         "seed and number of cases; use another --out for another suite")

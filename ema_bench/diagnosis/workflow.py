@@ -17,6 +17,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
@@ -315,11 +316,14 @@ def _bounds(augment: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(space.lower), np.asarray(space.upper)
 
 
-def diagnose(measured: Traces, settings: Settings | None = None, seed: SeedLike = 0
-             ) -> Diagnosis:
+def diagnose(measured: Traces, settings: Settings | None = None, seed: SeedLike = 0,
+             on_stage: Callable[[str], None] | None = None) -> Diagnosis:
     """Run the workflow on measured traces holding the ``step``, ``sine`` and held-out
-    ``sine2`` tests (e.g. ``ema-bench simulate --tests step,sine,sine2``)."""
+    ``sine2`` tests (e.g. ``ema-bench simulate --tests step,sine,sine2``).
+
+    ``on_stage`` is told each stage as it finishes (a progress display; a minute's work)."""
     settings = settings or Settings()
+    stage = on_stage or (lambda message: None)
     missing = [t for t in TRAIN + HOLDOUT if t not in measured.tests]
     if missing:
         raise DiagnosisError(f"the workflow needs the tests {list(TRAIN + HOLDOUT)} (the last "
@@ -329,8 +333,10 @@ def diagnose(measured: Traces, settings: Settings | None = None, seed: SeedLike 
     evals = 0
     base = fit(measured, (), settings, child(seed, 0))
     evals += base.evaluations
+    stage(f"base fit done ({base.evaluations} evaluations)")
     fits = {"base": base}
     first, env = assess(measured, base, weights, settings, child(seed, 1))
+    stage(f"residuals assessed: {'a discrepancy' if first.detected else 'nothing'} detected")
     floor = first.holdout_floor
     gap0 = max(first.holdout_fitness - floor, 0.0)
     result = Diagnosis("none", [], [], {n: {"before": v, "after": v}
@@ -377,6 +383,8 @@ def diagnose(measured: Traces, settings: Settings | None = None, seed: SeedLike 
                 accepted=not reasons, reason="; ".join(reasons))
             tried.append(finding)
             fits[cand.name] = f
+            stage(f"candidate {cand.name} fitted: closes {100 * closed:.0f} % of the held-out "
+                  f"gap{'' if finding.accepted else ', not accepted'}")
         result.candidates += tried
         accepted = [t for t in tried if t.accepted]
         if not accepted:
@@ -388,6 +396,7 @@ def diagnose(measured: Traces, settings: Settings | None = None, seed: SeedLike 
         result.effects.append(win)
         current = fits[win.name]
         status, env = assess(measured, current, weights, settings, child(seed, 2 + round_))
+        stage(f"model with {win.name} assessed")
         if not status.detected:
             break
     result.evaluations = evals

@@ -1,58 +1,175 @@
 """Where runs execute: in this process, in local worker processes, or on a Dask cluster.
 
-Every executor hands finished records back to this process, which alone writes the store, in
-completion order.  Records do not depend on the executor (each task carries its own seeds;
-numba threads never mix candidates), only ``wall_s`` does.
+Every executor pulls tasks from the iterable it is given only when a worker is free (so the
+caller can claim each task just before it starts, see :mod:`.claims`) and hands finished
+records back to this process, which alone writes the store, in completion order.  A task that
+raises, or whose worker process dies, yields an error record
+(:func:`~ema_bench.leaderboard.tasks.error_record`) instead: one failing run never stops the
+others.  Records do not depend on the executor (each task carries its own seeds; numba
+threads never mix candidates), only ``wall_s`` does.
+
+Worker processes started here exit when this process dies, SIGKILL included
+(:func:`_exit_with_parent`); the workers of an existing Dask cluster (``--scheduler``) are
+the cluster's, not ours, and are left alone.
 """
 
 from __future__ import annotations
 
+import functools
+import itertools
 import os
+import signal
 import sys
+import threading
+import time
+from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 
-from tqdm import tqdm
-
-from .tasks import Task, run_task
+from .tasks import Task, error_record, run_guarded, run_task
 
 EXECUTORS = ("serial", "processes", "dask")
 
-
-def _worker_init() -> None:
-    # one numba thread per worker process: the processes are the parallelism
-    import numba
-
-    numba.set_num_threads(1)
-
+#: How often a worker checks that its parent is alive (where the kernel cannot tell it).
+WATCH_S = 0.5
+_PR_SET_PDEATHSIG = 1
 
 Runner = Callable[[Task], dict]
 
 
-def _serial(tasks: list[Task], workers: int, scheduler: str | None, runner: Runner
+class WorkerDied(RuntimeError):
+    """The worker process running a task died (killed, out of memory, ``os._exit``)."""
+
+
+def _exit_with_parent(parent_pid: int) -> None:
+    """Make this worker process exit as soon as ``parent_pid`` is no longer its parent.
+
+    On Linux the kernel kills it with its parent (``PR_SET_PDEATHSIG``; it acts even while
+    numba holds the GIL; the "parent" is the thread that started the worker, which lives as
+    long as the pool); everywhere, a daemon thread polls ``os.getppid()``."""
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+
+            ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
+        except (OSError, AttributeError):  # pragma: no cover - exotic libc
+            pass
+    if os.getppid() != parent_pid:  # the parent died before the line above
+        os._exit(1)
+
+    def watch() -> None:
+        while os.getppid() == parent_pid:
+            time.sleep(WATCH_S)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="ema-bench-parent-watch", daemon=True).start()
+
+
+def _worker_init(parent_pid: int | None = None) -> None:
+    """Set up a worker process: one numba thread (the processes are the parallelism) and,
+    given the pid of the process that started it, exit with that process."""
+    import numba
+
+    numba.set_num_threads(1)
+    if parent_pid is not None:
+        _exit_with_parent(parent_pid)
+
+
+def _serial(tasks: Iterator[Task], workers: int, scheduler: str | None, runner: Runner
             ) -> Iterator[dict]:
     for t in tasks:
-        yield runner(t)
+        yield run_guarded(runner, t)
 
 
-def _processes(tasks: list[Task], workers: int, scheduler: str | None, runner: Runner
+def _processes(tasks: Iterator[Task], workers: int, scheduler: str | None, runner: Runner
                ) -> Iterator[dict]:
-    import multiprocessing as mp
-    from concurrent.futures import ProcessPoolExecutor, as_completed
+    """A process pool that survives a worker's death: the pool is started again, the tasks
+    that were in flight run again one at a time, and the one whose worker dies alone gets an
+    error record (so a run that kills its worker does not take its neighbours with it)."""
+    from concurrent.futures import FIRST_COMPLETED, wait
 
-    # "spawn": numba's threading layers and fork do not mix well
-    ctx = mp.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx,
-                             initializer=_worker_init) as pool:
-        futures = [pool.submit(runner, t) for t in tasks]
+    pool = _Pool(workers)
+    suspects: deque[Task] = deque()   # in flight when a worker died: rerun one at a time
+    waiting: deque[Task] = deque()    # taken from ``tasks`` but not started (pool broke)
+    running: dict = {}
+    try:
+        while True:
+            limit = 1 if suspects else workers
+            broken = False
+            while len(running) < limit and not broken:
+                queue = suspects or waiting   # the one to put ``t`` back into
+                t = queue.popleft() if queue else next(tasks, None)
+                if t is None:
+                    break
+                fut = pool.submit(runner, t)
+                if fut is None:   # a worker died since the last look
+                    queue.appendleft(t)
+                    broken = True
+                else:
+                    running[fut] = t
+            if not running and not broken:
+                return
+            done = wait(running, return_when=FIRST_COMPLETED)[0] if running else set()
+            if broken or any(_Pool.is_broken(f) for f in done):
+                done = wait(running)[0]   # every future of a broken pool fails now
+            lost = []
+            for fut in done:
+                t = running.pop(fut)
+                if _Pool.is_broken(fut):
+                    lost.append(t)
+                else:
+                    exc = fut.exception()
+                    yield error_record(t, exc) if exc is not None else fut.result()
+            if lost or broken:
+                pool.restart()
+            if len(lost) == 1:
+                yield error_record(lost[0], WorkerDied(
+                    "the worker process running this task died (killed, out of memory or "
+                    "os._exit)"))
+            else:
+                suspects.extend(lost)
+    finally:
+        pool.shutdown()
+
+
+class _Pool:
+    """A process pool started again after a worker's death (which breaks it for good)."""
+
+    def __init__(self, workers: int) -> None:
+        self.workers = workers
+        self.pool = self._start()
+
+    def _start(self):
+        import multiprocessing as mp
+        from concurrent.futures import ProcessPoolExecutor
+
+        # "spawn": numba's threading layers and fork do not mix well
+        return ProcessPoolExecutor(max_workers=self.workers, mp_context=mp.get_context("spawn"),
+                                   initializer=_worker_init, initargs=(os.getpid(),))
+
+    def submit(self, runner: Runner, task: Task):
+        """The future of ``task``, or ``None`` when the pool is broken."""
+        from concurrent.futures.process import BrokenProcessPool
+
         try:
-            for fut in as_completed(futures):
-                yield fut.result()
-        finally:
-            for fut in futures:
-                fut.cancel()
+            return self.pool.submit(run_guarded, runner, task)
+        except BrokenProcessPool:
+            return None
+
+    @staticmethod
+    def is_broken(fut) -> bool:
+        from concurrent.futures.process import BrokenProcessPool
+
+        return isinstance(fut.exception(), BrokenProcessPool)
+
+    def restart(self) -> None:
+        self.pool.shutdown(wait=True)
+        self.pool = self._start()
+
+    def shutdown(self) -> None:
+        self.pool.shutdown(wait=True, cancel_futures=True)
 
 
-def _dask(tasks: list[Task], workers: int, scheduler: str | None, runner: Runner
+def _dask(tasks: Iterator[Task], workers: int, scheduler: str | None, runner: Runner
           ) -> Iterator[dict]:
     try:
         from dask.distributed import Client, LocalCluster, as_completed
@@ -62,44 +179,62 @@ def _dask(tasks: list[Task], workers: int, scheduler: str | None, runner: Runner
     if scheduler:
         client = Client(scheduler)
     else:
+        # its worker processes are children of this process (the nannies run here)
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                                dashboard_address=None)
         client = Client(cluster)
     try:
-        client.run(_worker_init)
+        if cluster is None:
+            client.run(_worker_init)   # a shared cluster: set up its workers, leave no hook
+        else:   # our cluster: every worker, also one the nanny restarts, exits with us
+            client.register_worker_callbacks(functools.partial(_worker_init, os.getpid()))
+        slots = workers if cluster is not None else max(1, sum(client.nthreads().values()))
         # a task whose worker dies is rescheduled by the scheduler (up to its
-        # allowed-failures, 3 by default); retries re-run a task that raised
-        futures = [client.submit(runner, t, key=f"ema-{t.key}-{t.root_seed}-{t.budget}",
-                                 pure=False, retries=3) for t in tasks]
-        for fut in as_completed(futures):
-            yield fut.result()
+        # allowed-failures, 3 by default), then fails with KilledWorker: an error record
+        futures = as_completed()
+        running: dict[str, Task] = {}
+        for t in itertools.islice(tasks, slots):
+            _dask_submit(client, futures, running, runner, t)
+        for fut in futures:
+            t = running.pop(fut.key)
+            try:
+                rec = fut.result()
+            except Exception as exc:   # KilledWorker, or a runner that could not be sent
+                rec = error_record(t, exc)
+            fut.release()
+            yield rec
+            if (t := next(tasks, None)) is not None:
+                _dask_submit(client, futures, running, runner, t)
     finally:
         client.close()
         if cluster is not None:
             cluster.close()
 
 
-_RUNNERS: dict[str, Callable[[list[Task], int, str | None, Runner], Iterator[dict]]] = {
+def _dask_submit(client, futures, running: dict, runner: Runner, t: Task) -> None:
+    fut = client.submit(run_guarded, runner, t, key=f"ema-{t.key}-{t.root_seed}-{t.budget}",
+                        pure=False)
+    running[fut.key] = t
+    futures.add(fut)
+
+
+_RUNNERS: dict[str, Callable[[Iterator[Task], int, str | None, Runner], Iterator[dict]]] = {
     "serial": _serial, "processes": _processes, "dask": _dask,
 }
 
 
-def execute(tasks: list[Task], executor: str = "processes", workers: int | None = None,
-            scheduler: str | None = None, progress: bool = True, runner: Runner = run_task
-            ) -> Iterable[dict]:
+def execute(tasks: Iterable[Task], executor: str = "processes", workers: int | None = None,
+            scheduler: str | None = None, runner: Runner = run_task) -> Iterator[dict]:
     """Run ``tasks`` (each through ``runner``, :func:`run_task` unless a test injects a
-    fault) and yield their records as they finish."""
+    fault) and yield their records as they finish, error records for those that fail.
+
+    ``tasks`` is read lazily, one task per free worker; nothing starts (no pool, no cluster)
+    when it is empty."""
     if executor not in _RUNNERS:
         raise ValueError(f"unknown executor {executor!r}; known: {list(EXECUTORS)}")
     workers = workers or os.cpu_count() or 1
-    if not tasks:
+    feed = iter(tasks)
+    first = next(feed, None)
+    if first is None:
         return
-    bar = tqdm(total=len(tasks), desc=f"leaderboard ({executor})", unit="run",
-               disable=not progress or not sys.stderr.isatty(), file=sys.stderr)
-    try:
-        for rec in _RUNNERS[executor](tasks, workers, scheduler, runner):
-            bar.update(1)
-            bar.set_postfix_str(rec["key"], refresh=False)
-            yield rec
-    finally:
-        bar.close()
+    yield from _RUNNERS[executor](itertools.chain([first], feed), workers, scheduler, runner)

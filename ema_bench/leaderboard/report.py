@@ -49,7 +49,8 @@ def write_leaderboards(scores: list[SolverScore], out: Path, header: str) -> lis
                    "|---:|---|---:|---:|---:|---:|" + "---:|" * len(FAULT_NAMES) + "---:|"]
             for rank, s in enumerate((s for s in rows if s.case == case), 1):
                 md.append(
-                    f"| {rank} | {s.solver} | {s.successes}/{s.runs} | {_fmt(s.ert)} | "
+                    f"| {rank} | {s.solver} | {s.successes}/{s.runs}"
+                    f"{f' ({s.errors} failed)' if s.errors else ''} | {_fmt(s.ert)} | "
                     f"{_fmt(s.median_evals_to_success)} | {_fmt(s.median_fitness)} | "
                     + " | ".join(_fmt(s.accuracy[n], 4) for n in FAULT_NAMES)
                     + f" | {_fmt(s.median_wall_s)} |")

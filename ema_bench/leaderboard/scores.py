@@ -4,6 +4,11 @@ Success: the run's final vector has every parameter within 1 % of its range of t
 ERT (expected running time, Hansen et al., COCO): evaluations summed over all runs, a
 successful run counted until its first successful evaluation and a failed one at its budget,
 divided by the number of successes (infinite without success).
+
+A run that failed with an error (``status: "error"``: the solver raised, or its worker died)
+is an unsuccessful run at its budget: it counts in runs, success rate and ERT (a solver that
+crashes is worse, not absent), and is left out of the medians of what finished runs measure
+(fitness, accuracy, wall time); ``errors`` counts such runs.
 """
 
 from __future__ import annotations
@@ -15,6 +20,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..faults import FAULT_NAMES
+from .store import is_error
 
 ALL = "all"
 
@@ -33,6 +39,7 @@ class SolverScore:
     median_wall_s: float
     accuracy: dict[str, float]      # median paper accuracy, % (nan where undefined)
     range_error: dict[str, float]   # median range-normalised error
+    errors: int                     # runs that failed with an error (counted in runs)
 
     def row(self) -> dict[str, object]:
         d = asdict(self)
@@ -62,14 +69,17 @@ def _median(values) -> float:
 
 def score_group(track: str, case: str, solver: str, records: list[dict]) -> SolverScore:
     ok = [r for r in records if r["success"]]
+    finished = [r for r in records if not is_error(r)]
     return SolverScore(
         track=track, case=case, solver=solver, runs=len(records), successes=len(ok),
         success_rate=len(ok) / len(records), ert=ert(records),
         median_evals_to_success=_median([run_cost(r) for r in ok]),
-        median_fitness=_median([r["fitness"] for r in records]),
-        median_wall_s=_median([r["wall_s"] for r in records]),
-        accuracy={n: _median([r["accuracy"][n] for r in records]) for n in FAULT_NAMES},
-        range_error={n: _median([r["range_error"][n] for r in records]) for n in FAULT_NAMES},
+        median_fitness=_median([r["fitness"] for r in finished]),
+        median_wall_s=_median([r["wall_s"] for r in finished]),
+        accuracy={n: _median([r["accuracy"][n] for r in finished]) for n in FAULT_NAMES},
+        range_error={n: _median([r["range_error"][n] for r in finished])
+                     for n in FAULT_NAMES},
+        errors=len(records) - len(finished),
     )
 
 

@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import time
+import traceback
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -64,3 +67,25 @@ def run_task(task: Task) -> dict:
     return run_record(problem, result, case=task.case, track=task.track, seed=task.seed,
                       budget=task.budget, root_seed=task.root_seed,
                       wall_s=time.perf_counter() - t0, info=get_solver(task.solver).library)
+
+
+def error_record(task: Task, exc: BaseException, wall_s: float = 0.0) -> dict[str, Any]:
+    """The record of a run that raised ``exc`` (or whose worker died): its identity, the
+    error, and ``success: False`` with no evaluations to success, so scores count it as an
+    unsuccessful run at its budget."""
+    return {"key": task.key, "solver": task.solver, "case": task.case, "track": task.track,
+            "seed": task.seed, "budget": task.budget, "root_seed": task.root_seed,
+            "model_version": MODEL_VERSION, "status": "error",
+            "error_type": type(exc).__name__, "error": str(exc) or repr(exc),
+            "traceback": "".join(traceback.format_exception(exc))[-4000:],
+            "success": False, "evals_to_success": None, "wall_s": wall_s}
+
+
+def run_guarded(runner: Callable[[Task], dict], task: Task) -> dict:
+    """``runner(task)``, or the :func:`error_record` of what it raised (in the worker, where
+    the traceback is)."""
+    t0 = time.perf_counter()
+    try:
+        return runner(task)
+    except Exception as exc:
+        return error_record(task, exc, time.perf_counter() - t0)
