@@ -51,6 +51,7 @@ import numpy as np
 from .faults import CASES, random_faults
 from .monitor import simulate_monitor
 from .reference import simulate_reference
+from .seeding import run_seed, stream
 
 TTS_SOLVERS = ("cmaes", "powell")
 TTS_CASES = ("nominal", "small", "full", "random")
@@ -184,7 +185,8 @@ def run_bench(batch: int = 256, repeat: int = 7, serial: int = 16, naive_evals: 
 
     say = progress or (lambda msg: None)
     loads = [os.getloadavg()[0]]
-    X = random_faults(np.random.SeedSequence(seed), heterogeneity=1.0, n=batch)
+    # the candidates: the instance stream of run 0 of the root seed (naive.py draws the same)
+    X = random_faults(stream(run_seed(seed, 0), "instance"), heterogeneity=1.0, n=batch)
     Xs = X[:serial]
     try:
         c_lib = c_kernel.build()
@@ -226,7 +228,8 @@ def run_bench(batch: int = 256, repeat: int = 7, serial: int = 16, naive_evals: 
     say(f"plain-Python baseline ({naive_evals} evaluations, ~0.5 s each)")
     nv = naive.naive_python_timing(naive_evals, seed)
     evals_cpu = _median(serial_cpu)
-    t_ref, _ = _timed(lambda: simulate_reference(CASES["full"].x, seed=seed))
+    t_ref, _ = _timed(lambda: simulate_reference(CASES["full"].x,
+                                                 seed=stream(run_seed(seed, 0), "noise")))
     result: dict[str, object] = {
         "monitor_evals_per_s": _median(batched),
         "monitor_evals_per_cpu_s": evals_cpu,

@@ -18,16 +18,15 @@ import subprocess
 import sys
 import time
 
-import numpy as np
-
 from .faults import random_faults
+from .seeding import run_seed, stream
 
 
 def _measure(n: int, seed: int) -> dict[str, float]:
     """Time ``n`` plain-Python evaluations in this process (JIT must already be off)."""
     from .monitor import simulate_monitor
 
-    X = random_faults(np.random.SeedSequence(seed), heterogeneity=1.0, n=n)
+    X = random_faults(stream(run_seed(seed, 0), "instance"), heterogeneity=1.0, n=n)
     cpu, wall = time.process_time(), time.perf_counter()
     for x in X:
         simulate_monitor(x[None, :], parallel=False)

@@ -3,19 +3,24 @@
 The tree (the README has it as a table)::
 
     root seed R
-    └── run node  run_seed(R, k) = SeedSequence(R, spawn_key=(k,))      leaderboard row k
-        ├── instance   child 0   random fault vector ("seeded" case)
-        ├── noise      child 1   sensor noise, one child per test
-        └── solver     child 2   the solver's seed (derived by run_solver)
+    ├── run node  run_seed(R, k) = SeedSequence(R, spawn_key=(k,))      leaderboard row k
+    │   ├── instance   child 0   random fault vector ("seeded" case)
+    │   ├── noise      child 1   sensor noise, one child per test
+    │   ├── solver     child 2   the solver's seed (derived by run_solver)
+    │   └── diagnosis  child 3   the missing-physics workflow on this run's traces
+    │       ├── fit        child (4, round, candidate)   each fit (its solver: run_solver)
+    │       └── bootstrap  child (5, round)              the bootstrap envelopes of a round
+    └── plan  child 6 of R   the layout of a suite of runs (the blind suite's kinds and
+                             effect order)
 
 ``make_problem(seed=node)`` draws the instance and the noise, ``run_solver(..., seed=node)``
 gives the solver ``stream(node, "solver")``: a solver cannot replay the problem's streams
 whatever it spawns.  ``ema-bench solve --root-seed R --seed k`` builds the same node as the
 leaderboard's row ``k`` of root seed ``R``, so it replays that row bit for bit; the Gymnasium
-environment's ``reset(seed=k)`` (``root_seed=R``) plays the same problem.  (The
-diagnosis workflow and the blind suite still spawn their own children of the seed they are
-given; moving them onto named streams changes their committed suites, which are regenerated
-with them.)
+environment's ``reset(seed=k)`` (``root_seed=R``) plays the same problem.  Case ``k`` of
+``ema-bench blind --seed R`` is run ``k`` of root ``R``: its traces are those of
+``ema-bench simulate --root-seed R --seed k`` and its diagnosis that of
+``ema-bench diagnose --root-seed R --seed k``.
 """
 
 from __future__ import annotations
@@ -61,6 +66,10 @@ STREAMS: dict[str, int] = {
     "instance": 0,    # the fault vector of a random ("seeded") case
     "noise": 1,       # sensor noise of the measured traces (one child per test)
     "solver": 2,      # the solver (run_solver derives it: every solver, plugins included)
+    "diagnosis": 3,   # the missing-physics workflow run on the traces of this run
+    "fit": 4,         # (of a diagnosis) one fit, indexed by (round, candidate)
+    "bootstrap": 5,   # (of a diagnosis) the bootstrap of a round, indexed by round
+    "plan": 6,        # (of a root seed) the layout of a suite of runs
 }
 
 
@@ -73,8 +82,12 @@ def run_seed(root_seed: int, seed: int) -> np.random.SeedSequence:
     return np.random.SeedSequence(int(root_seed), spawn_key=(int(seed),))
 
 
-def stream(seed: SeedLike, name: str) -> np.random.SeedSequence:
-    """The named stream (:data:`STREAMS`) of a run node."""
+def stream(seed: SeedLike, name: str, *index: int) -> np.random.SeedSequence:
+    """The named stream (:data:`STREAMS`) of a node; ``index`` picks one member of an
+    indexed family (``stream(node, "fit", round, k)``)."""
     if name not in STREAMS:
         raise KeyError(f"unknown seed stream {name!r}; known: {list(STREAMS)}")
-    return child(seed, STREAMS[name])
+    ss = child(seed, STREAMS[name])
+    for i in index:
+        ss = child(ss, i)
+    return ss

@@ -16,7 +16,6 @@ import signal
 import subprocess
 import sys
 import time
-from dataclasses import asdict
 from pathlib import Path
 
 import pytest
@@ -355,7 +354,9 @@ def test_progress_is_one_line_per_run_when_not_a_terminal(tmp_path):
 
 def _fake_case(case, seed, settings):
     """A blind case's record without the minute of diagnosis behind it."""
-    rec = {"key": f"case{case.index}", **asdict(case), "verdict": "none", "named": [],
+    from ema_bench.diagnosis.blind import case_record
+
+    rec = {**case_record(case, seed), "verdict": "none", "named": [],
            "partial": None, "gap_closed": 0.0, "gap_before": 1.0, "gap_after": 1.0,
            "message": "", "evaluations": 0, "wall_s": 0.0}
     if case.kind == "effect":

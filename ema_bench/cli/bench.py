@@ -16,6 +16,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from .args import add_json
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("bench", help="measure model speed and time to a solution",
@@ -31,7 +33,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--quick", action="store_true",
                    help="skip the start-up and time-to-success figures")
     p.add_argument("--seed", type=int, default=0, help="root seed (default 0)")
-    p.add_argument("--json", action="store_true", help="print JSON")
+    add_json(p)
     p.set_defaults(func=run)
 
 

@@ -17,17 +17,20 @@ import sys
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from .args import add_quiet
+    from .args import add_json, add_quiet
 
     p = sub.add_parser("blind", help="blind test of the missing-physics workflow",
                        description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--cases", type=int, default=30, help="hidden cases (default 30)")
-    p.add_argument("--seed", type=int, default=0, help="root seed (default 0)")
+    p.add_argument("--seed", type=int, default=0,
+                   help="root seed R of the suite (default 0); case i is run i of it: the "
+                        "traces of 'ema-bench simulate --root-seed R --seed i', the diagnosis "
+                        "of 'ema-bench diagnose --root-seed R --seed i'")
     p.add_argument("--out", default=None, metavar="DIR",
                    help="write blind.jsonl and summary.json here, resumable (default "
                         "ema-bench-blind-seed<S>-n<N>)")
-    p.add_argument("--json", action="store_true", help="print summary and cases as JSON")
+    add_json(p, "the summary and the cases")
     add_quiet(p)
     p.set_defaults(func=run)
 

@@ -19,7 +19,15 @@ from __future__ import annotations
 
 import argparse
 
-from .args import add_quiet, add_test_names, check_output, load_measured_files
+from .args import (
+    add_json,
+    add_quiet,
+    add_seeds,
+    add_test_names,
+    check_output,
+    load_measured_files,
+    run_node,
+)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -40,8 +48,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help=f"evaluations per fit (default {d.budget})")
     p.add_argument("--bootstrap", type=int, default=d.n_boot,
                    help=f"bootstrap replicates (default {d.n_boot})")
-    p.add_argument("--seed", type=int, default=0, help="root seed (default 0)")
-    p.add_argument("--json", action="store_true", help="print the diagnosis as JSON")
+    add_seeds(p, "the fits and the bootstrap")
+    add_json(p, "the diagnosis")
     add_quiet(p)
     p.set_defaults(func=run)
 
@@ -51,6 +59,7 @@ def run(args: argparse.Namespace) -> int:
     from ..diagnosis.workflow import Settings, diagnose
     from ..progress import progress
     from ..registry import get_solver
+    from ..seeding import stream
     from . import CLIError, print_json
 
     if args.budget < 100 or args.bootstrap < 10:
@@ -60,7 +69,8 @@ def run(args: argparse.Namespace) -> int:
     measured = load_measured_files(args.traces, args.test)
     with progress(None, "diagnose", unit="stage", quiet=args.quiet) as bar:
         d = diagnose(measured, Settings(solver=args.solver, budget=args.budget,
-                                        n_boot=args.bootstrap), seed=args.seed,
+                                        n_boot=args.bootstrap),
+                     seed=stream(run_node(args), "diagnosis"),
                      on_stage=bar.note)
     if args.report:
         write_report(d, measured, args.report, source=", ".join(args.traces))

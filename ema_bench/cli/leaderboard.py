@@ -43,7 +43,7 @@ def _shard(text: str) -> tuple[int, int]:
 
 def register(sub: argparse._SubParsersAction) -> None:
     from ..leaderboard.executors import EXECUTORS
-    from .args import add_quiet
+    from .args import add_json, add_quiet
 
     p = sub.add_parser("leaderboard", help="compare solvers on cases x tracks x seeds",
                        description=__doc__,
@@ -82,7 +82,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--report-only", action="store_true",
                    help="run nothing: rebuild tables and plots from the records already in "
                         "OUT (e.g. after merging shards or to publish a partial sweep)")
-    p.add_argument("--json", action="store_true", help="print a JSON summary")
+    add_json(p, "a summary")
     add_quiet(p)
     p.set_defaults(func=run)
 

@@ -7,12 +7,13 @@ import argparse
 from ..effects import EFFECTS
 from ..faults import CASES, FAULTS
 from ..params import EMAParams
+from .args import add_json
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("params", help="list physical parameters, faults, cases and effects",
                        description=__doc__)
-    p.add_argument("--json", action="store_true", help="print JSON instead of tables")
+    add_json(p, "the tables")
     p.set_defaults(func=run)
 
 

@@ -18,11 +18,12 @@ import numpy as np
 
 from ..effects import DECOYS, EFFECT_NAMES, EFFECTS, LIBRARY
 from ..faults import faults_to_dict, random_faults
-from ..leaderboard.store import RunStore, read_records
+from ..leaderboard.store import RunStore, is_current, read_records
 from ..progress import progress
 from ..protocol import HOLDOUT_TESTS, STANDARD_TESTS
 from ..reference import simulate_reference
-from ..seeding import SeedLike, child
+from ..seeding import run_seed, stream
+from ..trace_cache import MODEL_VERSION
 from .workflow import Settings, diagnose
 
 DRAWABLE = tuple(n for n in LIBRARY if math.isfinite(EFFECTS[EFFECT_NAMES.index(n)].detect))
@@ -39,18 +40,21 @@ class BlindCase:
     faults: dict[str, float]
 
 
-def draw_cases(n: int, seed: SeedLike) -> list[BlindCase]:
-    """``n`` hidden cases; kinds are laid out in fixed shares, effects cycle through the
-    drawable library so every effect appears."""
+def draw_cases(n: int, seed: int) -> list[BlindCase]:
+    """``n`` hidden cases of the suite of root seed ``seed``; kinds are laid out in fixed
+    shares, effects cycle through the drawable library so every effect appears.
+
+    The layout (kinds, effect order, magnitudes) comes from the root's ``plan`` stream; case
+    ``i``'s faults from the ``instance`` stream of run ``i`` (``run_seed(seed, i)``)."""
     n_null = max(1, round(SHARE_NULL * n))
     n_decoy = max(1, round(SHARE_DECOY * n))
     kinds = ["null"] * n_null + ["decoy"] * n_decoy + ["effect"] * (n - n_null - n_decoy)
-    rng = np.random.default_rng(child(seed, 0))
+    rng = np.random.default_rng(stream(seed, "plan"))
     rng.shuffle(kinds)
     cases, k_eff, k_dec = [], 0, 0
     order = [str(n) for n in rng.permutation(DRAWABLE)]
     for i, kind in enumerate(kinds):
-        faults = faults_to_dict(random_faults(child(seed, 1000 + i), 1.0))
+        faults = faults_to_dict(random_faults(stream(run_seed(seed, i), "instance"), 1.0))
         name, value = None, 0.0
         if kind != "null":
             if kind == "effect":
@@ -68,18 +72,30 @@ def draw_cases(n: int, seed: SeedLike) -> list[BlindCase]:
     return cases
 
 
-def run_case(case: BlindCase, seed: SeedLike, settings: Settings) -> dict:
-    """Simulate a hidden case, diagnose it blind, and score the answer."""
+def case_record(case: BlindCase, seed: int) -> dict:
+    """What identifies a case's record: its key, run (root seed, seed), model version and the
+    hidden truth."""
+    return {"key": f"case{case.index}", "root_seed": int(seed), "seed": case.index,
+            "model_version": MODEL_VERSION, **asdict(case)}
+
+
+def run_case(case: BlindCase, seed: int, settings: Settings) -> dict:
+    """Simulate a hidden case, diagnose it blind, and score the answer.
+
+    Case ``i`` of root ``seed`` is run ``i`` of the seed tree: the traces of ``ema-bench
+    simulate --root-seed R --seed i`` and the diagnosis of ``ema-bench diagnose --root-seed R
+    --seed i``."""
     t0 = time.perf_counter()
     effects = {case.effect: case.value} if case.effect else {}
     x = np.array(list(case.faults.values()))
+    node = run_seed(seed, case.index)
     measured = simulate_reference(x, effects, tests=STANDARD_TESTS + HOLDOUT_TESTS,
-                                  seed=child(seed, 2000 + case.index))
+                                  seed=stream(node, "noise"))
     # the workflow sees the traces only
     d = diagnose(measured.with_meta(faults=None, effects=None), settings,
-                 seed=child(seed, 3000 + case.index))
+                 seed=stream(node, "diagnosis"))
     named = [e.name for e in d.effects]
-    rec = {"key": f"case{case.index}", **asdict(case), "verdict": d.verdict, "named": named,
+    rec = {**case_record(case, seed), "verdict": d.verdict, "named": named,
            "partial": d.gap.get("partial"), "gap_closed": d.gap.get("closed", 0.0),
            "gap_before": d.gap["before"], "gap_after": d.gap["after"],
            "message": d.message, "evaluations": d.evaluations,
@@ -140,7 +156,8 @@ def run_blind(n: int, seed: int, out: str | Path | None = None,
     cases = draw_cases(n, seed)
     records: list[dict] = []
     store = RunStore(Path(out) / "blind.jsonl") if out else None
-    done = {r["key"]: r for r in read_records(store.path)} if store else {}
+    # cases of another model version are stale: run again, recorded beside the old ones
+    done = {r["key"]: r for r in read_records(store.path) if is_current(r)} if store else {}
     try:
         with progress(len(cases), "blind", "case", quiet=quiet) as bar:
             for case in cases:
@@ -150,7 +167,7 @@ def run_blind(n: int, seed: int, out: str | Path | None = None,
                     if store:
                         store.append(rec)
                 else:
-                    _check_resumed(rec, case, store.path)
+                    _check_resumed(rec, case, seed, store.path)
                 records.append(rec)
                 bar.update(f"case{case.index} {rec['verdict']}")
     finally:
@@ -159,10 +176,9 @@ def run_blind(n: int, seed: int, out: str | Path | None = None,
     return {"seed": seed, "summary": summarise(records), "records": records}
 
 
-def _check_resumed(rec: dict, case: BlindCase, path: Path) -> None:
-    """A recorded case reused on resume must be the case drawn now (the file does not say
-    which seed and size it was drawn for)."""
-    drawn = asdict(case)
+def _check_resumed(rec: dict, case: BlindCase, seed: int, path: Path) -> None:
+    """A recorded case reused on resume must be the case drawn now, of the same root seed."""
+    drawn = {**asdict(case), "root_seed": seed}
     if any(rec.get(k) != v for k, v in drawn.items()):
         raise ValueError(f"{path}: case{case.index} there is not the case drawn for this "
                          "seed and number of cases; use another --out for another suite")

@@ -29,7 +29,7 @@ from ..monitor import simulate_monitor
 from ..objective import KNOWN_TESTS, N_FAULTS, SearchSpace, signal_weights
 from ..reference import simulate_reference
 from ..registry import run_solver
-from ..seeding import SeedLike, child
+from ..seeding import SeedLike, stream
 from ..traces import OUTPUT_DT, Traces
 from .envelopes import Envelope, bootstrap, fitness_of, refit_projector
 from .features import residual_features, whiten
@@ -331,11 +331,11 @@ def diagnose(measured: Traces, settings: Settings | None = None, seed: SeedLike 
     measured = _subset(measured, TRAIN + HOLDOUT)
     weights = signal_weights(measured)
     evals = 0
-    base = fit(measured, (), settings, child(seed, 0))
+    base = fit(measured, (), settings, stream(seed, "fit", 0, 0))
     evals += base.evaluations
     stage(f"base fit done ({base.evaluations} evaluations)")
     fits = {"base": base}
-    first, env = assess(measured, base, weights, settings, child(seed, 1))
+    first, env = assess(measured, base, weights, settings, stream(seed, "bootstrap", 0))
     stage(f"residuals assessed: {'a discrepancy' if first.detected else 'nothing'} detected")
     floor = first.holdout_floor
     gap0 = max(first.holdout_fitness - floor, 0.0)
@@ -362,7 +362,7 @@ def diagnose(measured: Traces, settings: Settings | None = None, seed: SeedLike 
             spec = EFFECTS[EFFECT_NAMES.index(cand.name)]
             # warm start: the current fit plus the screening's linearised estimate
             start = np.r_[current.x, np.clip(cand.step, spec.lower, spec.upper)]
-            f = fit(measured, aug, settings, child(seed, 10 + 10 * round_ + k), start)
+            f = fit(measured, aug, settings, stream(seed, "fit", round_ + 1, k), start)
             evals += f.evaluations
             ho_after = sum(fitness_of({t: f.outputs[t] for t in HOLDOUT},
                                       {t: measured.data[t] for t in HOLDOUT}, weights).values())
@@ -395,7 +395,8 @@ def diagnose(measured: Traces, settings: Settings | None = None, seed: SeedLike 
         win = max(accepted, key=lambda t: t.gap_closed)
         result.effects.append(win)
         current = fits[win.name]
-        status, env = assess(measured, current, weights, settings, child(seed, 2 + round_))
+        status, env = assess(measured, current, weights, settings,
+                             stream(seed, "bootstrap", round_ + 1))
         stage(f"model with {win.name} assessed")
         if not status.detected:
             break
