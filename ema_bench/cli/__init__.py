@@ -86,18 +86,10 @@ def _message(exc: BaseException) -> str:
 
 def print_json(obj: object) -> None:
     """Machine-readable output on stdout."""
+    from ..traces.container import _json_default  # numpy scalars and arrays, one place
+
     json.dump(obj, sys.stdout, indent=2, sort_keys=False, default=_json_default)
     sys.stdout.write("\n")
-
-
-def _json_default(o: object) -> object:
-    import numpy as np
-
-    if isinstance(o, np.generic):
-        return o.item()
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    raise TypeError(f"not JSON serialisable: {type(o).__name__}")
 
 
 if __name__ == "__main__":  # pragma: no cover
