@@ -21,7 +21,7 @@ def parse_assignments(text: str, option: str = "--faults") -> dict[str, float]:
     Raises ValueError (the CLI's one-line error, naming ``option``) on a malformed item, a
     name given twice or an empty list: nothing is silently dropped or replaced."""
     out: dict[str, float] = {}
-    for item in filter(None, (s.strip() for s in text.split(","))):
+    for item in comma_list(text):
         name, sep, value = item.partition("=")
         name = name.strip()
         if not sep or not name:
@@ -105,14 +105,15 @@ def add_quiet(p: argparse.ArgumentParser) -> None:
 
 def add_test_names(p: argparse.ArgumentParser, files: str) -> None:
     """``--test NAME[,NAME...]`` (repeatable): one test name per file of ``files``."""
-    p.add_argument("--test", action="extend", type=_names, default=None,
+    p.add_argument("--test", action="extend", type=comma_list, default=None,
                    metavar="NAME[,NAME...]",
                    help=f"one test name per {files} file, in order (step, sine or sine2): the "
                         "name of the single test of a file without a 'test' column, or the "
                         "one test to take from a file with one")
 
 
-def _names(text: str) -> list[str]:
+def comma_list(text: str) -> list[str]:
+    """``"a, b,,c"`` -> ``["a", "b", "c"]``: the items of a comma-separated option."""
     return [s.strip() for s in text.split(",") if s.strip()]
 
 
@@ -164,13 +165,10 @@ def check_output(path: str | os.PathLike[str] | None, option: str, *, folder: bo
         # a real write, not os.access: it also catches read-only mounts and full disks
         with tempfile.NamedTemporaryFile(dir=place, prefix=".ema-bench-write-check-"):
             pass
-        if not folder and path.exists():
+        if not folder and path.exists():   # an existing file must take a rewrite
             with open(path, "ab"):
                 pass
-    except FileExistsError:
-        raise CLIError(f"{option} {path}: cannot create the {what}: a file stands in its "
-                       "path") from None
-    except NotADirectoryError:
+    except (FileExistsError, NotADirectoryError):
         raise CLIError(f"{option} {path}: cannot create the {what}: a file stands in its "
                        "path") from None
     except OSError as exc:

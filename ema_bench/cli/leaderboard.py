@@ -29,10 +29,6 @@ QUICK = {"seeds": 2, "budget": 400}
 DEFAULT = {"seeds": 10, "budget": 5000}
 
 
-def _csv(text: str) -> list[str]:
-    return [s.strip() for s in text.split(",") if s.strip()]
-
-
 def _shard(text: str) -> tuple[int, int]:
     try:
         i, n = (int(v) for v in text.split("/"))
@@ -43,16 +39,16 @@ def _shard(text: str) -> tuple[int, int]:
 
 def register(sub: argparse._SubParsersAction) -> None:
     from ..leaderboard.executors import EXECUTORS
-    from .args import add_json, add_quiet
+    from .args import add_json, add_quiet, comma_list
 
     p = sub.add_parser("leaderboard", help="compare solvers on cases x tracks x seeds",
                        description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--solvers", type=_csv, default=None,
+    p.add_argument("--solvers", type=comma_list, default=None,
                    help="comma-separated solver names (default: every registered solver)")
-    p.add_argument("--cases", type=_csv, default=["nominal", "small", "full", "random"],
+    p.add_argument("--cases", type=comma_list, default=["nominal", "small", "full", "random"],
                    help="comma-separated cases (default nominal,small,full,random)")
-    p.add_argument("--tracks", type=_csv, default=["reference", "twin"],
+    p.add_argument("--tracks", type=comma_list, default=["reference", "twin"],
                    help="comma-separated tracks (default reference,twin)")
     p.add_argument("--seeds", type=int, default=None,
                    help=f"seeds per (solver, case, track) (default {DEFAULT['seeds']}, "

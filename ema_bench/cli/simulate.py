@@ -22,6 +22,7 @@ from .args import (
     add_json,
     add_seeds,
     check_output,
+    comma_list,
     effects_of,
     faults_of,
     run_node,
@@ -104,12 +105,13 @@ def run(args: argparse.Namespace) -> int:
     from ..faults import CASES, faults_to_dict, get_case
     from ..plots import plot_traces
     from ..protocol import HOLDOUT_TESTS, STANDARD_TESTS
+    from ..traces import Traces
     from . import CLIError, print_json
 
     node = run_node(args)
     effects = effects_vector(effects_of(args))
     known = {t.name: t for t in STANDARD_TESTS + HOLDOUT_TESTS}
-    names = [t.strip() for t in args.tests.split(",") if t.strip()]
+    names = comma_list(args.tests)
     bad = [t for t in names if t not in known]
     if bad or not names:
         raise CLIError(f"unknown test(s) {bad}; known: {list(known)}")
@@ -123,7 +125,7 @@ def run(args: argparse.Namespace) -> int:
         runs = {case.name: case.x}
     # every output is checked before the (reference: seconds-long) simulation
     check_output(args.out, "--out", folder=len(runs) > 1,
-                 suffixes=() if len(runs) > 1 else (".csv", ".npz"))
+                 suffixes=() if len(runs) > 1 else Traces.SAVE_SUFFIXES)
     check_output(args.plot, "--plot", folder=False, suffixes=PLOT_SUFFIXES)
     results, traces = {}, {}
     for name, x in runs.items():

@@ -15,6 +15,7 @@ from ..records import run_record
 from ..registry import get_solver, run_solver
 from ..seeding import run_seed
 from ..trace_cache import MODEL_VERSION
+from .store import IDENTITY_FIELDS
 
 
 @dataclass(frozen=True)
@@ -73,8 +74,7 @@ def error_record(task: Task, exc: BaseException, wall_s: float = 0.0) -> dict[st
     """The record of a run that raised ``exc`` (or whose worker died): its identity, the
     error, and ``success: False`` with no evaluations to success, so scores count it as an
     unsuccessful run at its budget."""
-    return {"key": task.key, "solver": task.solver, "case": task.case, "track": task.track,
-            "seed": task.seed, "budget": task.budget, "root_seed": task.root_seed,
+    return {"key": task.key, **{f: getattr(task, f) for f in IDENTITY_FIELDS},
             "model_version": MODEL_VERSION, "status": "error",
             "error_type": type(exc).__name__, "error": str(exc) or repr(exc),
             "traceback": "".join(traceback.format_exception(exc))[-4000:],

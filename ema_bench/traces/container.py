@@ -130,6 +130,9 @@ class Traces:
             for t in self.tests
         )
 
+    #: The file types :meth:`save` writes.
+    SAVE_SUFFIXES = (".csv", ".npz")
+
     def save(self, path: str | os.PathLike[str]) -> None:
         """Write the traces to ``path``; the format follows the suffix, ``.csv`` or ``.npz``.
 
