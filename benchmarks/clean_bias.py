@@ -1,12 +1,14 @@
 """Clean-data bias of the monitor: polish from the truth on noise-free reference traces.
 
-For each instance (the four paper cases and N seeded ones), CMA-ES starts at the true faults
+For each instance (the suite's: the four paper cases and s00 .. s19; or, with a number N, the
+paper cases and N random ones), CMA-ES starts at the true faults
 with small steps and minimises the fitness against clean reference traces (no noise, no ADC;
 :func:`ema_bench.calibrate.clean_bias`).  Where it ends is the monitor's own best fit: its
 distance from the truth, in % of each fault's range, is the model-form bias that no solver can
 remove.  Target (issue 10): < 0.3 % for every
 fault.
 
+    python benchmarks/clean_bias.py > benchmarks/results/clean_bias_suite.txt   # the suite
     python benchmarks/clean_bias.py 20 > bias.txt
 """
 
@@ -16,11 +18,15 @@ import numpy as np
 
 from ema_bench.calibrate import clean_bias
 from ema_bench.faults import CASES, random_faults
+from ema_bench.suite import instance_faults, instance_names
 
 if __name__ == "__main__":
-    cases = {k: c.x for k, c in CASES.items()}
-    for i in range(int(sys.argv[1]) if len(sys.argv) > 1 else 0):
-        cases[f"seeded{i}"] = random_faults(np.random.SeedSequence(1234, spawn_key=(i,)))
+    if len(sys.argv) > 1:
+        cases = {k: c.x for k, c in CASES.items()}
+        for i in range(int(sys.argv[1])):
+            cases[f"seeded{i}"] = random_faults(np.random.SeedSequence(1234, spawn_key=(i,)))
+    else:
+        cases = {n: instance_faults(n) for n in instance_names()}
     worst = np.zeros(4)
     print(f"{'instance':10s} {'Na %':>7} {'Fst %':>7} {'BLK %':>7} {'Gprop %':>7}  f(truth)  "
           "f(best)")

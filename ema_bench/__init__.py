@@ -7,18 +7,18 @@ Main entry points::
     result = ema_bench.run_solver("cmaes", problem, seed=0)
     problem.score(result.x)
 
-The Gymnasium environment ``EMAFault/Identify-v0`` is registered by ``import ema_bench.env``
-(or ``gymnasium.make("ema_bench.env:EMAFault/Identify-v0")``); importing the package registers
+The Gymnasium environment ``EMAFault/Identify-v1`` is registered by ``import ema_bench.env``
+(or ``gymnasium.make("ema_bench.env:EMAFault/Identify-v1")``); importing the package registers
 it too when gymnasium is already imported.  Gymnasium is not imported otherwise: it costs 0.3 s
 that the command line and the solvers do not need.
 """
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
 
 import sys as _sys
 
 if "gymnasium" in _sys.modules:
-    from . import env  # noqa: E402, F401  (registers EMAFault/Identify-v0)
+    from . import env  # noqa: E402, F401  (registers EMAFault/Identify-v1)
 from .faults import CASES, FAULT_NAMES, FAULTS  # noqa: E402
 from .instances import make_problem  # noqa: E402
 from .monitor import monitor_traces, simulate_monitor  # noqa: E402

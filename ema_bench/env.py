@@ -1,11 +1,11 @@
-"""Gymnasium interface to the identification problem: ``EMAFault/Identify-v0``.
+"""Gymnasium interface to the identification problem: ``EMAFault/Identify-v1``.
 
 Importing this module registers the environment::
 
     import gymnasium as gym
     import ema_bench.env  # noqa: F401  (registers the id)
 
-    env = gym.make("EMAFault/Identify-v0", case="small", track="reference", budget=500)
+    env = gym.make("EMAFault/Identify-v1", case="small", track="reference", budget=500)
     obs, info = env.reset(seed=0)          # obs: the measured traces, stacked
     obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
 
@@ -38,6 +38,15 @@ the episode, is ``env.unwrapped.problem`` (``problem.score(x)``).
 is the batch-evaluation interface for population methods: its ``num_envs`` "sub-environments"
 are candidates for the *same* problem, and one step evaluates them all in one batched
 :meth:`~ema_bench.problem.Problem.evaluate` call.
+
+Version history (the id's version follows the benchmark suite, :mod:`~ema_bench.suite`; a
+change to the models or the instances is a new version, as with Gymnasium's own ids):
+
+- ``v1`` (suite ``emafdi-v1``, model version 2, ema-bench 0.2.0): the reference model's
+  hysteresis is analog, the monitor integrates without its 50 us discretisation bias; cases
+  include the suite's seeded instances ``s00`` .. ``s19``.
+- ``v0`` (model version 1, ema-bench 0.1.0): the first release; ``gymnasium.make`` of it now
+  raises ``DeprecatedEnv`` naming ``v1``.
 """
 
 from __future__ import annotations
@@ -63,7 +72,7 @@ from .traces import SIGNALS
 
 __all__ = ["ENV_ID", "OBSERVATIONS", "EMAFaultEnv", "EMAFaultVectorEnv", "register"]
 
-ENV_ID = "EMAFault/Identify-v0"
+ENV_ID = "EMAFault/Identify-v1"
 OBSERVATIONS = ("traces", "residuals")
 _OPTIONS = ("case", "track")
 _SPAN_MARGIN = 0.01  # the traces box is each sensor's span widened by this fraction
@@ -192,7 +201,8 @@ class EMAFaultEnv(_EpisodeMixin, gym.Env):
     Parameters
     ----------
     case : str, mapping or array
-        Paper case (``nominal``, ``small``, ``full``, ``random``), ``"seeded"`` (a random
+        Suite instance (paper case ``nominal``, ``small``, ``full``, ``random`` or seeded
+        instance ``s00`` .. ``s19``), ``"seeded"`` (a random
         instance per episode, drawn from the reset seed with ``heterogeneity``) or explicit
         true faults.  ``reset(options={"case": ...})`` overrides it for one episode.
     track : {"reference", "twin"}
@@ -339,7 +349,7 @@ class EMAFaultVectorEnv(_EpisodeMixin, VectorEnv):
 
 
 def register() -> None:
-    """Register ``EMAFault/Identify-v0`` with Gymnasium (idempotent)."""
+    """Register ``EMAFault/Identify-v1`` with Gymnasium (idempotent)."""
     if ENV_ID in gym.registry:
         return
     gym.register(id=ENV_ID, entry_point="ema_bench.env:EMAFaultEnv",

@@ -9,7 +9,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from .effects import effects_to_dict, effects_vector
-from .faults import CASES, FaultError, check_faults, faults_to_dict, random_faults
+from .faults import FaultError, check_faults, faults_to_dict, random_faults
 from .monitor import simulate_monitor
 from .objective import KNOWN_TESTS, ProblemError
 from .params import DEFAULT_PARAMS
@@ -18,6 +18,7 @@ from .problem import Problem, check_budget
 from .protocol import STANDARD_TESTS, TestSpec
 from .reference import SimulationError, simulate_reference
 from .seeding import SeedLike, as_seed_sequence, children, stream
+from .suite import instance_faults, is_instance
 from .trace_cache import cache_key, cached_traces, expected_shapes
 from .traces import Traces
 
@@ -61,8 +62,11 @@ def check_settings(case: object = "small", track: str = "reference", budget: obj
     if case is None:
         raise ProblemError("give a case, or measured traces")
     if isinstance(case, str):
-        if case != "seeded" and case not in CASES:
-            raise ProblemError(f"unknown case {case!r}; known: {list(CASES)} or 'seeded'")
+        if case != "seeded" and not is_instance(case):
+            try:
+                instance_faults(case)
+            except FaultError as exc:
+                raise ProblemError(str(exc)) from None
     else:
         try:
             check_faults(case)
@@ -93,8 +97,10 @@ def make_problem(
     Parameters
     ----------
     case : str, mapping or array
-        A paper case (``nominal``, ``small``, ``full``, ``random``), ``"seeded"`` for a random
-        instance drawn from ``seed`` with ``heterogeneity``, or explicit true faults.
+        A suite instance: a paper case (``nominal``, ``small``, ``full``, ``random``) or a
+        seeded instance of the suite (``s00`` .. ``s19``, :mod:`~ema_bench.suite`);
+        ``"seeded"`` for a random instance drawn from ``seed`` with ``heterogeneity``; or
+        explicit true faults.
     track : {"reference", "twin"}
         ``reference``: measured traces come from the detailed reference model (model-form
         mismatch, as in the paper); ``twin``: from the monitor model itself plus sensor noise
@@ -131,7 +137,7 @@ def make_problem(
     if isinstance(case, str) and case == "seeded":
         truth, label = random_faults(s_instance, heterogeneity), f"seeded(h={heterogeneity:g})"
     elif isinstance(case, str):
-        truth, label = CASES[case].x, case
+        truth, label = instance_faults(case), case
     else:
         truth, label = check_faults(case), "custom"
     e = effects_vector(effects)

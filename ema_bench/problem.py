@@ -25,7 +25,13 @@ from .objective import (  # noqa: F401  (re-exported: the problem's vocabulary)
     fitness_from_outputs,
     signal_scales,
 )
-from .scoring import SUCCESS_RANGE_ERROR, Score, score, successes  # noqa: F401
+from .scoring import (  # noqa: F401
+    SUCCESS_RANGE_ERROR,
+    Score,
+    parameter_hits,
+    score,
+    successes,
+)
 from .traces import SIGNALS, Traces
 
 log = logging.getLogger(__name__)
@@ -265,14 +271,20 @@ class Problem:
         return score(est, self.__truth)
 
     def first_success(self) -> int | None:
-        """Evaluations spent until the first successful vector (1-based count), or None.
+        """Evaluations spent until the best-so-far point first succeeded (1-based), or None.
 
-        A vector succeeds when every parameter is within 1 % of its range of the truth
-        (scorer-only, like :meth:`score`)."""
+        A vector succeeds when every parameter is within 1 % of its range of the truth; it is
+        judged at the point the solver would report at that moment (the lowest fitness so
+        far), not at any evaluated point (scorer-only, like :meth:`score`)."""
+        return self.parameter_hits((SUCCESS_RANGE_ERROR,))[0]
+
+    def parameter_hits(self, levels: Sequence[float]) -> list[int | None]:
+        """Per level, the evaluation (1-based) from which the best-so-far point first lies
+        within ``level`` of every fault's range of the truth, or None (scorer-only)."""
         if self.__truth is None:
             raise ProblemError("the true faults of measured data are unknown")
-        hits = np.flatnonzero(successes(self._X[:self._count, :N_FAULTS], self.__truth))
-        return int(hits[0]) + 1 if hits.size else None
+        n = self._count
+        return parameter_hits(self._X[:n], self._f[:n], self.__truth, levels)
 
     def first_success_wall_s(self) -> float | None:
         """Wall seconds from building the problem to its first successful evaluation, or None

@@ -3,6 +3,7 @@ accuracy, the range-normalised error and the success rule."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -58,3 +59,40 @@ def score(est: np.ndarray, true: np.ndarray) -> Score:
                  accuracy=dict(zip(FAULT_NAMES, paper_accuracy(est, true))),
                  range_error=dict(zip(FAULT_NAMES, map(float, err))),
                  success=bool(np.all(err <= SUCCESS_RANGE_ERROR)))
+
+
+def first_hits(best: np.ndarray, thresholds: Sequence[float]) -> list[int | None]:
+    """For each threshold, the evaluation (1-based) at which the best-so-far fitness ``best``
+    (non-increasing, one entry per evaluation) first reaches ``<= threshold``, or None."""
+    best = np.asarray(best, dtype=float)
+    out: list[int | None] = []
+    for thr in thresholds:
+        hit = np.flatnonzero(best <= thr)
+        out.append(int(hit[0]) + 1 if hit.size else None)
+    return out
+
+
+def improvements(f: np.ndarray) -> np.ndarray:
+    """Indices of the evaluations that improved the best-so-far fitness (the first counts):
+    from each one on, the best-so-far point is that evaluation's point."""
+    f = np.asarray(f, dtype=float)
+    if f.size == 0:
+        return np.empty(0, dtype=int)
+    prev = np.r_[np.inf, np.minimum.accumulate(f)[:-1]]
+    return np.flatnonzero(f < prev)
+
+
+def parameter_hits(X: np.ndarray, f: np.ndarray, true: np.ndarray,
+                   levels: Sequence[float]) -> list[int | None]:
+    """For each level, the evaluation (1-based) from which the best-so-far point (the point
+    a solver would report: lowest fitness so far) first has every fault within ``level`` of
+    its range of ``true``, or None.  Judged at the best-so-far point, not at any evaluated
+    point: a solver that passes near the truth without noticing is not credited."""
+    idx = improvements(f)
+    err = np.max(range_error(np.asarray(X)[idx, :len(true)], true), axis=-1) \
+        if idx.size else np.empty(0)
+    out: list[int | None] = []
+    for level in levels:
+        hit = np.flatnonzero(err <= level)
+        out.append(int(idx[hit[0]]) + 1 if hit.size else None)
+    return out

@@ -1,4 +1,4 @@
-"""Tests of the Gymnasium interface (ema_bench.env): EMAFault/Identify-v0 and its vector form."""
+"""Tests of the Gymnasium interface (ema_bench.env): EMAFault/Identify-v1 and its vector form."""
 
 from __future__ import annotations
 

@@ -20,7 +20,7 @@ from ema_bench.leaderboard.store import read_records
 CLI = [sys.executable, "-m", "ema_bench.cli", "leaderboard"]
 QUICK = ["--solvers", "random,cmaes", "--cases", "small,full", "--seeds", "2",
          "--budget", "60"]
-VOLATILE = {"wall_s", "solver_wall_s"}
+VOLATILE = {"wall_s", "solver_wall_s", "manifest"}
 
 
 def run(args, **kw):
@@ -44,7 +44,8 @@ def test_quick_leaderboard_writes_every_file(quick):
     for name in ("runs.jsonl", "leaderboard_reference.md", "leaderboard_reference.csv",
                  "leaderboard_twin.md", "leaderboard_twin.csv", "paper_tables.md",
                  "convergence_reference.png", "convergence_twin.png", "ecdf.png",
-                 "fit_overlay.png", "figure5_landscape.png", "summary.json"):
+                 "fit_overlay.png", "figure5_landscape.png", "summary.json",
+                 "leaderboard.html"):
         path = quick / name
         assert path.is_file() and path.stat().st_size > 0, name
     assert (quick / "ecdf.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
@@ -58,19 +59,31 @@ def test_quick_leaderboard_writes_every_file(quick):
     assert rise["normalised"] > 3 * rise["raw"]
 
 
-def test_ert_and_success_recomputed_by_hand(quick):
+def test_ecdf_area_and_ert_recomputed_by_hand(quick):
     records = read_records(quick / "runs.jsonl")
     with open(quick / "leaderboard_twin.csv") as fh:
-        rows = {(r["case"], r["solver"]): r for r in csv.DictReader(fh)}
+        rows = {(r["cases"], r["solver"]): r for r in csv.DictReader(fh)}
+    assert {c for c, _ in rows} == {"all", "small", "full"}
     for (case, solver), row in rows.items():
         group = [r for r in records if r["track"] == "twin" and r["solver"] == solver
                  and (case == "all" or r["case"] == case)]
-        wins = [r for r in group if r["success"]]
-        cost = sum(r["evals_to_success"] if r["success"] else r["budget"] for r in group)
-        ert = cost / len(wins) if wins else math.inf
+        # every target of every run: fitness (f* shipped for these instances) and parameter
+        per_run = []
+        for r in group:
+            h = [*r["targets"]["fitness"].values(), *r["targets"]["parameters"].values()]
+            assert len(h) == 7
+            B = r["budget"]
+            per_run.append(sum((math.log(B) - math.log(x)) / math.log(B) if x else 0.0
+                               for x in h) / 7)
         assert int(row["runs"]) == len(group)
-        assert float(row["success_rate"]) == pytest.approx(len(wins) / len(group))
-        assert float(row["ert"]) == pytest.approx(ert)
+        assert float(row["ecdf_area"]) == pytest.approx(sum(per_run) / len(per_run))
+        p1 = [r["targets"]["parameters"]["0.01"] for r in group]
+        wins = [x for x in p1 if x]
+        ert = (sum(wins) + 60 * (len(p1) - len(wins))) / len(wins) if wins else math.inf
+        assert float(row["ert_p0.01"]) == pytest.approx(ert)
+        assert float(row["hits_p0.01"]) == pytest.approx(len(wins) / len(group))
+        assert float(row["ecdf_area_lo"]) <= float(row["ecdf_area"]) <= \
+            float(row["ecdf_area_hi"])
 
 
 def test_interrupted_run_resumes_without_duplicates(quick, tmp_path):
@@ -95,9 +108,8 @@ def test_interrupted_run_resumes_without_duplicates(quick, tmp_path):
     assert len(keys) == len(set(keys)) == 16
     assert stable(records) == stable(read_records(quick / "runs.jsonl"))
     strip = lambda p: [row for row in csv.reader(open(p))]  # noqa: E731
-    a, b = strip(out / "leaderboard_twin.csv"), strip(quick / "leaderboard_twin.csv")
-    wall = a[0].index("median_wall_s")
-    assert [r[:wall] + r[wall + 1:] for r in a] == [r[:wall] + r[wall + 1:] for r in b]
+    # the scores (bootstrap intervals included) depend on the records only
+    assert strip(out / "leaderboard_twin.csv") == strip(quick / "leaderboard_twin.csv")
 
 
 @pytest.mark.parametrize("executor", ["processes", "dask"])
@@ -142,16 +154,30 @@ def test_check_passes_on_committed_and_fails_on_doctored(quick, tmp_path):
     ok = run(QUICK + ["--executor", "serial", "--no-plots", "--check", str(committed)])
     assert ok.returncode == 0, ok.stdout + ok.stderr
     assert "no regression" in ok.stdout
-    # doctor the committed results: every run a quick success, so today's look worse
+    # doctor the committed results: every target reached at the first evaluation, so
+    # today's runs look worse (one solver and track: one comparison at the 5 % level; 4
+    # runs against 4 completely separated give p = 0.011)
     doctored = tmp_path / "doctored"
     doctored.mkdir()
     with open(doctored / "runs.jsonl", "w") as fh:
         for r in read_records(quick / "runs.jsonl"):
-            r.update(success=True, evals_to_success=1)
+            t = r["targets"]
+            r["targets"] = {**t, "fitness": dict.fromkeys(t["fitness"], 1),
+                            "parameters": dict.fromkeys(t["parameters"], 1)}
             fh.write(json.dumps(r) + "\n")
-    bad = run(QUICK + ["--executor", "serial", "--no-plots", "--check", str(doctored)])
-    assert bad.returncode == 1
-    assert "REGRESSIONS" in bad.stdout and "success" in bad.stdout
+    bad = run(QUICK + ["--solvers", "cmaes", "--tracks", "twin", "--executor", "serial",
+                       "--no-plots", "--check", str(doctored)])
+    assert bad.returncode == 1, bad.stdout + bad.stderr
+    assert "REGRESSIONS" in bad.stdout and "ECDF area" in bad.stdout and "cmaes" in bad.stdout
+    # a baseline of another suite version is refused, naming both versions
+    other = tmp_path / "other"
+    other.mkdir()
+    with open(other / "runs.jsonl", "w") as fh:
+        for r in read_records(quick / "runs.jsonl"):
+            fh.write(json.dumps({**r, "suite": "emafdi-v0"}) + "\n")
+    res = run(QUICK + ["--executor", "serial", "--no-plots", "--check", str(other)])
+    assert res.returncode == 2
+    assert "emafdi-v0" in res.stderr and "emafdi-v1" in res.stderr
 
 
 def test_quick_check_passes_on_the_leaderboard_in_the_repository(tmp_path):

@@ -15,6 +15,7 @@ import pytest
 
 from ema_bench.leaderboard.check import compare
 from ema_bench.leaderboard.scores import ALL, ert, score_records
+from ema_bench.suite import SUITE_ID
 from ema_bench.trace_cache import MODEL_VERSION
 
 FAULTS = ("Na", "Fst", "BLK", "Gprop")
@@ -24,7 +25,10 @@ def rec(solver: str, seed: int, first: int | None, budget: int = 1000, case: str
         track: str = "twin", fitness: float = 1e-4) -> dict:
     """A hand-written run record: success iff ``first`` (evaluations to success) is given."""
     return {"solver": solver, "case": case, "track": track, "seed": seed, "budget": budget,
-            "root_seed": 0, "model_version": MODEL_VERSION, "success": first is not None,
+            "root_seed": 0, "model_version": MODEL_VERSION, "suite": SUITE_ID,
+            "success": first is not None,
+            "targets": {"fitness": None, "parameters": dict.fromkeys(("0.1", "0.03", "0.01"),
+                                                                     first)},
             "evals_to_success": first, "fitness": fitness, "wall_s": 1.0,
             "accuracy": dict.fromkeys(FAULTS, 99.0), "range_error": dict.fromkeys(FAULTS, 0.001)}
 
@@ -53,25 +57,75 @@ def test_group_score_by_hand():
     assert row.success_rate == pytest.approx(3 / 5)
 
 
-def test_check_flags_an_ert_regression_at_equal_success():
-    committed = [rec("a", k, 100) for k in range(3)] + [rec("a", 3, None)]
-    # the same successes, each found 9x later: ERT (900*3 + 1000)/3 = 1233 against
-    # (100*3 + 1000)/3 = 433, more than the 2x tolerance
-    now = [rec("a", k, 900) for k in range(3)] + [rec("a", 3, None)]
-    bad = compare(now, committed)
-    assert [(r.solver, r.what) for r in bad] == [("a", "ERT")]
-    assert bad[0].committed == pytest.approx(1300 / 3) and bad[0].now == pytest.approx(3700 / 3)
-    # within the factor (2x) nothing is flagged
-    close = [rec("a", k, 150) for k in range(3)] + [rec("a", 3, None)]
-    assert compare(close, committed) == []
+def _area(hit: int, budget: int = 1000) -> float:
+    # by hand: a target reached at h of B is worth (ln B - ln h) / ln B
+    return (math.log(budget) - math.log(hit)) / math.log(budget)
 
 
-def test_check_flags_a_success_regression_and_ignores_improvements():
-    committed = [rec("b", k, 100) for k in range(3)]
-    now = [rec("b", 0, 100), rec("b", 1, None), rec("b", 2, None)]   # 3/3 -> 1/3
-    kinds = [r.what for r in compare(now, committed)]
-    assert "success" in kinds
-    assert compare(committed, now) == []   # better than the baseline: no regression
+def test_check_flags_a_lower_ecdf_area_and_names_its_values():
+    committed = [rec("a", k, 100 + 10 * k) for k in range(6)]
+    now = [rec("a", k, 900 + 10 * k) for k in range(6)]
+    (r,) = compare(now, committed)
+    assert (r.track, r.case, r.solver) == ("twin", ALL, "a")
+    assert r.what.startswith("ECDF area")
+    assert r.committed == pytest.approx(sum(_area(100 + 10 * k) for k in range(6)) / 6)
+    assert r.now == pytest.approx(sum(_area(900 + 10 * k) for k in range(6)) / 6)
+    # complete separation of 6 against 6: exact one-sided p = 1 / C(12, 6) = 1/924
+    assert "p=0.0011" in r.what
+    assert compare(committed, now) == []      # better than the baseline: no regression
+    assert compare(committed, committed) == []
+
+
+def test_check_tolerates_one_worse_run_and_splits_alpha_over_comparisons():
+    committed = [rec("a", k, 100 + 10 * k) for k in range(6)]
+    one_worse = [rec("a", 0, 900)] + committed[1:]
+    assert compare(one_worse, committed) == []
+    # 4 against 4, completely separated: p = 1/70 = 0.0143 < 0.05 alone ...
+    c4 = [rec("b", k, 100 + 10 * k) for k in range(4)]
+    n4 = [rec("b", k, 900 + 10 * k) for k in range(4)]
+    assert [r.solver for r in compare(n4, c4)] == ["b"]
+    # ... but not below 0.05 / 4 when three other solvers are compared at the same time
+    others = [rec(s, k, 100 + 10 * k) for s in "xyz" for k in range(4)]
+    assert compare(n4 + others, c4 + others) == []
+    assert [r.solver for r in compare(n4 + others, c4 + others, alpha=0.2)] == ["b"]
+    # the level is strict: p exactly alpha / comparisons (1/70 here) is no regression
+    assert compare(n4, c4, alpha=1 / 70) == []
+    assert [r.solver for r in compare(n4, c4, alpha=1 / 70 * 1.0001)] == ["b"]
+
+
+def test_check_goes_on_after_a_solver_whose_runs_are_identical():
+    same = [rec("a", k, 100 + 10 * k) for k in range(6)]   # "a" sorts first: unchanged
+    c6 = [rec("b", k, 100 + 10 * k) for k in range(6)]
+    n6 = [rec("b", k, 900 + 10 * k) for k in range(6)]
+    assert [r.solver for r in compare(same + n6, same + c6)] == ["b"]
+
+
+def test_check_compares_only_the_runs_both_hold_and_skips_the_sanity_case():
+    committed = [rec("a", k, 100 + 10 * k) for k in range(6)]
+    # today's sweep also ran seeds 6-11 (failures) and another solver: none has a committed
+    # counterpart, so none is compared
+    now = committed + [rec("a", k, None) for k in range(6, 12)] + [rec("z", 0, None)]
+    assert compare(now, committed) == []
+    # the healthy actuator is a sanity row, never part of the test
+    c = [rec("a", k, 100 + 10 * k, case="nominal") for k in range(6)]
+    n = [rec("a", k, None, case="nominal") for k in range(6)]
+    assert compare(n, c) == []
+
+
+def test_check_refuses_another_suite_version_naming_both():
+    committed = [{**rec("a", k, 100), "suite": "emafdi-v0"} for k in range(3)]
+    legacy = {k: v for k, v in rec("a", 3, 100).items() if k != "suite"}
+    with pytest.raises(ValueError) as err:
+        compare([rec("a", k, 100) for k in range(3)], committed + [legacy])
+    assert str(err.value) == (
+        f"the baseline holds runs of suite version emafdi-v0, none; this is {SUITE_ID}: their "
+        "targets differ and they cannot be compared (regenerate the baseline with this "
+        "version, leaderboards/README.md)")
+    with pytest.raises(ValueError, match="^this run holds runs of suite version emafdi-v0;"):
+        compare(committed, [rec("a", k, 100) for k in range(3)])
+    with pytest.raises(ValueError, match="version none"):
+        compare([rec("a", 0, 100)], [{k: v for k, v in rec("a", 0, 100).items()
+                                      if k != "suite"}])
 
 
 def test_run_cost_of_a_run_that_lost_its_success():
@@ -93,35 +147,6 @@ def test_group_score_reports_every_field():
     assert s.range_error == dict.fromkeys(FAULTS, 0.001)
 
 
-def test_check_regression_records_and_edges():
-    committed = [rec("a", k, 100) for k in range(2)]
-    now = [rec("a", 0, 100), rec("a", 1, None)]          # success 1.0 -> 0.5
-    (r,) = [x for x in compare(now, committed, success_tol=0.4) if x.what == "success"]
-    assert (r.track, r.case, r.solver) == ("twin", ALL, "a")
-    assert (r.committed, r.now) == (1.0, 0.5)
-    # a drop of exactly the tolerance is tolerated
-    assert not [x for x in compare(now, committed, success_tol=0.5) if x.what == "success"]
-    # an ERT of exactly the factor is tolerated; the regression names its values
-    c2 = [rec("b", 0, 100), rec("b", 1, None, budget=100)]    # ERT (100 + 100) / 1 = 200
-    n2 = [rec("b", 0, 300), rec("b", 1, None, budget=100)]    # ERT 400 = 2 x 200
-    assert compare(n2, c2, ert_factor=2.0) == []
-    (e,) = compare(n2, c2, ert_factor=1.5)
-    assert (e.track, e.case, e.solver, e.what, e.committed, e.now) == \
-        ("twin", ALL, "b", "ERT", 200.0, 400.0)
-
-
-def test_check_compares_only_the_runs_both_hold():
-    committed = [rec("a", 0, 100), rec("a", 1, 100)]
-    # today's sweep also ran seed 2 (a failure) and another solver: neither has a committed
-    # counterpart, so neither is compared
-    now = committed + [rec("a", 2, None), rec("z", 0, None)]
-    assert compare(now, committed) == []
-    # two cases: the check pools them per (track, solver), it does not compare case by case
-    two = [rec("c", 0, 100, case="small"), rec("c", 0, None, case="full")]
-    worse_small = [rec("c", 0, 150, case="small"), rec("c", 0, None, case="full")]
-    assert compare(worse_small, two, ert_factor=1.2) == []   # pooled ERT 1150 vs 1100
-
-
 def test_baseline_truncation_edges():
     from ema_bench.leaderboard.check import baseline
 
@@ -132,6 +157,13 @@ def test_baseline_truncation_edges():
     base, used = baseline(records, 400, 2)
     got = {r["seed"]: (r["budget"], r["success"]) for r in base}
     assert got == {0: (400, True), 1: (400, False)}
+    # targets reached after the truncated budget are dropped too, fitness and parameters
+    hits = {r["seed"]: r["targets"]["parameters"]["0.01"] for r in base}
+    assert hits == {0: 400, 1: None}
+    fit = [{**r, "targets": {**r["targets"], "fitness": {"0.1": 300, "0.01": 450}}}
+           for r in records]
+    base, _ = baseline(fit, 400, 2)
+    assert [r["targets"]["fitness"] for r in base] == [{"0.1": 300, "0.01": None}] * 2
     assert used["re_scored"] == 2
 
 

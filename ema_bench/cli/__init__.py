@@ -26,6 +26,9 @@ COMMANDS: dict[str, str] = {
     "leaderboard": "leaderboard",
     "diagnose": "diagnose",
     "blind": "blind",
+    "export": "export",
+    "validate": "validate",
+    "targets": "targets",
 }
 
 

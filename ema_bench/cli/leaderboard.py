@@ -1,20 +1,28 @@
-"""``ema-bench leaderboard``: run solvers x cases x tracks x seeds and score them COCO-style.
+"""``ema-bench leaderboard``: run solvers x instances x tracks x seeds and score them.
+
+The instances are those of the suite (emafdi-v1: the paper's four cases and the seeded
+s00..s19; 'ema-bench targets --show' lists them).  Scores are anytime, COCO-style: per solver
+and track, the area under the ECDF of (instance, target) pairs reached against evaluations
+(fitness targets from each instance's best-known optimum f*, parameter targets at 10/3/1 %
+of range), ERT per target with bootstrap intervals, fixed-budget quantiles; the nominal case
+is a sanity row outside the ranking.
 
 Each run is appended to OUT/runs.jsonl as it finishes; rerunning the same command resumes
 (finished runs are skipped, runs that failed with an error are tried again).  Several sweeps
 may share one OUT at once (e.g. on two machines sharing a disk): each run is claimed by one
 of them, runs once and is counted once.  A run that raises (a broken solver) or whose worker
 dies is recorded as failed, scored as an unsuccessful run at its budget, and listed at the
-end; the sweep goes on.  Writes leaderboard_<track>.md/.csv, paper_tables.md, convergence,
-ECDF, fit-overlay and Figure 5 plots under OUT.  Progress: a bar in a terminal, one line
+end; the sweep goes on.  Writes leaderboard_<track>.md/.csv, paper_tables.md,
+leaderboard.html (sortable tables and plots in one file), convergence, ECDF, fit-overlay and
+Figure 5 plots under OUT.  Progress: a bar in a terminal, one line
 per finished run otherwise (--quiet: none).
 
 Examples::
 
     ema-bench leaderboard --quick --out /tmp/lb              # small, for CI
-    ema-bench leaderboard --seeds 10 --budget 5000 --out leaderboards   # the committed one
+    ema-bench leaderboard --seeds 10 --budget 5000 --out leaderboards   # the full suite
     ema-bench leaderboard --executor dask --scheduler tcp://10.0.0.5:8786 --shard 0/4 --out lb
-    ema-bench leaderboard --quick --check leaderboards/      # non-zero exit on regression
+    ema-bench leaderboard --quick --check leaderboards/      # exit 1 on a regression
 """
 
 from __future__ import annotations
@@ -25,8 +33,8 @@ import sys
 import tempfile
 from pathlib import Path
 
-QUICK = {"seeds": 2, "budget": 400}
-DEFAULT = {"seeds": 10, "budget": 5000}
+QUICK = {"seeds": 2, "budget": 400, "cases": ["quick"]}
+DEFAULT = {"seeds": 10, "budget": 5000, "cases": ["all"]}
 
 
 def _shard(text: str) -> tuple[int, int]:
@@ -41,13 +49,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     from ..leaderboard.executors import EXECUTORS
     from .args import add_json, add_quiet, comma_list
 
-    p = sub.add_parser("leaderboard", help="compare solvers on cases x tracks x seeds",
+    p = sub.add_parser("leaderboard",
+                       help="compare solvers on the suite's instances x tracks x seeds",
                        description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--solvers", type=comma_list, default=None,
                    help="comma-separated solver names (default: every registered solver)")
-    p.add_argument("--cases", type=comma_list, default=["nominal", "small", "full", "random"],
-                   help="comma-separated cases (default nominal,small,full,random)")
+    p.add_argument("--cases", type=comma_list, default=None,
+                   help="comma-separated instances or groups: all (the suite, default), "
+                        "paper (nominal,small,full,random), lhs (s00..s19), quick (paper "
+                        "and s00..s03, the --quick default)")
     p.add_argument("--tracks", type=comma_list, default=["reference", "twin"],
                    help="comma-separated tracks (default reference,twin)")
     p.add_argument("--seeds", type=int, default=None,
@@ -72,8 +83,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                         f"budget {QUICK['budget']})")
     p.add_argument("--check", default=None, metavar="DIR",
                    help="compare with the committed runs in DIR (and DIR/*/) of the same "
-                        "budget and seeds, else larger-budget runs re-scored at this budget; "
-                        "exit 1 when a solver's success rate or ERT got worse")
+                        "budget and seeds, else larger-budget runs re-scored at this budget: "
+                        "exit 1 when a solver's ECDF area is significantly lower (one-sided "
+                        "Mann-Whitney per solver and track, family-wise level 5 %%)")
     p.add_argument("--no-plots", action="store_true", help="tables only")
     p.add_argument("--report-only", action="store_true",
                    help="run nothing: rebuild tables and plots from the records already in "
@@ -89,11 +101,13 @@ def run(args: argparse.Namespace) -> int:
     from ..leaderboard.store import RUNS_FILE, read_records
     from ..leaderboard.tasks import make_tasks
     from ..registry import available_solvers
+    from ..suite import expand_cases
     from . import CLIError, print_json
     from .args import check_output
 
     preset = QUICK if args.quick else DEFAULT
     seeds = args.seeds if args.seeds is not None else preset["seeds"]
+    cases = expand_cases(args.cases or preset["cases"])
     budget = args.budget if args.budget is not None else preset["budget"]
     if seeds < 1 or budget < 1:
         raise CLIError("--seeds and --budget must be >= 1")
@@ -107,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
     out = check_output(args.out or tempfile.mkdtemp(prefix="ema-lb-"), "--out", folder=True)
     command = "ema-bench " + " ".join(shlex.quote(a) for a in sys.argv[1:]) \
         if sys.argv[0].endswith("ema-bench") else None
-    summary = leaderboard(solvers, args.cases, args.tracks, seeds, budget, out,
+    summary = leaderboard(solvers, cases, args.tracks, seeds, budget, out,
                           executor=args.executor, workers=args.workers,
                           scheduler=args.scheduler, shard=args.shard,
                           root_seed=args.root_seed, plots=not args.no_plots,
@@ -115,7 +129,7 @@ def run(args: argparse.Namespace) -> int:
                           run=not args.report_only)
     status = 0
     if args.check:
-        tasks = make_tasks(solvers, args.cases, args.tracks, seeds, budget, args.root_seed,
+        tasks = make_tasks(solvers, cases, args.tracks, seeds, budget, args.root_seed,
                            args.shard)
         committed, used = load_baseline(args.check, budget, seeds,
                                         {(t.solver, t.case, t.track, t.seed, t.root_seed)

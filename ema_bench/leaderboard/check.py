@@ -6,19 +6,44 @@ seeds give the same runs, so only a code change moves the result), or else the c
 record of the smallest budget above B, re-scored as if it had stopped at B (optimistic for
 solvers that plan their search around the budget, e.g. multi-start splits).
 
-Regressions are judged per solver and track over all checked cases: a success rate lower by
-more than a tolerance, or an ERT worse by more than a factor.  With two seeds a single case
-is too coarse a unit (one run flipping across the 1 % success line moves its rate by 0.5).
+The test, per solver and track over the runs both hold (sanity case excluded): a one-sided
+Mann-Whitney U test (``scipy.stats.mannwhitneyu``, ``alternative="less"``) of the runs' ECDF
+areas (:func:`~.anytime.run_area`: every fitness and parameter target, credited by how early
+it was reached) now against committed, at a family-wise significance level ``ALPHA`` split
+over the comparisons (Bonferroni).  Identical runs never alarm; a rerun in which every run is
+a fresh draw alarms with a measured rate of at most ``ALPHA``
+(``benchmarks/check_false_alarms.py``, ``leaderboards/README.md``).  Records of another suite
+version are refused: the targets differ.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
-from .scores import ALL, score_records
+from scipy import stats
+
+from ..suite import SANITY_CASES, SUITE_ID
+from .anytime import run_area
+from .scores import ALL
 from .store import RUNS_FILE, is_current, read_records, run_identity
+
+#: Family-wise false-alarm level of one check (all solvers and tracks together).
+ALPHA = 0.05
+
+
+def suite_of(record: dict) -> str:
+    """The suite version a record was scored under (records before suites: ``"none"``)."""
+    return str(record.get("suite", "none"))
+
+
+def check_suites(records: list[dict], where: str) -> None:
+    """ValueError naming both versions when ``records`` are of another suite version."""
+    other = sorted({suite_of(r) for r in records} - {SUITE_ID})
+    if other:
+        raise ValueError(f"{where} holds runs of suite version {', '.join(other)}; this is "
+                         f"{SUITE_ID}: their targets differ and they cannot be compared "
+                         "(regenerate the baseline with this version, leaderboards/README.md)")
 
 
 @dataclass(frozen=True)
@@ -36,7 +61,8 @@ class Regression:
 
 
 def truncate(records: list[dict], budget: int, seeds: int) -> list[dict]:
-    """Committed records as if they had been run with ``budget`` on the first ``seeds``."""
+    """Committed records as if they had been run with ``budget`` on the first ``seeds``:
+    success and every target reached after ``budget`` are dropped."""
     out = []
     for r in records:
         if r["seed"] >= seeds:
@@ -45,6 +71,13 @@ def truncate(records: list[dict], budget: int, seeds: int) -> list[dict]:
         ok = r["success"] and r.get("evals_to_success") and r["evals_to_success"] <= budget
         r["success"] = bool(ok)
         r["budget"] = min(budget, r["budget"])
+        if r.get("targets"):
+            t = dict(r["targets"])
+            for kind in ("fitness", "parameters"):
+                if t.get(kind) is not None:
+                    t[kind] = {k: (v if v is not None and v <= budget else None)
+                               for k, v in t[kind].items()}
+            r["targets"] = t
         out.append(r)
     return out
 
@@ -87,26 +120,33 @@ def baseline(records: list[dict], budget: int, seeds: int, keys: set[tuple] | No
                                                      "other_model_version": stale}
 
 
-def compare(now: list[dict], committed: list[dict], success_tol: float = 0.34,
-            ert_factor: float = 2.0) -> list[Regression]:
-    """Regressions of ``now`` against ``committed`` (a :func:`baseline`) per (track, solver)
-    over the cases both hold: success rate lower by more than ``success_tol`` or ERT worse
-    by more than ``ert_factor``."""
+def compare(now: list[dict], committed: list[dict], alpha: float = ALPHA
+            ) -> list[Regression]:
+    """Regressions of ``now`` against ``committed`` (a :func:`baseline`): per (track, solver)
+    over the non-sanity runs both hold, a one-sided Mann-Whitney U test of the runs' ECDF
+    areas (now smaller) significant at ``alpha`` / number of comparisons."""
+    check_suites(committed, "the baseline")
+    check_suites(now, "this run")
     shared = set(map(run_id, now)) & set(map(run_id, committed))
 
-    def index(rs: list[dict]) -> dict:
-        rs = [r for r in rs if run_id(r) in shared]
-        return {(s.track, s.solver): s for s in score_records(rs) if s.case == ALL}
+    def areas(rs: list[dict]) -> dict[tuple[str, str], list[float]]:
+        out: dict[tuple[str, str], list[float]] = {}
+        for r in sorted(rs, key=run_id):
+            if run_id(r) in shared and r["case"] not in SANITY_CASES:
+                out.setdefault((r["track"], r["solver"]), []).append(run_area(r))
+        return out
 
-    a, b = index(committed), index(now)
+    a, b = areas(committed), areas(now)
+    keys = sorted(set(a) & set(b))
     bad = []
-    for key in sorted(set(a) & set(b)):
+    for key in keys:
         old, new = a[key], b[key]
-        if new.success_rate < old.success_rate - success_tol:
-            bad.append(Regression(key[0], ALL, key[1], "success", old.success_rate,
-                                  new.success_rate))
-        if math.isfinite(old.ert) and new.ert > ert_factor * old.ert:
-            bad.append(Regression(key[0], ALL, key[1], "ERT", old.ert, new.ert))
+        if sorted(old) == sorted(new):
+            continue   # the same results (a deterministic rerun): nothing to test
+        p = float(stats.mannwhitneyu(new, old, alternative="less").pvalue)
+        if p < alpha / len(keys):
+            bad.append(Regression(key[0], ALL, key[1], f"ECDF area (p={p:.2g})",
+                                  sum(old) / len(old), sum(new) / len(new)))
     return bad
 
 

@@ -1,4 +1,5 @@
-"""Tables: ``leaderboard_<track>.md`` / ``.csv`` and ``paper_tables.md``."""
+"""Tables: ``leaderboard_<track>.md`` / ``.csv`` (anytime scores, :mod:`.anytime`) and
+``paper_tables.md`` (the paper's Tables 2-5 beside ours)."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from ..faults import CASES, FAULT_NAMES, FAULT_UNITS
+from .anytime import AnytimeScore, SanityScore, anytime_scores, sanity_scores
 from .scores import ALL, SolverScore
 
 
@@ -23,38 +25,95 @@ def _fmt(v: float, digits: int = 3) -> str:
     return f"{v:.{digits}g}"
 
 
-def write_leaderboards(scores: list[SolverScore], out: Path, header: str) -> list[Path]:
-    """One Markdown and one CSV leaderboard per track; returns the paths written."""
+def _ci(v: tuple[float, float, float], digits: int = 3) -> str:
+    """``value [lo, hi]``."""
+    return f"{_fmt(v[0], digits)} [{_fmt(v[1], digits)}, {_fmt(v[2], digits)}]"
+
+
+#: The ERT columns of the ranking table (all of them are in the CSV).
+ERT_COLUMNS = ("f0.01", "f0.0001", "p0.01")
+
+
+def ranking_rows(scores: list[AnytimeScore], track: str) -> list[dict[str, object]]:
+    """The ranking table of a track (non-sanity instances), rank by ECDF area: one dict per
+    solver, display strings and the raw values for sorting (``(text, value)`` pairs)."""
+    rows = []
+    for rank, s in enumerate((s for s in scores if s.track == track and s.cases == ALL), 1):
+        b10, b = sorted(s.precision)[0], sorted(s.precision)[-1]
+        row: dict[str, object] = {
+            "rank": rank, "solver": s.solver,
+            "ECDF area [95 % CI]": (_ci(s.area), s.area[0]),
+            "fitness area": s.fitness_area, "parameter area": s.parameter_area}
+        for k in ERT_COLUMNS:
+            row[f"ERT {k} [95 % CI]"] = (_ci(s.ert.get(k, (math.nan,) * 3)),
+                                         s.ert.get(k, (math.nan,))[0])
+        row["reached p0.01"] = s.hit_rate.get("p0.01", math.nan)
+        row[f"median precision at {b10}"] = s.precision[b10][1]
+        row[f"median precision at {b}"] = s.precision[b][1]
+        row["runs"] = s.runs
+        row["failed"] = s.errors
+        rows.append(row)
+    return rows
+
+
+def _cell(v: object) -> str:
+    return v[0] if isinstance(v, tuple) else _fmt(v) if isinstance(v, float) else str(v)
+
+
+def markdown_table(rows: list[dict[str, object]]) -> list[str]:
+    if not rows:
+        return ["(no runs)"]
+    cols = list(rows[0])
+    return (["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
+            + ["| " + " | ".join(_cell(r[c]) for c in cols) + " |" for r in rows])
+
+
+def sanity_rows(sanity: list[SanityScore], track: str) -> list[dict[str, object]]:
+    return [{"solver": s.solver, "stayed within 1 % of nominal": f"{s.stayed}/{s.runs}",
+             "median largest range error": s.median_max_range_error}
+            for s in sanity if s.track == track]
+
+
+def instance_rows(scores: list[AnytimeScore], track: str) -> list[dict[str, object]]:
+    """Solvers x instances: the ECDF area of each solver on each instance."""
+    per = [s for s in scores if s.track == track and s.cases != ALL]
+    cases = list(dict.fromkeys(s.cases for s in per))
+    solvers = [s.solver for s in scores if s.track == track and s.cases == ALL]
+    area = {(s.solver, s.cases): s.area[0] for s in per}
+    return [{"solver": sv, **{c: area.get((sv, c), math.nan) for c in cases}}
+            for sv in solvers]
+
+
+def write_leaderboards(records: list[dict], out: Path, header: str) -> list[Path]:
+    """Per track: ``leaderboard_<track>.md`` (ranking by ECDF area, the sanity row, per
+    instance areas) and ``leaderboard_<track>.csv`` (every anytime score, aggregate and per
+    instance); returns the paths written."""
+    scores = anytime_scores(records, per_case=True)
+    sanity = sanity_scores(records)
     written = []
-    by_track: dict[str, list[SolverScore]] = defaultdict(list)
-    for s in scores:
-        by_track[s.track].append(s)
-    for track, rows in by_track.items():
+    for track in dict.fromkeys(r["track"] for r in records):
+        rows = [s for s in scores if s.track == track]
         csv_path = out / f"leaderboard_{track}.csv"
+        flat = [s.row() for s in rows]
+        fields = list(dict.fromkeys(k for r in flat for k in r))
         with open(csv_path, "w", newline="") as fh:
-            fields = list(rows[0].row())
             w = csv.DictWriter(fh, fieldnames=fields)
             w.writeheader()
-            for s in rows:
-                w.writerow({k: (v if not isinstance(v, float) else repr(v))
-                            for k, v in s.row().items()})
-        md = [f"# Leaderboard, {track} track", "", header, "",
-              _track_note(track), ""]
-        cases = [ALL] + [c for c in dict.fromkeys(s.case for s in rows) if c != ALL]
-        for case in cases:
-            md += [f"## {'all cases' if case == ALL else case}", "",
-                   "| rank | solver | success | ERT (evals) | median evals to success | "
-                   "median fitness | " + " | ".join(f"acc {n} %" for n in FAULT_NAMES) +
-                   " | median wall s |",
-                   "|---:|---|---:|---:|---:|---:|" + "---:|" * len(FAULT_NAMES) + "---:|"]
-            for rank, s in enumerate((s for s in rows if s.case == case), 1):
-                md.append(
-                    f"| {rank} | {s.solver} | {s.successes}/{s.runs}"
-                    f"{f' ({s.errors} failed)' if s.errors else ''} | {_fmt(s.ert)} | "
-                    f"{_fmt(s.median_evals_to_success)} | {_fmt(s.median_fitness)} | "
-                    + " | ".join(_fmt(s.accuracy[n], 4) for n in FAULT_NAMES)
-                    + f" | {_fmt(s.median_wall_s)} |")
-            md.append("")
+            for r in flat:
+                w.writerow({k: (repr(v) if isinstance(v, float) else v) for k, v in r.items()})
+        md = [f"# Leaderboard, {track} track", "", header, "", _track_note(track), "",
+              "## Ranking: ECDF area over every (instance, target) pair", "",
+              "Instances: every one but the sanity case. Targets: fitness within "
+              "1e-1 .. 1e-4 of the instance's f*-to-nominal gap (f0.1 .. f0.0001) and the "
+              "best-so-far point within 10, 3, 1 % of every fault's range (p0.1 .. p0.01). "
+              "Area: a target reached at evaluation h of budget B counts (ln B - ln h) / ln B, "
+              "a miss 0; mean over runs and targets, 95 % bootstrap interval over runs. "
+              "Precision: (best fitness - f*) / (f_nominal - f*), median over runs.", "",
+              *markdown_table(ranking_rows(scores, track)), "",
+              "## Sanity: the healthy actuator (nominal case, not ranked)", "",
+              *markdown_table(sanity_rows(sanity, track)), "",
+              "## ECDF area per instance", "",
+              *markdown_table(instance_rows(scores, track)), ""]
         md_path = out / f"leaderboard_{track}.md"
         md_path.write_text("\n".join(md))
         written += [md_path, csv_path]

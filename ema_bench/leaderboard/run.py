@@ -9,7 +9,11 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
+from ..faults import CASES
 from ..progress import Progress, progress
+from ..suite import SUITE_ID
+from ..trace_cache import MODEL_VERSION
+from .anytime import anytime_scores
 from .claims import Claim, holder, try_claim
 from .executors import Runner, execute
 from .figures import (
@@ -20,6 +24,7 @@ from .figures import (
     overlay_plot,
     valley_rise,
 )
+from .page import write_page
 from .report import load_paper_results, write_leaderboards, write_paper_tables
 from .scores import score_records
 from .store import RUNS_FILE, RunStore, is_error, read_records, run_identity, unique
@@ -144,40 +149,45 @@ def write_outputs(records: list[dict], out: Path, command: str, plots: bool = Tr
     failed = failures(records)
     errors = (f" {len(failed)} runs failed with an error (counted as unsuccessful at their "
               "budget; summary.json lists them)." if failed else "")
-    header = (f"Produced by `{command}`: {len(records)} runs.{partial}{errors} "
-              "Success = every parameter within 1 % of its range of the truth; "
-              "ERT = evaluations summed over runs (failures at their budget) / successes.")
+    header = (f"Produced by `{command}`: {len(records)} runs, suite {SUITE_ID}, model "
+              f"version {MODEL_VERSION}.{partial}{errors}")
     # scores and the ECDF count failed runs as unsuccessful; what needs a fit, finished runs
     finished = [r for r in records if not is_error(r)]
     scores = score_records(records)
-    written = write_leaderboards(scores, out, header)
+    written = write_leaderboards(records, out, header)
     written.append(write_paper_tables(finished, scores, out, header, load_paper_results()))
     summary: dict[str, object] = {"errors": failed}
+    images: list[Path] = []
     if plots:
         p = out / "ecdf.png"
         ecdf_plot(records, p)
-        written.append(p)
+        images.append(p)
     if plots and finished:
         for track in dict.fromkeys(r["track"] for r in finished):
-            p = out / f"convergence_{track}.png"
-            convergence_plot(finished, track, p)
-            written.append(p)
+            if any(r["track"] == track and r["case"] in CASES for r in finished):
+                p = out / f"convergence_{track}.png"
+                convergence_plot(finished, track, p)
+                images.append(p)
         # one fit shown before/after: the best solver's run on the hardest paper case
         ref = [r for r in finished if r["track"] == "reference"] or finished
         full = [r for r in ref if r["case"] == "full"] or ref
         p = out / "fit_overlay.png"
         overlay_plot(min(full, key=lambda r: r["fitness"]), p)
-        written.append(p)
+        images.append(p)
         if landscape_n:
             land = landscape(landscape_n)
             p = out / "figure5_landscape.png"
             landscape_plot(land, p)
-            written.append(p)
+            images.append(p)
             summary["figure5_valley_rise"] = {"raw": valley_rise(land["raw"]),
                                               "normalised": valley_rise(land["normalised"])}
+    written += images
+    written.append(write_page(records, out / "leaderboard.html", header, images))
     summary["files"] = [str(p) for p in written]
     (out / "summary.json").write_text(json.dumps(
-        {"command": command, "runs": len(records), **summary,
+        {"command": command, "runs": len(records), "suite": SUITE_ID,
+         "model_version": MODEL_VERSION, **summary,
+         "anytime": [s.row() for s in anytime_scores(records)],
          "scores": [s.row() for s in scores]}, indent=1, default=str))
     return summary
 

@@ -14,6 +14,7 @@ from ..instances import make_problem
 from ..records import run_record
 from ..registry import get_solver, run_solver
 from ..seeding import run_seed
+from ..suite import SUITE_ID
 from ..trace_cache import MODEL_VERSION
 from .store import IDENTITY_FIELDS
 
@@ -75,7 +76,7 @@ def error_record(task: Task, exc: BaseException, wall_s: float = 0.0) -> dict[st
     error, and ``success: False`` with no evaluations to success, so scores count it as an
     unsuccessful run at its budget."""
     return {"key": task.key, **{f: getattr(task, f) for f in IDENTITY_FIELDS},
-            "model_version": MODEL_VERSION, "status": "error",
+            "model_version": MODEL_VERSION, "suite": SUITE_ID, "status": "error",
             "error_type": type(exc).__name__, "error": str(exc) or repr(exc),
             "traceback": "".join(traceback.format_exception(exc))[-4000:],
             "success": False, "evals_to_success": None, "wall_s": wall_s}

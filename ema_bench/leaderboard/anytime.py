@@ -1,0 +1,252 @@
+"""Anytime scores of run records: fixed-target ERT, ECDF area, fixed-budget quantiles.
+
+Targets (:mod:`~ema_bench.suite`) of a run on a suite instance: four fitness targets
+``f* + p (f_nominal - f*)``, ``p`` = 1e-1 .. 1e-4, and three parameter targets (the best-so-far
+point within 10, 3, 1 % of every fault's range of the truth).  A record's ``targets`` field
+holds the evaluation at which each was first reached.
+
+- **ECDF area** (the ranking score): a run reaching a target at evaluation ``h`` of its budget
+  ``B`` is credited ``(ln B - ln h) / ln B`` (its share of the empirical cumulative
+  distribution of hitting times on a log axis from 1 to ``B``), a miss 0; a run's area is its
+  mean credit over its targets, a solver's area the mean over its runs: the area under the ECDF
+  over (instance, target) pairs, in [0, 1], higher is better.  95 % confidence intervals by
+  bootstrap over runs (``scipy.stats.bootstrap``, percentile method, seeded).
+- **ERT** per target (Hansen et al., COCO): evaluations summed over runs (a run that reached
+  the target counted until it did, the others at their budget) over the number of runs that
+  reached it; its interval is the bootstrap interval of the hit rate per evaluation, inverted.
+- **Fixed budget**: quantiles over runs of the best-so-far precision
+  ``(f - f*) / (f_nominal - f*)`` at budget checkpoints.
+
+The sanity case (``nominal``: does the solver stay at a healthy actuator?) is scored apart and
+left out of every aggregate.  A run that failed with an error reached no target (it counts,
+at its budget).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import defaultdict
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import stats
+
+from ..suite import (
+    BUDGET_CHECKPOINTS,
+    FITNESS_PRECISIONS,
+    PARAMETER_TARGETS,
+    SANITY_CASES,
+    precision_key,
+)
+from .store import is_error
+
+CONFIDENCE = 0.95
+N_RESAMPLES = 2000
+BOOTSTRAP_SEED = 20261123   # the intervals are reproducible: same records, same interval
+FITNESS_TARGETS = tuple(f"f{precision_key(p)}" for p in FITNESS_PRECISIONS)
+PARAMETER_TARGET_KEYS = tuple(f"p{precision_key(p)}" for p in PARAMETER_TARGETS)
+
+
+def hits(record: dict) -> dict[str, int | None]:
+    """Target name (``f1e-2``, ``p0.01``) -> evaluation of the first hit (None: missed), over
+    the targets defined for the record's instance (no fitness targets without an ``f*``); a
+    run that failed with an error missed every target."""
+    if is_error(record):
+        return dict.fromkeys(FITNESS_TARGETS + PARAMETER_TARGET_KEYS)
+    t = record.get("targets") or {}
+    out: dict[str, int | None] = {}
+    if t.get("fitness") is not None:
+        out.update({f"f{precision_key(p)}": t["fitness"].get(precision_key(p))
+                    for p in FITNESS_PRECISIONS})
+    par = t.get("parameters") or {}
+    out.update({f"p{precision_key(p)}": par.get(precision_key(p)) for p in PARAMETER_TARGETS})
+    return out
+
+
+def credit(hit: int | None, budget: int) -> float:
+    """A target's share of the ECDF area: ``(ln B - ln h) / ln B``, 0 for a miss."""
+    if hit is None or hit > budget:
+        return 0.0
+    if budget <= 1:
+        return 1.0
+    return (math.log(budget) - math.log(max(hit, 1))) / math.log(budget)
+
+
+def run_area(record: dict, kinds: str = "fp") -> float:
+    """Mean credit of a run over its targets (``kinds``: ``f`` fitness, ``p`` parameter)."""
+    h = {k: v for k, v in hits(record).items() if k[0] in kinds}
+    if not h:
+        return math.nan
+    return float(np.mean([credit(v, record["budget"]) for v in h.values()]))
+
+
+def mean_ci(values: Sequence[float], seed: int = BOOTSTRAP_SEED) -> tuple[float, float, float]:
+    """Mean and its bootstrap 95 % interval (nan bounds for fewer than two values)."""
+    v = np.asarray([x for x in values if not math.isnan(x)], dtype=float)
+    if v.size == 0:
+        return math.nan, math.nan, math.nan
+    m = float(v.mean())
+    if v.size < 2 or np.all(v == v[0]):
+        return m, (m if v.size > 1 else math.nan), (m if v.size > 1 else math.nan)
+    res = stats.bootstrap((v,), np.mean, n_resamples=N_RESAMPLES, confidence_level=CONFIDENCE,
+                          method="percentile", rng=np.random.default_rng(seed))
+    return m, float(res.confidence_interval.low), float(res.confidence_interval.high)
+
+
+def ert(hit_list: Sequence[int | None], budgets: Sequence[int]) -> float:
+    """COCO's expected running time: summed costs over the number of hits (inf without)."""
+    k = sum(h is not None for h in hit_list)
+    cost = sum(h if h is not None else b for h, b in zip(hit_list, budgets))
+    return cost / k if k else math.inf
+
+
+def ert_ci(hit_list: Sequence[int | None], budgets: Sequence[int],
+           seed: int = BOOTSTRAP_SEED) -> tuple[float, float, float]:
+    """ERT and a 95 % interval: the bootstrap interval (over runs) of the hit rate per
+    evaluation ``hits / cost``, inverted (an upper bound of inf: the data allow no hit)."""
+    e = ert(hit_list, budgets)
+    succ = np.array([h is not None for h in hit_list], dtype=float)
+    cost = np.array([h if h is not None else b for h, b in zip(hit_list, budgets)], float)
+    if succ.size < 2 or np.all(succ == succ[0]) and np.all(cost == cost[0]):
+        return e, (e if succ.size > 1 else math.nan), (e if succ.size > 1 else math.nan)
+    res = stats.bootstrap((succ, cost), lambda s, c, axis=-1: s.sum(axis) / c.sum(axis),
+                          paired=True, vectorized=True, n_resamples=N_RESAMPLES,
+                          confidence_level=CONFIDENCE, method="percentile",
+                          rng=np.random.default_rng(seed))
+    lo, hi = res.confidence_interval.low, res.confidence_interval.high
+    return e, (1.0 / hi if hi > 0 else math.inf), (1.0 / lo if lo > 0 else math.inf)
+
+
+def precision_at(record: dict, budget: int) -> float:
+    """Best-so-far precision ``(f - f*) / (f_nominal - f*)`` after ``budget`` evaluations:
+    from the record's ``best_at`` checkpoints (the last one at or before ``budget``), or its
+    final fitness once the run has stopped; nan without ``f*``, for an error record, before
+    the first checkpoint or beyond the run's budget.  Below 0: the run beat ``f*``."""
+    t = record.get("targets") or {}
+    if is_error(record) or "f_star" not in t or budget > record["budget"]:
+        return math.nan
+    if budget >= record.get("evaluations", math.inf):
+        f = record["fitness"]
+    else:
+        pts = [f for b, f in record.get("best_at", []) if b <= budget]
+        if not pts:
+            return math.nan
+        f = pts[-1]
+    return (f - t["f_star"]) / (t["f_nominal"] - t["f_star"])
+
+
+@dataclass(frozen=True)
+class AnytimeScore:
+    """A solver's anytime scores on one track over a set of instances."""
+
+    track: str
+    solver: str
+    cases: str                        # "all" (non-sanity instances) or one instance
+    runs: int
+    errors: int
+    area: tuple[float, float, float]  # ECDF area over every target: mean, 95 % CI
+    fitness_area: float               # over fitness targets only (nan without f*)
+    parameter_area: float             # over parameter targets only
+    ert: dict[str, tuple[float, float, float]] = field(default_factory=dict)
+    hit_rate: dict[str, float] = field(default_factory=dict)
+    precision: dict[int, tuple[float, float, float]] = field(default_factory=dict)
+
+    def row(self) -> dict[str, object]:
+        """A flat row for CSV."""
+        d: dict[str, object] = {"track": self.track, "solver": self.solver,
+                                "cases": self.cases, "runs": self.runs, "errors": self.errors,
+                                "ecdf_area": self.area[0], "ecdf_area_lo": self.area[1],
+                                "ecdf_area_hi": self.area[2],
+                                "fitness_area": self.fitness_area,
+                                "parameter_area": self.parameter_area}
+        for k, (e, lo, hi) in self.ert.items():
+            d[f"ert_{k}"], d[f"ert_{k}_lo"], d[f"ert_{k}_hi"] = e, lo, hi
+        for k, v in self.hit_rate.items():
+            d[f"hits_{k}"] = v
+        for b, (q10, q50, q90) in self.precision.items():
+            d[f"precision_q10_at_{b}"], d[f"precision_median_at_{b}"], \
+                d[f"precision_q90_at_{b}"] = q10, q50, q90
+        return d
+
+
+def budget_points(budget: int) -> tuple[int, ...]:
+    """The fixed budgets reported: the last checkpoint within a tenth of the budget (the
+    records hold the best-so-far there) and the whole budget."""
+    early = [c for c in BUDGET_CHECKPOINTS if c <= budget / 10]
+    return (early[-1], budget) if early else (budget,)
+
+
+def anytime_score(track: str, solver: str, cases: str, records: list[dict]) -> AnytimeScore:
+    h = [hits(r) for r in records]
+    budgets = [r["budget"] for r in records]
+    keys = list(dict.fromkeys(k for x in h for k in x))
+    ert_d, rate = {}, {}
+    for k in keys:
+        hk = [x.get(k) for x in h if k in x]
+        bk = [b for x, b in zip(h, budgets) if k in x]
+        ert_d[k] = ert_ci(hk, bk)
+        rate[k] = sum(v is not None for v in hk) / len(hk)
+    prec = {}
+    for b in budget_points(min(budgets)):
+        p = [v for v in (precision_at(r, b) for r in records) if not math.isnan(v)]
+        prec[b] = tuple(float(q) for q in np.quantile(p, [0.1, 0.5, 0.9])) if p \
+            else (math.nan,) * 3
+    fit = [run_area(r, "f") for r in records]
+    fit = [v for v in fit if not math.isnan(v)]
+    return AnytimeScore(
+        track=track, solver=solver, cases=cases, runs=len(records),
+        errors=sum(map(is_error, records)),
+        area=mean_ci([run_area(r) for r in records]),
+        fitness_area=float(np.mean(fit)) if fit else math.nan,
+        parameter_area=float(np.mean([run_area(r, "p") for r in records])),
+        ert=ert_d, hit_rate=rate, precision=prec)
+
+
+def anytime_scores(records: list[dict], per_case: bool = False) -> list[AnytimeScore]:
+    """Per (track, solver) over the non-sanity instances (``cases="all"``), ranked by ECDF
+    area within each track; with ``per_case`` also per instance (sanity included)."""
+    groups: dict[tuple[str, str, str], list[dict]] = defaultdict(list)
+    for r in records:
+        if r["case"] not in SANITY_CASES:
+            groups[(r["track"], "all", r["solver"])].append(r)
+        if per_case:
+            groups[(r["track"], r["case"], r["solver"])].append(r)
+    scores = [anytime_score(t, s, c, rs) for (t, c, s), rs in groups.items()]
+    return sorted(scores, key=lambda s: (s.track, s.cases != "all", s.cases,
+                                         -np.nan_to_num(s.area[0], nan=-1.0), s.solver))
+
+
+@dataclass(frozen=True)
+class SanityScore:
+    """On the healthy actuator: how many runs ended at (within 1 % of) the nominal vector."""
+
+    track: str
+    solver: str
+    runs: int
+    stayed: int
+    median_max_range_error: float
+
+
+def sanity_scores(records: list[dict]) -> list[SanityScore]:
+    groups: dict[tuple[str, str], list[dict]] = defaultdict(list)
+    for r in records:
+        if r["case"] in SANITY_CASES:
+            groups[(r["track"], r["solver"])].append(r)
+    out = []
+    for (track, solver), rs in sorted(groups.items()):
+        err = [max(r["range_error"].values()) for r in rs if not is_error(r)]
+        out.append(SanityScore(track, solver, len(rs), sum(bool(r["success"]) for r in rs),
+                               float(np.median(err)) if err else math.nan))
+    return out
+
+
+def ecdf_curve(records: list[dict], grid: np.ndarray) -> np.ndarray:
+    """Fraction of (run, target) pairs reached by each evaluation count of ``grid`` (the
+    runs' non-sanity targets)."""
+    hit_times = [v if v is not None else math.inf for r in records
+                 if r["case"] not in SANITY_CASES for v in hits(r).values()]
+    if not hit_times:
+        return np.full(grid.shape, math.nan)
+    t = np.sort(np.asarray(hit_times, float))
+    return np.searchsorted(t, grid, side="right") / t.size

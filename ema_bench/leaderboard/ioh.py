@@ -1,0 +1,325 @@
+"""Run records as IOHprofiler data, for IOHanalyzer and iohinspector.
+
+The format is the one the current IOHexperimenter writes with its default ``Analyzer`` logger
+(``ioh::logger::analyzer::v2`` in ``include/ioh/logger/analyzer.hpp`` of
+github.com/IOHprofiler/IOHexperimenter, version 0.3.23), and that iohinspector
+(``src/iohinspector/data.py``: ``Dataset.from_dict``, ``Scenario.load``) and IOHanalyzer
+(``R/readFiles.R``: ``read_index_file__json``, ``read_dat``) read.  Per algorithm folder,
+one meta-data file per function and one data file per dimension::
+
+    OUT/<solver>/IOHprofiler_f<fid>_<function>.json
+    OUT/<solver>/data_f<fid>_<function>/IOHprofiler_f<fid>_DIM4.dat
+
+The meta file: ``version``, ``suite``, ``function_id`` (int), ``function_name``,
+``maximization`` (bool), ``algorithm`` ``{name, info}``, optional ``run_attributes`` (names
+of per-run numbers), ``attributes`` (the data columns), ``scenarios``: per dimension
+``{dimension, path (of the .dat, relative to the meta file), runs: [{instance, evals (of the
+run), best: {evals, y, x}, <run attributes>}]}``.  The data file: each run starts with the
+header line ``evaluations raw_y`` and has one line ``evaluation value`` per improvement; its
+runs are in the order of ``runs``.  IOHanalyzer splits runs at header lines, iohinspector at
+``evaluations == 1``: every run must start at evaluation 1 (ema-bench traces do).
+
+The mapping: one IOH *function* per (case, track), named ``case@track``, with id the 1-based
+position of its first appearance (or as given); dimension 4 (the fault vector, ``x`` in
+``FAULT_NAMES`` order); minimisation; algorithm = solver, its info the library the solver
+wraps (with its version when the record has it; else the suite); suite = the record's suite,
+else ``ema-bench``.  The *instance* is the run seed, plus ``1000 * root_seed`` when the root seed
+is not 0 (so seeds must stay below 1000 then; iohinspector stores instances as 16-bit
+integers); the exact seed, root seed and budget are run attributes.  ``raw_y`` is the
+best-so-far fitness at each recorded evaluation: at an improvement it is the evaluated value
+itself; the last line of a run, at its last evaluation, repeats the best-so-far value where
+IOH would write that evaluation's own (records do not keep it).  A trace thinned by the
+record writer has fewer improvement lines; none is invented.  Values are written in Python's
+shortest round-trip form (``6.19e-05``), not IOH's default ``{:.10f}``, which would round a
+normalised fitness of 1e-11 to zero.  Runs that failed with an error (and runs without an
+evaluation, which IOH does not record) are skipped.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import re
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+from typing import Any
+
+from ..faults import FAULT_NAMES
+from .store import is_error
+
+log = logging.getLogger("ema_bench")
+
+#: The IOHexperimenter version whose format this writes (IOHanalyzer reads a meta file of
+#: version >= 0.3.3 as this JSON format).
+IOH_FORMAT_VERSION = "0.3.23"
+DEFAULT_SUITE = "ema-bench"
+DIMENSION = len(FAULT_NAMES)
+ATTRIBUTES = ("evaluations", "raw_y")
+RUN_ATTRIBUTES = ("seed", "root_seed", "budget")
+#: instance = seed + INSTANCE_STRIDE * root_seed
+INSTANCE_STRIDE = 1000
+
+_UNSAFE = re.compile(r"[^A-Za-z0-9._@+-]")
+
+
+def function_name(record: Mapping[str, Any]) -> str:
+    """The IOH function of a run record: ``case@track``."""
+    return f"{record['case']}@{record['track']}"
+
+
+def instance_of(record: Mapping[str, Any]) -> int:
+    """The IOH instance of a run: its seed, plus ``1000 * root_seed`` when that is not 0."""
+    seed, root = int(record["seed"]), int(record.get("root_seed") or 0)
+    if seed < 0 or root < 0:
+        raise ValueError(f"run {_label(record)}: negative seed or root seed")
+    if root and seed >= INSTANCE_STRIDE:
+        raise ValueError(f"run {_label(record)}: seed {seed} >= {INSTANCE_STRIDE} with root "
+                         f"seed {root} has no distinct IOH instance")
+    return seed + INSTANCE_STRIDE * root
+
+
+def split_runs(records: Iterable[dict]) -> tuple[list[dict], list[dict]]:
+    """``(runs to export, runs skipped)``: skipped are runs that failed with an error and
+    runs without an evaluation.  ValueError for a record that is not a solver run (no
+    ``solver``, ``case``, ``track`` or ``seed``, e.g. a blind-suite case)."""
+    kept, skipped = [], []
+    for r in records:
+        missing = [f for f in ("solver", "case", "track", "seed") if f not in r]
+        if missing:
+            raise ValueError(f"record {_label(r)} is not a solver run: no "
+                             f"{', '.join(map(repr, missing))}")
+        (skipped if is_error(r) or not r.get("trace") else kept).append(r)
+    return kept, skipped
+
+
+def export_ioh(records: Iterable[dict], out: Path,
+               function_ids: Mapping[str, int] | None = None) -> list[Path]:
+    """Write run records as IOHprofiler data under ``out`` (see the module docstring).
+
+    Parameters
+    ----------
+    records
+        Run records (one ``runs.jsonl`` line each); error records and runs without an
+        evaluation are skipped, with a warning saying how many.
+    out
+        Output folder; one sub-folder per solver.  Files of the same names are replaced.
+    function_ids
+        ``case@track`` -> IOH function id; default: :func:`suite_function_ids` (the same
+        id for the same instance and track in every export), then ids after those for
+        anything else, in order of first appearance.
+
+    Returns
+    -------
+    list of Path
+        The files written: per solver and function, the meta file then the data file.
+
+    Raises
+    ------
+    ValueError
+        A record lacks a field or has a malformed trace, a function has no id (or two share
+        one), or two solver or function names map to the same file name.
+    """
+    runs, skipped = split_runs(records)
+    if skipped:
+        log.warning("IOH export: skipped %d runs (%d failed with an error, the others made no "
+                    "evaluation)", len(skipped), sum(map(is_error, skipped)))
+    names = list(dict.fromkeys(function_name(r) for r in runs))
+    ids = _function_ids(names, function_ids)
+    groups: dict[tuple[str, str], list[dict]] = {}
+    for r in runs:
+        groups.setdefault((str(r["solver"]), function_name(r)), []).append(r)
+    _check_unique_files([s for s, _ in groups], "solver")
+    _check_unique_files(names, "function")
+    # every file is made before the first is written: a bad record leaves no partial export
+    files: list[tuple[Path, str]] = []
+    for (solver, name), group in groups.items():
+        group.sort(key=lambda r: (instance_of(r), int(r.get("budget") or 0)))
+        files += _function_files(Path(out) / safe_name(solver), solver, name, ids[name], group)
+    for path, text in files:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text, encoding="utf-8")
+    return [path for path, _ in files]
+
+
+def safe_name(name: str) -> str:
+    """``name`` for a file name: characters other than letters, digits and ``._@+-`` become
+    ``_``."""
+    safe = _UNSAFE.sub("_", name)
+    return "_" if safe in ("", ".", "..") else safe
+
+
+def suite_function_ids() -> dict[str, int]:
+    """``case@track`` -> function id for the suite's instances: 1, 2, ... in the suite's
+    order, tracks alternating (``nominal@reference`` 1, ``nominal@twin`` 2, ...)."""
+    from ..instances import TRACKS
+    from ..suite import instance_names
+
+    return {f"{c}@{t}": i for i, (c, t) in
+            enumerate(((c, t) for c in instance_names() for t in TRACKS), 1)}
+
+
+def _function_ids(names: list[str], given: Mapping[str, int] | None) -> dict[str, int]:
+    if given is None:
+        fixed = suite_function_ids()
+        extra = [n for n in names if n not in fixed]
+        fixed.update({n: i for i, n in enumerate(extra, len(fixed) + 1)})
+        return {n: fixed[n] for n in names}
+    missing = [n for n in names if n not in given]
+    if missing:
+        raise ValueError(f"no function id given for {', '.join(missing)}")
+    ids = {n: int(given[n]) for n in names}
+    if any(i < 0 for i in ids.values()) or len(set(ids.values())) < len(ids):
+        raise ValueError(f"function ids must be distinct and >= 0, got {ids}")
+    return ids
+
+
+def _check_unique_files(names: Iterable[str], what: str) -> None:
+    seen: dict[str, str] = {}
+    for n in dict.fromkeys(names):
+        other = seen.setdefault(safe_name(n), n)
+        if other != n:
+            raise ValueError(f"{what} names {other!r} and {n!r} map to the same file name")
+
+
+def _function_files(folder: Path, solver: str, name: str, fid: int,
+                    group: list[dict]) -> list[tuple[Path, str]]:
+    """``(path, text)`` of the meta and data files of one solver on one function."""
+    stem = f"f{fid}_{safe_name(name)}"
+    dat_rel = f"data_{stem}/IOHprofiler_f{fid}_DIM{DIMENSION}.dat"
+    # per-run numbers every run of the file has (IOH's run attributes: one list per file)
+    attrs = [a for a in RUN_ATTRIBUTES if all(r.get(a) is not None for r in group)]
+    lines, runs = [], []
+    for r in group:
+        trace = _trace(r)
+        lines.append(" ".join(ATTRIBUTES))
+        lines += [f"{e} {y!r}" for e, y in trace]
+        best_y = min(y for _, y in trace)
+        best_e = next(e for e, y in trace if y == best_y)
+        runs.append({"instance": instance_of(r), "evals": _int(r, "evaluations"),
+                     "best": {"evals": best_e, "y": best_y, "x": _x(r)},
+                     **{a: _int(r, a) for a in attrs}})
+    suites = {r.get("suite") or DEFAULT_SUITE for r in group}
+    if len(suites) > 1:
+        raise ValueError(f"{solver} on {name}: runs of several suites "
+                         f"({', '.join(sorted(suites))}); export them separately")
+    suite = suites.pop()
+    meta = {
+        "version": IOH_FORMAT_VERSION, "suite": suite, "function_id": fid,
+        "function_name": name, "maximization": False,
+        "algorithm": {"name": solver, "info": _info(group[0]) or suite},
+        "run_attributes": attrs,
+        "attributes": list(ATTRIBUTES),
+        "scenarios": [{"dimension": DIMENSION, "path": dat_rel, "runs": runs}],
+    }
+    return [(folder / f"IOHprofiler_{stem}.json", json.dumps(meta, indent=1, allow_nan=False)
+             + "\n"),
+            (folder / dat_rel, "\n".join(lines) + "\n")]
+
+
+def _label(r: Mapping[str, Any]) -> str:
+    return str(r.get("key") or "|".join(str(r.get(f)) for f in ("solver", "case", "track",
+                                                                   "seed")))
+
+
+def _int(r: Mapping[str, Any], field: str) -> int:
+    try:
+        return int(r[field])
+    except (KeyError, TypeError, ValueError):
+        raise ValueError(f"run {_label(r)}: {field!r} missing or not an integer") from None
+
+
+def _trace(r: Mapping[str, Any]) -> list[tuple[int, float]]:
+    """The record's ``[evaluation, best-so-far]`` pairs, checked: evaluations increase from 1,
+    values are finite."""
+    try:
+        trace = [(int(e), float(y)) for e, y in r["trace"]]
+    except (KeyError, TypeError, ValueError):
+        raise ValueError(f"run {_label(r)}: 'trace' is not a list of [evaluation, value] "
+                         "pairs") from None
+    evals = [e for e, _ in trace]
+    if not evals or evals[0] != 1 or any(b <= a for a, b in zip(evals, evals[1:])):
+        raise ValueError(f"run {_label(r)}: trace evaluations must increase from 1, got "
+                         f"{evals[:5]}{' ...' if len(evals) > 5 else ''}")
+    if not all(math.isfinite(y) for _, y in trace):
+        raise ValueError(f"run {_label(r)}: trace has a non-finite value")
+    return trace
+
+
+def _x(r: Mapping[str, Any]) -> list[float]:
+    try:
+        return [float(r["x"][n]) for n in FAULT_NAMES]
+    except (KeyError, TypeError, ValueError):
+        raise ValueError(f"run {_label(r)}: 'x' lacks one of {', '.join(FAULT_NAMES)}") from None
+
+
+def _info(r: Mapping[str, Any]) -> str:
+    """The library the solver wraps, with its version when the record has it."""
+    lib = str(r.get("info") or "")
+    version = (r.get("library") or {}).get(lib) if lib else None
+    return f"{lib} {version}" if version else lib
+
+
+def read_ioh(folder: Path) -> list[dict[str, Any]]:
+    """The runs of the IOHprofiler data under ``folder`` (every ``IOHprofiler_*.json`` meta
+    file below it and the data files it names), read from the format alone.
+
+    Returns
+    -------
+    list of dict
+        Per run: ``algorithm``, ``algorithm_info``, ``suite``, ``function_id``,
+        ``function_name``, ``maximization``, ``dimension``, ``instance``, ``run_evals`` (the
+        run's evaluations), ``evals`` and ``raw_y`` (the data lines), ``best_y``,
+        ``best_evals``, ``best_x`` and the run attributes (``attributes``).
+
+    Raises
+    ------
+    ValueError
+        A data file's runs do not match its meta file's, or a line does not parse.
+    """
+    out = []
+    for meta_path in sorted(Path(folder).rglob("IOHprofiler_*.json")):
+        meta = json.loads(meta_path.read_text(encoding="utf-8"))
+        for scen in meta["scenarios"]:
+            dat = meta_path.parent / scen["path"]
+            blocks = _dat_runs(dat)
+            if len(blocks) != len(scen["runs"]):
+                raise ValueError(f"{dat}: {len(blocks)} runs, {meta_path} lists "
+                                 f"{len(scen['runs'])}")
+            for run, (header, rows) in zip(scen["runs"], blocks):
+                cols = {h: [row[i] for row in rows] for i, h in enumerate(header)}
+                out.append({
+                    "algorithm": meta["algorithm"]["name"],
+                    "algorithm_info": meta["algorithm"]["info"],
+                    "suite": meta["suite"], "function_id": meta["function_id"],
+                    "function_name": meta["function_name"],
+                    "maximization": meta["maximization"], "dimension": scen["dimension"],
+                    "instance": run["instance"], "run_evals": run["evals"],
+                    "evals": [int(v) for v in cols["evaluations"]], "raw_y": cols["raw_y"],
+                    "best_y": run["best"]["y"], "best_evals": run["best"]["evals"],
+                    "best_x": run["best"]["x"],
+                    "attributes": {a: run[a] for a in meta.get("run_attributes", [])},
+                })
+    return out
+
+
+def _dat_runs(path: Path) -> list[tuple[list[str], list[list[float]]]]:
+    """``(header, rows)`` per run of a .dat file: a line that does not start with a number
+    is a header and starts a run."""
+    runs: list[tuple[list[str], list[list[float]]]] = []
+    for n, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
+        fields = line.split()
+        if not fields:
+            continue
+        try:
+            float(fields[0])
+        except ValueError:
+            runs.append((fields, []))
+            continue
+        if not runs:
+            raise ValueError(f"{path}:{n}: data before the first header line")
+        try:
+            runs[-1][1].append([float(v) for v in fields])
+        except ValueError:
+            raise ValueError(f"{path}:{n}: not a number in {line!r}") from None
+    return runs

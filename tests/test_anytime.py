@@ -1,0 +1,126 @@
+"""Anytime scores (ema_bench.leaderboard.anytime) recomputed by hand on tiny synthetic records:
+ECDF area, ERT per target, their bootstrap intervals, fixed-budget precision, the sanity row.
+
+The bootstrap intervals are checked against the exact bootstrap distribution, enumerated by
+hand for two- and four-run sets (the percentile interval of 2000 resamples lands on the same
+atoms: the margins below are many Monte Carlo standard errors wide).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from ema_bench.leaderboard.anytime import (
+    anytime_scores,
+    credit,
+    ecdf_curve,
+    ert_ci,
+    hits,
+    mean_ci,
+    precision_at,
+    run_area,
+    sanity_scores,
+)
+from ema_bench.suite import SUITE_ID
+
+F_KEYS = ("0.1", "0.01", "0.001", "0.0001")
+P_KEYS = ("0.1", "0.03", "0.01")
+
+
+def rec(solver="a", case="small", seed=0, f_hits=(None,) * 4, p_hits=(None,) * 3,
+        budget=100, best_at=(), f_star=1.0, f_nominal=11.0, status=None, success=False):
+    r = {"solver": solver, "case": case, "track": "twin", "seed": seed, "root_seed": 0,
+         "budget": budget, "evaluations": budget, "suite": SUITE_ID, "success": success,
+         "range_error": dict.fromkeys(("Na", "Fst", "BLK", "Gprop"), 0.002),
+         "best_at": [list(p) for p in best_at],
+         "fitness": best_at[-1][1] if best_at else f_nominal,
+         "targets": {"fitness": dict(zip(F_KEYS, f_hits)),
+                     "parameters": dict(zip(P_KEYS, p_hits)),
+                     "f_star": f_star, "f_nominal": f_nominal}}
+    if status:
+        r = {k: r[k] for k in ("solver", "case", "track", "seed", "root_seed", "budget")}
+        r.update(status=status, success=False)
+    return r
+
+
+def test_credit_and_run_area_by_hand():
+    assert credit(10, 100) == pytest.approx(0.5)        # (ln 100 - ln 10) / ln 100
+    assert credit(1, 100) == 1.0 and credit(100, 100) == 0.0 and credit(None, 100) == 0.0
+    r = rec(f_hits=(1, 10, None, None), p_hits=(10, 100, None))
+    # fitness: (1 + 0.5 + 0 + 0) / 4; parameters: (0.5 + 0 + 0) / 3; all: 2 / 7
+    assert run_area(r, "f") == pytest.approx(0.375)
+    assert run_area(r, "p") == pytest.approx(0.5 / 3)
+    assert run_area(r) == pytest.approx(2.0 / 7)
+    assert hits(r) == {"f0.1": 1, "f0.01": 10, "f0.001": None, "f0.0001": None,
+                       "p0.1": 10, "p0.03": 100, "p0.01": None}
+
+
+def test_ert_and_its_interval_by_hand():
+    # runs hit at 10 and 30, one misses at budget 100: ERT (10 + 100 + 30) / 2 = 70
+    e, lo, hi = ert_ci([10, None, 30], [100, 100, 100])
+    assert e == pytest.approx(70.0)
+    # two runs, one hit at 10, one miss: resampled pairs hit twice (p 1/4, rate 2/20),
+    # once (p 1/2, rate 1/110) or never (p 1/4, rate 0): the 95 % interval of the rate is
+    # [0, 0.1], inverted [10, inf]
+    e, lo, hi = ert_ci([10, None], [100, 100])
+    assert (e, lo, hi) == (pytest.approx(110.0), pytest.approx(10.0), math.inf)
+    assert ert_ci([None, None], [100, 100])[0] == math.inf
+
+
+def test_mean_interval_by_hand():
+    # {0, 0, 0, 1}: the resampled mean is Binomial(4, 1/4) / 4; P(mean <= 0.5) = 0.949 and
+    # P(mean = 0) = 0.316, so the 2.5 % and 97.5 % percentiles are 0 and 0.75
+    m, lo, hi = mean_ci([0.0, 0.0, 0.0, 1.0])
+    assert (m, lo, hi) == (0.25, 0.0, 0.75)
+    assert mean_ci([0.3, 0.3, 0.3]) == (0.3, 0.3, 0.3)   # no spread, no interval width
+    assert math.isnan(mean_ci([0.3])[1])                  # one run: no interval
+    assert mean_ci([0.0, 0.0, 0.0, 1.0]) == mean_ci([0.0, 0.0, 0.0, 1.0])   # seeded
+
+
+def test_aggregate_excludes_the_sanity_case_and_counts_errors_as_misses():
+    records = [rec(f_hits=(1, 1, 1, 1), p_hits=(1, 1, 1), case="nominal"),
+               rec(f_hits=(10,) * 4, p_hits=(10,) * 3, seed=0),
+               rec(seed=1),                                        # missed everything
+               rec(seed=2, status="error")]                        # crashed
+    (s,) = anytime_scores(records)
+    assert (s.cases, s.runs, s.errors) == ("all", 3, 1)
+    assert s.area[0] == pytest.approx(0.5 / 3)            # (0.5 + 0 + 0) / 3, nominal out
+    assert s.hit_rate["p0.01"] == pytest.approx(1 / 3)
+    assert s.ert["f0.1"][0] == pytest.approx((10 + 100 + 100) / 1)
+    per = {x.cases: x.area[0] for x in anytime_scores(records, per_case=True)}
+    assert per["nominal"] == 1.0 and per["small"] == pytest.approx(0.5 / 3)
+    (san,) = sanity_scores(records)
+    assert (san.runs, san.stayed) == (1, 0)
+
+
+def test_sanity_row_counts_runs_that_stayed_at_nominal():
+    recs = [rec(case="nominal", success=True), rec(case="nominal", seed=1, success=False)]
+    recs[1]["range_error"] = {**recs[1]["range_error"], "Na": 0.3}
+    (s,) = sanity_scores(recs)
+    assert (s.runs, s.stayed) == (2, 1)
+    assert s.median_max_range_error == pytest.approx((0.002 + 0.3) / 2)
+
+
+def test_fixed_budget_precision_by_hand():
+    r = rec(best_at=[(10, 6.0), (20, 2.0), (50, 1.5), (100, 1.1)], f_star=1.0, f_nominal=11.0)
+    assert precision_at(r, 10) == pytest.approx(0.5)    # (6 - 1) / (11 - 1)
+    assert precision_at(r, 30) == pytest.approx(0.1)    # the best at 20 still holds at 30
+    assert precision_at(r, 100) == pytest.approx(0.01)
+    assert math.isnan(precision_at(r, 5))              # before the first checkpoint
+    assert math.isnan(precision_at(r, 200))            # beyond the run's budget
+    stopped = {**r, "evaluations": 60, "fitness": 1.2}  # a run that stopped early: its
+    assert precision_at(stopped, 100) == pytest.approx(0.02)   # final best holds
+    (s,) = anytime_scores([r, rec(seed=1, best_at=[(10, 11.0), (100, 3.0)])])
+    assert sorted(s.precision) == [10, 100]            # a tenth of the budget, the budget
+    assert s.precision[100][1] == pytest.approx((0.01 + 0.2) / 2)
+    assert s.precision[10][1] == pytest.approx((0.5 + 1.0) / 2)
+
+
+def test_ecdf_curve_counts_run_target_pairs():
+    records = [rec(f_hits=(1, 10, None, None), p_hits=(10, 100, None)),
+               rec(case="nominal", f_hits=(1,) * 4, p_hits=(1,) * 3)]
+    curve = ecdf_curve(records, np.array([1, 9, 10, 100]))
+    assert curve.tolist() == pytest.approx([1 / 7, 1 / 7, 3 / 7, 4 / 7])

@@ -1,0 +1,269 @@
+"""``ema-bench export --format ioh``: run records as IOHprofiler data (meta JSON + .dat)."""
+
+from __future__ import annotations
+
+import json
+import logging
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from ema_bench.cli import main
+from ema_bench.leaderboard.ioh import export_ioh, read_ioh
+
+REPO = Path(__file__).resolve().parents[1]
+QUICK_RUNS = REPO / "leaderboards" / "quick" / "runs.jsonl"
+CLI = [sys.executable, "-m", "ema_bench.cli"]
+
+SOLVERS = ("alpha", "beta")
+CASES = ("small", "full")
+TRACKS = ("reference", "twin")
+SEEDS = (0, 1)
+# functions in order of first appearance (records are made solver, case, track, seed)
+# the suite's fixed ids: instances in suite order (nominal, small, full, ...), tracks alternating
+FIDS = {"small@reference": 3, "small@twin": 4, "full@reference": 5, "full@twin": 6}
+
+
+def _record(k: int, solver: str, case: str, track: str, seed: int) -> dict:
+    """A finished run with a hand-made trace: improvements at 1, 3 and 4 + k (k < 16), then
+    the last evaluation (20) repeating the best; values in 1/16 steps, exact in binary."""
+    trace = [[1, 10.0 + k], [3, 5.5 + k / 8], [4 + k, 2.25 + k / 16], [20, 2.25 + k / 16]]
+    rec = {"key": f"{solver}|{case}|{track}|{seed}", "solver": solver, "case": case,
+           "track": track, "seed": seed, "root_seed": 0, "budget": 20, "evaluations": 20,
+           "fitness": trace[-1][1], "trace": trace, "info": "lib",
+           "library": {"lib": "1.2.3"},
+           "x": {"Gprop": 1e5 + k, "BLK": 0.01 * k, "Na": 0.9, "Fst": 0.2 + k / 64}}
+    if solver == "beta":
+        rec["suite"] = "emafdi-v1"
+    return rec
+
+
+def synthetic() -> list[dict]:
+    recs, k = [], 0
+    for solver in SOLVERS:
+        for case in CASES:
+            for track in TRACKS:
+                for seed in SEEDS:
+                    recs.append(_record(k, solver, case, track, seed))
+                    k += 1
+    return recs
+
+
+def error_record() -> dict:
+    return {"key": "alpha|small|twin|5", "solver": "alpha", "case": "small", "track": "twin",
+            "seed": 5, "root_seed": 0, "budget": 20, "status": "error",
+            "error_type": "RuntimeError", "error": "boom", "success": False}
+
+
+def test_round_trip_keeps_every_run_exactly(tmp_path, caplog, monkeypatch):
+    # an in-process CLI run earlier in the session stops propagation to caplog's handler
+    monkeypatch.setattr(logging.getLogger("ema_bench"), "propagate", True)
+    recs = synthetic()
+    with caplog.at_level(logging.WARNING, logger="ema_bench"):
+        files = export_ioh([*recs[:3], error_record(), *recs[3:]], tmp_path)
+    assert "skipped 1 runs" in caplog.text
+    assert len(files) == 2 * len(SOLVERS) * len(FIDS) and all(f.is_file() for f in files)
+
+    runs = read_ioh(tmp_path)
+    assert len(runs) == len(recs)
+    got = {(r["algorithm"], r["function_name"], r["instance"]): r for r in runs}
+    for rec in recs:
+        run = got[(rec["solver"], f"{rec['case']}@{rec['track']}", rec["seed"])]
+        assert run["evals"] == [e for e, _ in rec["trace"]]
+        assert run["raw_y"] == [y for _, y in rec["trace"]]
+        assert run["best_y"] == min(y for _, y in rec["trace"])
+        assert run["best_evals"] == rec["trace"][2][0]   # first reached at the improvement
+        assert run["best_x"] == [rec["x"][n] for n in ("Na", "Fst", "BLK", "Gprop")]
+        assert run["dimension"] == 4 and run["run_evals"] == 20
+        assert run["function_id"] == FIDS[run["function_name"]]
+        assert run["maximization"] is False
+        assert run["suite"] == ("emafdi-v1" if rec["solver"] == "beta" else "ema-bench")
+        assert run["algorithm_info"] == "lib 1.2.3"
+        assert run["attributes"] == {"seed": rec["seed"], "root_seed": 0, "budget": 20}
+
+
+def test_meta_files_follow_the_ioh_layout_and_types(tmp_path):
+    export_ioh(synthetic(), tmp_path)
+    for solver in SOLVERS:
+        metas = sorted((tmp_path / solver).glob("*.json"))
+        assert [m.name for m in metas] == sorted(f"IOHprofiler_f{i}_{n}.json"
+                                                 for n, i in FIDS.items())
+        for m in metas:
+            meta = json.loads(m.read_text())
+            assert {"version", "suite", "function_id", "function_name", "maximization",
+                    "algorithm", "attributes", "scenarios"} <= set(meta)
+            assert isinstance(meta["version"], str) and isinstance(meta["suite"], str)
+            assert type(meta["function_id"]) is int
+            assert m.name == f"IOHprofiler_f{meta['function_id']}_{meta['function_name']}.json"
+            assert meta["maximization"] is False
+            assert meta["algorithm"]["name"] == solver
+            assert isinstance(meta["algorithm"]["info"], str)
+            assert meta["attributes"] == ["evaluations", "raw_y"]
+            (scen,) = meta["scenarios"]
+            assert scen["dimension"] == 4
+            fid, name = meta["function_id"], meta["function_name"]
+            assert scen["path"] == f"data_f{fid}_{name}/IOHprofiler_f{fid}_DIM4.dat"
+            assert [r["instance"] for r in scen["runs"]] == list(SEEDS)
+            for r in scen["runs"]:
+                assert type(r["instance"]) is int and type(r["evals"]) is int
+                assert isinstance(r["best"]["y"], float) and type(r["best"]["evals"]) is int
+                assert len(r["best"]["x"]) == 4
+
+            lines = (m.parent / scen["path"]).read_text().splitlines()
+            headers = [ln for ln in lines if not ln[0].isdigit()]
+            assert headers == ["evaluations raw_y"] * len(scen["runs"])
+            # iohinspector numbers runs by counting lines at evaluation 1, IOHanalyzer by
+            # header lines: both must agree with the meta file
+            firsts = [ln for ln in lines if ln.split()[0] == "1"]
+            assert len(firsts) == len(scen["runs"])
+
+
+def test_instances_function_ids_and_file_names(tmp_path):
+    recs = synthetic()[:2]
+    recs[1] = {**recs[1], "root_seed": 3, "solver": "a/b c"}
+    export_ioh(recs, tmp_path, function_ids={"small@reference": 7})
+    runs = {r["algorithm"]: r for r in read_ioh(tmp_path)}
+    assert runs["alpha"]["instance"] == 0
+    assert runs["a/b c"]["instance"] == 3 * 1000 + 1
+    assert runs["a/b c"]["attributes"]["root_seed"] == 3
+    assert {r["function_id"] for r in runs.values()} == {7}
+    assert (tmp_path / "a_b_c" / "IOHprofiler_f7_small@reference.json").is_file()
+
+
+@pytest.mark.parametrize("change, needle", [
+    ({"trace": [[2, 1.0], [5, 0.5]]}, "increase from 1"),
+    ({"trace": [[1, 1.0], [1, 0.5]]}, "increase from 1"),
+    ({"trace": [[1, "x"]]}, "trace"),
+    ({"x": {"Na": 1.0}}, "'x'"),
+    ({"seed": 1000, "root_seed": 1}, "instance"),
+])
+def test_malformed_records_are_refused(tmp_path, change, needle):
+    with pytest.raises(ValueError, match=needle):
+        export_ioh([{**synthetic()[0], **change}], tmp_path)
+
+
+def test_a_bad_record_leaves_no_partial_export(tmp_path):
+    recs = synthetic()
+    recs[-1] = {**recs[-1], "trace": [[1, 2.0], [0, 1.0]]}
+    with pytest.raises(ValueError, match=recs[-1]["key"].replace("|", r"\|")):
+        export_ioh(recs, tmp_path)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_mixed_suites_of_one_function_are_refused(tmp_path):
+    a, b = synthetic()[:2]
+    with pytest.raises(ValueError, match="several suites"):
+        export_ioh([{**a, "suite": "emafdi-v1"}, {**b, "suite": "emafdi-v2"}], tmp_path)
+
+
+def test_missing_function_id_and_clashing_names_are_refused(tmp_path):
+    with pytest.raises(ValueError, match="no function id"):
+        export_ioh(synthetic(), tmp_path, function_ids={"small@reference": 1})
+    a, b = synthetic()[:2]
+    with pytest.raises(ValueError, match="same file name"):
+        export_ioh([{**a, "solver": "x/y"}, {**b, "solver": "x:y"}], tmp_path)
+    with pytest.raises(ValueError, match="not a solver run"):
+        export_ioh([{"key": 3, "model_version": "2"}], tmp_path)
+
+
+# --- the command line -------------------------------------------------------------------
+
+def _committed_runs() -> list[dict]:
+    """The committed quick records, one per run identity (parsed here, not by the store)."""
+    seen = {}
+    for line in QUICK_RUNS.read_text().splitlines():
+        r = json.loads(line)
+        ident = (r["solver"], r["case"], r["track"], r["seed"], r["budget"], r["root_seed"],
+                 r.get("model_version", "1"))
+        seen.setdefault(ident, r)
+    return [r for r in seen.values() if r.get("status") != "error"]
+
+
+def test_cli_exports_the_committed_quick_leaderboard(tmp_path):
+    out = tmp_path / "ioh"
+    res = subprocess.run([*CLI, "export", "--format", "ioh", str(QUICK_RUNS), "--out",
+                          str(out), "--json"], capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr
+    summary = json.loads(res.stdout)
+    recs = _committed_runs()
+    assert summary["runs"] == len(recs) and summary["skipped"] == 0
+
+    pairs = {(r["solver"], f"{r['case']}@{r['track']}") for r in recs}
+    metas = list(out.glob("*/IOHprofiler_f*.json"))
+    assert len(metas) == len(pairs)
+    found = set()
+    n_runs = 0
+    for m in metas:
+        meta = json.loads(m.read_text())
+        found.add((meta["algorithm"]["name"], meta["function_name"]))
+        n_runs += len(meta["scenarios"][0]["runs"])
+    assert found == pairs and n_runs == len(recs)
+    runs = read_ioh(out)
+    assert len(runs) == len(recs)
+    by_run = {(r["algorithm"], r["function_name"], r["instance"]): r for r in runs}
+    for rec in recs:
+        run = by_run[(rec["solver"], f"{rec['case']}@{rec['track']}", rec["seed"])]
+        assert run["evals"] == [e for e, _ in rec["trace"]]
+        assert run["raw_y"] == [y for _, y in rec["trace"]]
+
+
+def test_cli_refuses_a_broken_file_in_one_line(tmp_path):
+    lines = QUICK_RUNS.read_text().splitlines(keepends=True)
+    broken = tmp_path / "runs.jsonl"
+    broken.write_text("".join(lines[:3]) + "{garbage\nnot json at all\n" + "".join(lines[3:6]))
+    res = subprocess.run([*CLI, "export", "--format", "ioh", str(broken), "--out",
+                          str(tmp_path / "o")], capture_output=True, text=True, timeout=300)
+    assert res.returncode == 2
+    err = res.stderr.strip()
+    assert err.count("\n") == 0 and "Traceback" not in err, err
+    assert err.startswith("ema-bench export: error: ") and "broken record" in err
+
+
+def _fail(capsys, argv: list[str]) -> str:
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and err.startswith("ema-bench export: error: "), err
+    return err
+
+
+def test_cli_errors_missing_empty_and_all_failed(tmp_path, capsys):
+    out = str(tmp_path / "o")
+    assert "no such file" in _fail(capsys, ["export", "--format", "ioh",
+                                            str(tmp_path / "nope.jsonl"), "--out", out])
+    assert "not a file" in _fail(capsys, ["export", "--format", "ioh", str(tmp_path),
+                                          "--out", out])
+    empty = tmp_path / "empty.jsonl"
+    empty.write_text("")
+    assert "no run records" in _fail(capsys, ["export", "--format", "ioh", str(empty),
+                                              "--out", out])
+    failed = tmp_path / "failed.jsonl"
+    failed.write_text(json.dumps(error_record()) + "\n")
+    assert "failed" in _fail(capsys, ["export", "--format", "ioh", str(failed), "--out", out])
+    for junk in ("[1, 2]", "42", '{"a": 1}'):
+        bad = tmp_path / "junk.jsonl"
+        bad.write_text(junk + "\n")
+        assert "not a file of run records" in _fail(capsys, ["export", "--format", "ioh",
+                                                             str(bad), "--out", out])
+    blind = tmp_path / "blind.jsonl"
+    blind.write_text(json.dumps({"key": "case-3", "model_version": "2"}) + "\n")
+    assert "not a solver run" in _fail(capsys, ["export", "--format", "ioh", str(blind),
+                                                "--out", out])
+    a_file = tmp_path / "a_file"
+    a_file.write_text("x")
+    assert "--out" in _fail(capsys, ["export", "--format", "ioh", str(failed), "--out",
+                                     str(a_file)])
+
+
+def test_cli_merges_files_and_counts_skipped_runs(tmp_path, capsys):
+    recs = synthetic()
+    one, two = tmp_path / "one.jsonl", tmp_path / "two.jsonl"
+    one.write_text("".join(json.dumps(r) + "\n" for r in [*recs[:10], error_record()]))
+    two.write_text("".join(json.dumps(r) + "\n" for r in recs[5:]))   # 5 runs in both
+    assert main(["export", "--format", "ioh", str(one), str(two), "--out",
+                 str(tmp_path / "o")]) == 0
+    text = capsys.readouterr().out
+    assert f"{len(recs)} runs of 2 solvers on 4 functions" in text
+    assert "skipped 1 runs: 1 failed with an error" in text
+    assert len(read_ioh(tmp_path / "o")) == len(recs)
