@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from ..faults import CASES, FAULT_NAMES, FAULT_UNITS
+from ..suite import instance_names
 from .anytime import AnytimeScore, SanityScore, anytime_scores, sanity_scores
 from .scores import ALL, SolverScore
 
@@ -77,7 +78,8 @@ def sanity_rows(sanity: list[SanityScore], track: str) -> list[dict[str, object]
 def instance_rows(scores: list[AnytimeScore], track: str) -> list[dict[str, object]]:
     """Solvers x instances: the ECDF area of each solver on each instance."""
     per = [s for s in scores if s.track == track and s.cases != ALL]
-    cases = list(dict.fromkeys(s.cases for s in per))
+    order = {c: i for i, c in enumerate(instance_names())}   # the suite's order, then others
+    cases = sorted(dict.fromkeys(s.cases for s in per), key=lambda c: (order.get(c, 1e9), c))
     solvers = [s.solver for s in scores if s.track == track and s.cases == ALL]
     area = {(s.solver, s.cases): s.area[0] for s in per}
     return [{"solver": sv, **{c: area.get((sv, c), math.nan) for c in cases}}
