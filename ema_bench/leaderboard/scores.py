@@ -20,6 +20,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..faults import FAULT_NAMES
+from .anytime import ert as hit_ert
 from .store import is_error
 
 ALL = "all"
@@ -58,8 +59,9 @@ def run_cost(rec: dict) -> int:
 
 
 def ert(records: list[dict]) -> float:
-    k = sum(1 for r in records if r["success"])
-    return sum(run_cost(r) for r in records) / k if k else math.inf
+    """ERT of the success target (the one formula: :func:`.anytime.ert`)."""
+    return hit_ert([run_cost(r) if r["success"] else None for r in records],
+                   [r["budget"] for r in records])
 
 
 def _median(values) -> float:
