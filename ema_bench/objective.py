@@ -204,10 +204,31 @@ class Objective:
             np.repeat(np.sqrt(self.weights[t] / measured.n_samples(t)),
                       measured.n_samples(t)) for t in measured.tests])
         self._stacked = measured.stacked()
+        # which output (SIGNALS order) each stacked element is
+        self._signal = np.concatenate([np.repeat(np.arange(len(SIGNALS)),
+                                                 measured.n_samples(t)) for t in measured.tests])
+        for a in (self._factors, self._stacked, self._signal):
+            a.flags.writeable = False
 
     @property
     def n_residuals(self) -> int:
         return self._stacked.size
+
+    @property
+    def data(self) -> np.ndarray:
+        """The measured traces in the stacked layout, shape (n_residuals,), canonical units."""
+        return self._stacked
+
+    @property
+    def factors(self) -> np.ndarray:
+        """Residual factor of each stacked element, ``sqrt(weight / n_samples)``: the
+        fitness is ``sum((factors * (model - data))**2)``."""
+        return self._factors
+
+    @property
+    def signal_index(self) -> np.ndarray:
+        """Index into ``SIGNALS`` (and ``SENSORS``) of each stacked element."""
+        return self._signal
 
     def outputs(self, X: np.ndarray) -> tuple[dict[str, np.ndarray], np.ndarray]:
         """Monitor outputs of a validated batch (test -> (n, n_samples, 4)) and the

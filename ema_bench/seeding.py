@@ -70,6 +70,7 @@ STREAMS: dict[str, int] = {
     "fit": 4,         # (of a diagnosis) one fit, indexed by (round, candidate)
     "bootstrap": 5,   # (of a diagnosis) the bootstrap of a round, indexed by round
     "plan": 6,        # (of a root seed) the layout of a suite of runs
+    "intervals": 7,   # the parametric bootstrap of a fit's intervals
 }
 
 

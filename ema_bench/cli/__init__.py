@@ -29,6 +29,7 @@ COMMANDS: dict[str, str] = {
     "export": "export",
     "validate": "validate",
     "targets": "targets",
+    "coverage": "coverage",
 }
 
 

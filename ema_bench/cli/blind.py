@@ -73,6 +73,9 @@ def run(args: argparse.Namespace) -> int:
           f"{o['named_partial']}, not detected {o['not_detected']}, named {o['named']})")
     print(f"  median held-out gap closed: {s['median_heldout_gap_closed']:.0%}; median "
           f"parameter error: {s['median_param_error']:.1%}")
+    if s.get("interval_coverage"):
+        print(f"  named effects whose 95 % profile interval contains the truth: "
+              f"{s['interval_coverage']}")
     for r in res["records"]:
         truth = f"{r['effect']}={r['value']:.3g}" if r["effect"] else "nothing"
         print(f"    case {r['index']:>3} {r['kind']:<6} {truth:<28} -> {r['verdict']:<11} "

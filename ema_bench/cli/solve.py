@@ -8,12 +8,21 @@ Examples::
     ema-bench solve --case full --effect eccentricity=0.05 --solver least-squares
     ema-bench solve --measured traces.csv --solver cmaes --plot fit.png
     ema-bench solve --measured step.csv sine.csv --test step,sine --solver cmaes
+    ema-bench solve --case seeded --seed 4 --track twin --solver de --budget 5000 \
+        --intervals profile --interval-plot fit_intervals.png
     ema-bench solvers
 
 Twin track: the data come from the monitor model itself plus sensor noise (the optimum is the
 truth); reference track: from the detailed reference model (model-form mismatch, as in the
 paper).  With ``--measured`` the traces come from one or more files and there is no truth to
 score; ``--test`` names the single test of each file without a 'test' column, in file order.
+
+``--intervals`` adds an interval per fault (ema_bench.uncertainty): ``laplace`` (local
+sandwich covariance, the default method, a few tens of evaluations), ``profile`` (profile
+likelihood, up to 3000) or ``bootstrap`` (parametric refits).  The intervals are centred on
+the fit polished by a local refit; off the twin track they include the monitor's calibrated
+model-form allowance.  Their evaluations are counted apart from the solver's budget.
+``ema-bench coverage`` measures how often such intervals contain the truth.
 """
 
 from __future__ import annotations
@@ -81,6 +90,13 @@ def _register_solve(sub: argparse._SubParsersAction) -> None:
                    help="raw sum of squared errors instead of the normalised fitness")
     p.add_argument("--plot", default=None, metavar="PNG",
                    help="draw measured vs fitted monitor traces to a PNG")
+    p.add_argument("--intervals", default=None, choices=("laplace", "profile", "bootstrap"),
+                   help="an interval per fault by this method (default: none)")
+    p.add_argument("--level", type=float, default=0.95,
+                   help="level of --intervals, in (0, 1) (default 0.95)")
+    p.add_argument("--interval-plot", default=None, metavar="PNG",
+                   help="with --intervals: draw the Na/Fst plane with the confidence region "
+                        "to PNG (and, for profile, the profiles to PNG's name + _profiles)")
     add_json(p)
     p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     p.set_defaults(func=run)
@@ -105,6 +121,11 @@ def _check_args(args: argparse.Namespace) -> None:
     if args.measured is None and args.test is not None:
         raise CLIError("--test names the tests of --measured files; it needs --measured")
     check_output(args.plot, "--plot", folder=False, suffixes=PLOT_SUFFIXES)
+    if args.interval_plot is not None and args.intervals is None:
+        raise CLIError("--interval-plot needs --intervals METHOD")
+    if not 0.0 < args.level < 1.0:
+        raise CLIError(f"--level must lie in (0, 1), got {args.level}")
+    check_output(args.interval_plot, "--interval-plot", folder=False, suffixes=PLOT_SUFFIXES)
 
 
 def _case(args: argparse.Namespace):
@@ -186,6 +207,12 @@ def run(args: argparse.Namespace) -> int:
     if args.plot:
         _plot(problem, res, args)
         out["plot"] = args.plot
+    iv = None
+    if args.intervals is not None:
+        iv = _intervals(problem, res, args)
+        out.update(iv.as_dict())
+        if args.interval_plot:
+            out["interval_plots"] = _interval_plots(problem, iv, args)
     if args.json:
         print_json(out)
         return 0
@@ -210,9 +237,76 @@ def run(args: argparse.Namespace) -> int:
         print(f"{'fault':<6} {'unit':<4} {'estimate':>12}")
         for name, v in out["x"].items():
             print(f"{name:<6} {units[name]:<4} {v:12.6g}")
+    if iv is not None:
+        _print_intervals(iv, out)
     if args.plot:
         print(f"plot written to {args.plot}")
+    for path in out.get("interval_plots", []):
+        print(f"interval plot written to {path}")
     return 0
+
+
+def _intervals(problem, res, args: argparse.Namespace):
+    from ..seeding import stream
+    from ..uncertainty import intervals
+    from ..uncertainty.local import UncertaintyError
+    from . import CLIError
+
+    try:
+        return intervals(problem.objective, res.x, method=args.intervals, level=args.level,
+                         track=problem.track, seed=stream(run_node(args), "intervals"))
+    except UncertaintyError as exc:
+        raise CLIError(f"no intervals: {exc}") from None
+
+
+def _interval_plots(problem, iv, args: argparse.Namespace) -> list[str]:
+    from pathlib import Path
+
+    import numpy as np
+
+    from ..objective import N_FAULTS
+    from ..uncertainty.plots import plot_profiles, plot_region
+
+    truth = None
+    if problem.has_truth:
+        sc = problem.score(iv.estimate[:N_FAULTS]).truth
+        truth = np.r_[[sc[n] for n in iv.names[:N_FAULTS]], np.zeros(len(iv.names) - N_FAULTS)]
+    path = Path(args.interval_plot)
+    plot_region(problem.objective, iv, path, truth=truth)
+    paths = [str(path)]
+    if iv.profiles:
+        prof = path.with_name(f"{path.stem}_profiles{path.suffix}")
+        plot_profiles(iv, prof, truth=truth)
+        paths.append(str(prof))
+    return paths
+
+
+def _print_intervals(iv, out: dict) -> None:
+    """Estimate and interval per parameter, and what the noise and tests say."""
+    print(f"{100 * iv.level:g} % {iv.method} intervals around the polished fit (fitness "
+          f"{iv.fitness:.6g}; model form: {iv.model_form}; calibration: {iv.calibration}; "
+          f"{iv.evaluations} extra evaluations)")
+    truth = out.get("truth") or {}
+    print(f"{'param':<12} {'unit':<5} {'estimate':>12} {'interval':>28} {'width %':>8}"
+          + (f" {'truth in':>8}" if truth else ""))
+    for k, name in enumerate(iv.names):
+        lo, hi, w = iv.low[k], iv.high[k], iv.width_percent()[k]
+        line = (f"{name:<12} {iv.units.get(name, ''):<5} {iv.estimate[k]:12.6g} "
+                f"{f'[{lo:.6g}, {hi:.6g}]':>28} {w:8.3f}")
+        if name in truth:
+            line += f" {'yes' if lo <= truth[name] <= hi else 'NO':>8}"
+        print(line)
+    ratio = ", ".join(f"{s} {v:.2f}" for s, v in iv.noise_ratio.items())
+    print(f"residual noise / sensor noise: {ratio}")
+    ident = iv.identifiability
+    if ident["non_identifiable"]:
+        print(f"practically non-identifiable from these tests: "
+              f"{', '.join(ident['non_identifiable'])}")
+    for c in ident["confounded"]:
+        print(f"confounded: {c['pair'][0]} and {c['pair'][1]} (correlation "
+              f"{c['correlation']:+.2f})")
+    for w in iv.warnings:
+        print(f"warning: {w}")
 
 
 def _plot(problem, res, args: argparse.Namespace) -> None:

@@ -107,6 +107,9 @@ def run_case(case: BlindCase, seed: int, settings: Settings) -> dict:
             est = d.effects[0].params[case.effect]
             rec["estimate"] = est
             rec["param_error"] = abs(est - case.value) / abs(case.value)
+            rec["interval"] = [float(v) for v in d.effects[0].interval]
+            rec["interval_covers"] = bool(rec["interval"][0] <= case.value
+                                          <= rec["interval"][1])
     elif case.kind == "null":
         rec["false_alarm"] = d.verdict != "none"
     else:
@@ -120,6 +123,7 @@ def summarise(records: list[dict]) -> dict[str, object]:
     dec = [r for r in records if r["kind"] == "decoy"]
     closed = [r["gap_closed"] for r in eff if r.get("correct")]
     perr = [r["param_error"] for r in eff if "param_error" in r]
+    covers = [r["interval_covers"] for r in eff if "interval_covers" in r]
     per_effect: dict[str, list[int]] = {}
     for r in eff:
         per_effect.setdefault(r["effect"], [0, 0])
@@ -143,6 +147,8 @@ def summarise(records: list[dict]) -> dict[str, object]:
         "named_partial": sum(bool(r.get("named_partial")) for r in eff if r.get("correct")),
         "median_heldout_gap_closed": float(np.median(closed)) if closed else math.nan,
         "median_param_error": float(np.median(perr)) if perr else math.nan,
+        # how often the named effect's 95 % interval contains its true value
+        "interval_coverage": (f"{sum(covers)}/{len(covers)}" if covers else None),
         "per_effect": {k: f"{v[0]}/{v[1]}" for k, v in sorted(per_effect.items())},
         "wall_s": float(sum(r["wall_s"] for r in records)),
     }

@@ -26,7 +26,7 @@ from ..effects import EFFECT_NAMES, EFFECTS, LIBRARY, N_EFFECTS
 from ..faults import FAULT_NAMES
 from ..instances import make_problem
 from ..monitor import simulate_monitor
-from ..objective import KNOWN_TESTS, N_FAULTS, SearchSpace, signal_weights
+from ..objective import KNOWN_TESTS, N_FAULTS, Objective, SearchSpace, signal_weights
 from ..reference import simulate_reference
 from ..registry import run_solver
 from ..seeding import SeedLike, stream
@@ -256,22 +256,17 @@ def _jacobian(x: np.ndarray, augment: tuple[str, ...], lower: np.ndarray,
     return y[0], (y[1:] - y[0]).T / h
 
 
-def interval(model: Fit, measured: Traces, lower: np.ndarray, upper: np.ndarray,
-             index: int) -> list[float]:
-    """95 % Gauss-Newton interval of parameter ``index`` from the whitened training
-    residuals (scaled by the residual variance, so misfit widens it)."""
-    y0, J = _jacobian(model.x, model.augment, lower, upper, TRAIN)
-    data = np.concatenate([whiten(measured.data[t]).ravel() for t in TRAIN])
-    r = data - y0
-    dof = max(r.size - J.shape[1], 1)
-    s2 = float(r @ r) / dof
-    try:
-        cov = np.linalg.inv(J.T @ J) * s2
-        half = 1.96 * math.sqrt(max(cov[index, index], 0.0))
-    except np.linalg.LinAlgError:
-        half = math.inf
-    v = float(model.x[index])
-    return [v - half, v + half]
+def interval(model: Fit, measured: Traces, level: float = 0.95) -> list[float]:
+    """Profile-likelihood interval of the last augmented effect on the training tests
+    (:func:`ema_bench.uncertainty.intervals`): the noise level is estimated from the
+    residuals, so misfit widens it, and the faults and other effects are re-optimised along
+    the profile, so it follows a curved valley instead of its tangent."""
+    from ..uncertainty import intervals
+
+    objective = Objective(_subset(measured, TRAIN), SearchSpace.of(model.augment))
+    iv = intervals(objective, model.x, method="profile", level=level, track="measured",
+                   params=(model.augment[-1],), model_form="none", calibrate=False)
+    return [float(iv.low[-1]), float(iv.high[-1])]
 
 
 def screen(measured: Traces, model: Fit, lower: np.ndarray, upper: np.ndarray,
@@ -369,8 +364,7 @@ def diagnose(measured: Traces, settings: Settings | None = None, seed: SeedLike 
             before = max(status.holdout_fitness - floor, 0.0)
             after = max(ho_after - floor, 0.0)
             closed = _closed(status.holdout_fitness, ho_after, floor)
-            flo, fhi = _bounds(aug)
-            ci = interval(f, measured, flo, fhi, len(aug) + 3)
+            ci = interval(f, measured)
             value = float(f.x[-1])
             reasons = acceptance_reasons(
                 closed=closed, improvement=status.holdout_fitness - ho_after,

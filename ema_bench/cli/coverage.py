@@ -1,0 +1,167 @@
+"""``ema-bench coverage``: measure how often the fault intervals contain the truth.
+
+Fits with intervals on seeded instances (random faults over the whole box, instance i drawn
+from run node i of --root-seed), then, per fault, the fraction of intervals that contain the
+true value (with its 95 % Wilson interval), the median width in % of the fault's range, and
+the evaluations the intervals cost.  Records go to OUT/TRACK_METHOD.jsonl as they finish (an
+interrupted run resumes), the summary to OUT/TRACK_METHOD.json, the caterpillar plot to
+OUT/TRACK_METHOD.png.
+
+--calibrate runs the calibration instances (root seed 1, disjoint from the reported ones) and
+writes their nonconformity scores into the package's calibration file, from which every
+interval's calibration factors come (ema_bench/uncertainty/calibration.py).
+
+Examples::
+
+    ema-bench coverage --track twin --instances 100 --level 0.95 --out leaderboards/coverage
+    ema-bench coverage --track reference --instances 50 --method profile --json
+    ema-bench coverage --track twin --instances 200 --method laplace,profile --calibrate
+"""
+
+from __future__ import annotations
+
+import argparse
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    from ..uncertainty.coverage import BUDGET, SOLVER
+    from ..uncertainty.methods import METHODS, MODEL_FORM_MODES
+    from .args import add_json, add_quiet, comma_list
+
+    p = sub.add_parser("coverage", help="measure the coverage of the fault intervals",
+                       description=__doc__,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--track", choices=("twin", "reference"), default="twin",
+                   help="where the data come from (default twin)")
+    p.add_argument("--instances", type=int, default=100,
+                   help="seeded instances 0..N-1 (default 100)")
+    p.add_argument("--level", type=float, default=0.95,
+                   help="interval level in (0, 1) (default 0.95)")
+    p.add_argument("--method", type=comma_list, default=["laplace"],
+                   metavar="METHOD[,METHOD...]",
+                   help=f"interval method(s), of {', '.join(METHODS)} (default laplace); "
+                        "several share each instance's fit")
+    p.add_argument("--solver", default=SOLVER, help=f"solver of the fits (default {SOLVER})")
+    p.add_argument("--budget", type=int, default=BUDGET,
+                   help=f"evaluation budget of each fit (default {BUDGET})")
+    p.add_argument("--root-seed", type=int, default=0,
+                   help="root of the instances' seeds (default 0; the calibration uses 1)")
+    p.add_argument("--noise-scale", type=float, default=1.0,
+                   help="multiply the estimated noise level (sensitivity studies; default 1)")
+    p.add_argument("--model-form", choices=list(MODEL_FORM_MODES), default="auto",
+                   help="model-form allowance (default auto: none on twin, discrepancy "
+                        "otherwise)")
+    p.add_argument("--calibrate", action="store_true",
+                   help="run the calibration instances (root seed 1) and write their scores "
+                        "into the package's calibration file")
+    p.add_argument("--out", default=None, metavar="DIR",
+                   help="folder for records (resumable), summary and plot")
+    p.add_argument("--workers", type=int, default=1, help="processes (default 1)")
+    add_json(p, "the summary")
+    add_quiet(p)
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+
+
+    from ..registry import SolverError, get_solver
+    from ..uncertainty import calibration as cal
+    from ..uncertainty.coverage import Settings, run_methods
+    from ..uncertainty.methods import METHODS
+    from . import CLIError, print_json
+    from .args import check_output
+
+    if args.instances < 1:
+        raise CLIError(f"--instances must be at least 1, got {args.instances}")
+    if not 0.0 < args.level < 1.0:
+        raise CLIError(f"--level must lie in (0, 1), got {args.level}")
+    if not args.noise_scale > 0:
+        raise CLIError(f"--noise-scale must be positive, got {args.noise_scale}")
+    if args.budget < 1 or args.workers < 1:
+        raise CLIError("--budget and --workers must be positive")
+    try:
+        get_solver(args.solver)
+    except SolverError as exc:
+        raise CLIError(str(exc)) from None
+    bad = [m for m in args.method if m not in METHODS]
+    if bad or not args.method or len(set(args.method)) != len(args.method):
+        raise CLIError(f"--method takes distinct methods of {list(METHODS)}, got "
+                       f"{','.join(args.method)}")
+    root = cal.CALIBRATION_ROOT_SEED if args.calibrate else args.root_seed
+    if args.calibrate and args.root_seed not in (0, root):
+        raise CLIError("--calibrate runs at the calibration root seed; drop --root-seed")
+    out = check_output(args.out, "--out", folder=True)
+    all_settings = [Settings(track=args.track, method=m, level=args.level, solver=args.solver,
+                             budget=args.budget, root_seed=root, noise_scale=args.noise_scale,
+                             model_form=args.model_form) for m in args.method]
+    stems = [f"{args.track}_{m}" for m in args.method]
+    paths = [None if out is None else out / f"{stem}.jsonl" for stem in stems]
+    try:
+        runs = run_methods(all_settings, args.instances, paths, workers=args.workers,
+                           quiet=args.quiet or args.json)
+    except ValueError as exc:
+        raise CLIError(str(exc)) from None
+    summaries = []
+    for method, stem, records in zip(args.method, stems, runs):
+        summaries.append(_summary(records, method, stem, out, args))
+    if args.json:
+        print_json(summaries[0] if len(summaries) == 1 else summaries)
+        return 0
+    for summary in summaries:
+        _print(summary, root, args)
+    return 0
+
+
+def _summary(records: list[dict], method: str, stem: str, out, args: argparse.Namespace
+             ) -> dict:
+    """Write calibration scores (with --calibrate), the summary and the plot of one method."""
+    import json
+
+    import numpy as np
+
+    from ..faults import FAULT_NAMES
+    from ..uncertainty import calibration as cal
+    from ..uncertainty.coverage import recalibrated, summarise, write_calibration
+
+    kind = cal.calibration_kind(args.track)
+    if args.calibrate:
+        write_calibration({cal.calibration_key(kind, method, records[0]["model_form"]):
+                           records})
+    # the intervals as the shipped calibration makes them now (uncalibrated where it has no
+    # scores for this method)
+    fac = cal.calibration_factor(kind, method, records[0]["model_form"], args.level)
+    factors = np.ones(len(FAULT_NAMES)) if fac is None else fac
+    records = recalibrated(records, dict(zip(FAULT_NAMES, factors)))
+    summary = summarise(records)
+    summary["calibration"] = "none" if fac is None else kind
+    summary["calibration_factor"] = dict(zip(FAULT_NAMES, map(float, factors)))
+    if out is not None:
+        from ..uncertainty.plots import plot_coverage
+
+        (out / f"{stem}.json").write_text(json.dumps(summary, indent=1) + "\n")
+        plot_coverage(records, out / f"{stem}.png")
+        summary["files"] = [str(out / f"{stem}{s}") for s in (".jsonl", ".json", ".png")]
+    return summary
+
+
+def _print(summary: dict, root: int, args: argparse.Namespace) -> None:
+    from ..faults import FAULT_NAMES
+
+    print(f"coverage of {100 * args.level:g} % {summary['method']} intervals, {args.track} "
+          f"track, {summary['instances']} seeded instances (root seed {root}; fits: "
+          f"{args.solver}, budget {args.budget}; model form: {summary['model_form']}; "
+          f"calibration: {summary['calibration']})")
+    print(f"{'fault':<6} {'coverage':>9} {'95 % interval':>16} {'median width':>13} "
+          f"{'factor':>7} {'noise only':>10}")
+    for n in FAULT_NAMES:
+        lo, hi = summary["coverage_interval"][n]
+        print(f"{n:<6} {summary['coverage'][n]:9.3f} {f'[{lo:.3f}, {hi:.3f}]':>16} "
+              f"{summary['median_width'][n]:11.3f} % {summary['calibration_factor'][n]:7.3f} "
+              f"{summary['coverage_noise_only'][n]:10.3f}")
+    ev = summary["interval_evaluations"]
+    print(f"interval cost: median {ev['median']:.0f}, max {ev['max']} evaluations per fit; "
+          f"fits with a noise ratio above 1.2 (not at the optimum): {summary['misfits']}; "
+          f"no interval: {summary['errors']}")
+    if "files" in summary:
+        print(f"records, summary and plot: {', '.join(summary['files'])}")

@@ -1,0 +1,40 @@
+"""The noise level of a fit: what the sensors' datasheet says, and what the residuals say.
+
+The sensors add white noise of ``noise_frac`` of their span and quantise to 12 bits
+(:mod:`~ema_bench.physics.sensors`); the quantisation error of a noisy signal is uniform over
+one step, so each sample carries variance ``noise_std**2 + lsb**2 / 12``.  A residual level
+well above that means the model misses something (model-form error on the reference track),
+and intervals from the datasheet noise alone would be too narrow.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..objective import Objective
+from ..physics.sensors import SENSORS
+from ..traces import SIGNALS
+
+
+def known_sigma() -> np.ndarray:
+    """Per-signal standard deviation of the sensors' error (noise and ADC), shape (4,),
+    ``SIGNALS`` order and canonical units."""
+    return np.array([np.hypot(s.noise_std, s.lsb / np.sqrt(12.0)) for s in SENSORS])
+
+
+def estimated_sigma(objective: Objective, residual: np.ndarray, n_params: int) -> np.ndarray:
+    """Per-signal standard deviation of the raw residual ``model - data`` (stacked layout),
+    shape (4,): the root mean square over that signal's samples, degrees of freedom
+    corrected for the ``n_params`` fitted parameters (shared out by sample count)."""
+    idx = objective.signal_index
+    n = np.bincount(idx, minlength=len(SIGNALS)).astype(float)
+    ss = np.bincount(idx, weights=residual * residual, minlength=len(SIGNALS))
+    dof = np.maximum(n * (1.0 - n_params / idx.size), 1.0)
+    return np.sqrt(ss / dof)
+
+
+def noise_ratio(objective: Objective, residual: np.ndarray, n_params: int) -> dict[str, float]:
+    """Estimated over known noise per signal (1 when the model explains the data to the
+    noise; larger under model-form error)."""
+    r = estimated_sigma(objective, residual, n_params) / known_sigma()
+    return {s: float(v) for s, v in zip(SIGNALS, r)}
