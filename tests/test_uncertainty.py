@@ -213,6 +213,10 @@ def test_bootstrap_spread_matches_the_exact_standard_error():
     sd = iv.replicates.std(axis=0, ddof=1) / ranges
     # 200 replicates: the sd is known to ~5 %; 20 % is a 4-sigma band
     np.testing.assert_allclose(sd, np.sqrt(np.diag(cov)), rtol=0.2)
+    # the normal bootstrap interval: estimate +- z sd of the replicates (ddof 1), per fault
+    half = Z95 * iv.replicates.std(axis=0, ddof=1)
+    np.testing.assert_allclose(iv.low, iv.estimate - half, rtol=1e-9)
+    np.testing.assert_allclose(iv.high, iv.estimate + half, rtol=1e-9)
     # same seed, same numbers
     again = intervals(toy, _phys(toy, u_hat), method="bootstrap", noise="known",
                       model_form="none", calibrate=False, n_boot=200, max_evals=20000,
@@ -305,9 +309,21 @@ def test_conformal_quantile_and_score():
     # ceil(20 * 0.95) = 19th smallest
     assert conformal_quantile(scores, 0.95) == pytest.approx(1.9)
     assert conformal_quantile(scores, 0.5) == pytest.approx(1.0)
-    assert score(truth=1.0, estimate=2.0, low=0.0, high=2.5) == pytest.approx(0.5)
-    assert score(truth=3.0, estimate=2.0, low=0.0, high=2.5) == pytest.approx(2.0)
+    assert score(truth=1.0, estimate=2.0, low=0.4, high=2.5) == pytest.approx(1.0 / 1.6)
+    assert score(truth=3.0, estimate=2.0, low=0.4, high=2.5) == pytest.approx(2.0)
     assert score(truth=2.0, estimate=2.0, low=2.0, high=2.0) == 0.0
+    assert score(truth=1.0, estimate=2.0, low=2.0, high=3.0) == float("inf")   # no width
+    assert conformal_quantile([], 0.95) == 1.0
+    assert conformal_quantile([0.7], 0.5) == 0.7
+    assert conformal_quantile(np.array([3, 1, 2]), 0.5) == 2.0   # sorted, as floats
+
+
+def test_calibration_kind_of_each_track():
+    from ema_bench.uncertainty.calibration import calibration_kind
+
+    assert calibration_kind("twin") == "twin"
+    for track in ("reference", "measured", None):
+        assert calibration_kind(track) == "reference"
 
 
 def test_chi2_threshold_is_z_squared():

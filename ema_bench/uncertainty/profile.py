@@ -35,17 +35,15 @@ class Profile:
     """The profile of one parameter, in the unit box.
 
     ``t``: grid values, ``q``: scaled drop at each (chi-square scale; 0 at the estimate),
-    ``low``/``high``: interval ends, ``evaluations``: what it cost, ``better``: the lowest
-    fitness a profile refit found, where below the fit's (the fit was not at the optimum)."""
+    ``low``/``high``: interval ends, ``better``: the lowest fitness a profile refit found,
+    where below the fit's (the fit was not at the optimum)."""
 
     index: int
     t: list[float] = field(default_factory=list)
     q: list[float] = field(default_factory=list)
     low: float = 0.0
     high: float = 1.0
-    evaluations: int = 0
     better: float | None = None
-    better_u: np.ndarray | None = None
 
 
 def profile_interval(counter: Counter, u_hat: np.ndarray, f_hat: float, j: int,
@@ -94,7 +92,7 @@ def profile_interval(counter: Counter, u_hat: np.ndarray, f_hat: float, j: int,
                 break
             q = max(f - f_hat, 0.0) * scale
             if f < f_hat and (prof.better is None or f < prof.better):
-                prof.better, prof.better_u = float(f), u.copy()
+                prof.better = float(f)
             prof.t.append(float(u0[j]))
             prof.q.append(float(q))
             warm = u
@@ -118,7 +116,6 @@ def profile_interval(counter: Counter, u_hat: np.ndarray, f_hat: float, j: int,
                 guess = 0.5 * (lo_d + hi_d) if outer is not None else min(2.0 * d, room)
             d = min(guess, room)
     prof.low, prof.high = float(min(ends[-1.0], u_hat[j])), float(max(ends[1.0], u_hat[j]))
-    prof.evaluations = counter.evaluations - start
     return prof
 
 
