@@ -94,8 +94,7 @@ def run_instance(settings: Settings, index: int) -> dict[str, object]:
                 "fitness": float(res.fitness), "interval_evaluations": 0,
                 "non_identifiable": []}
     u = iv.estimate
-    raw_lo = u - np.hypot(u - iv.noise_low, iv.allowance)
-    raw_hi = u + np.hypot(iv.noise_high - u, iv.allowance)
+    raw_lo, raw_hi = iv.uncalibrated()
     return {
         **base, "estimate": faults_to_dict(u),
         "low": faults_to_dict(iv.low), "high": faults_to_dict(iv.high),

@@ -89,6 +89,13 @@ class Intervals:
     def ranges(self) -> np.ndarray:
         return self.upper - self.lower
 
+    def uncalibrated(self) -> tuple[np.ndarray, np.ndarray]:
+        """The interval ends before calibration: the method's noise half-widths combined in
+        quadrature with the model-form allowance (what calibration scores are taken on)."""
+        u = self.estimate
+        return (u - np.hypot(u - self.noise_low, self.allowance),
+                u + np.hypot(self.noise_high - u, self.allowance))
+
     def width_percent(self) -> np.ndarray:
         """Interval widths in % of each parameter's range."""
         return 100.0 * (self.high - self.low) / self.ranges

@@ -31,10 +31,3 @@ def estimated_sigma(objective: Objective, residual: np.ndarray, n_params: int) -
     ss = np.bincount(idx, weights=residual * residual, minlength=len(SIGNALS))
     dof = np.maximum(n * (1.0 - n_params / idx.size), 1.0)
     return np.sqrt(ss / dof)
-
-
-def noise_ratio(objective: Objective, residual: np.ndarray, n_params: int) -> dict[str, float]:
-    """Estimated over known noise per signal (1 when the model explains the data to the
-    noise; larger under model-form error)."""
-    r = estimated_sigma(objective, residual, n_params) / known_sigma()
-    return {s: float(v) for s, v in zip(SIGNALS, r)}
