@@ -91,6 +91,7 @@ def make_problem(
     augment: Sequence[str] = (),
     tests: Sequence[str] | None = None,
     start: np.ndarray | None = None,
+    sample_weights: Mapping[str, np.ndarray] | None = None,
 ) -> Problem:
     """Build an identification problem.
 
@@ -124,13 +125,19 @@ def make_problem(
         ``"sine2"`` for held-out validation).
     start : array, optional
         Warm start for solvers (see :class:`Problem`).
+    sample_weights : mapping, optional
+        Per test, (n_samples, 4) weight multipliers of ``measured``'s samples (only with
+        ``measured``; see :class:`~ema_bench.objective.Objective`).
     """
     if measured is not None:
         if not isinstance(measured, Traces):
             raise ProblemError("measured must be a Traces (see ema_bench.load_traces)")
         return Problem(measured, budget, normalise=normalise, augment=augment, start=start,
+                       sample_weights=sample_weights,
                        label=str(measured.meta.get("source", "measured")), track="measured",
                        _meta={"source": measured.meta.get("source")})
+    if sample_weights is not None:
+        raise ProblemError("sample_weights weigh given measured traces: pass measured too")
     check_settings(case, track, budget, heterogeneity)
     ss = as_seed_sequence(seed)
     s_instance, s_noise = stream(ss, "instance"), stream(ss, "noise")

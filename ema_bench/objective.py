@@ -64,12 +64,14 @@ def fitness_from_outputs(outputs: Mapping[str, np.ndarray], measured: Traces,
                          weights: Mapping[str, np.ndarray]) -> np.ndarray:
     """Sum over tests and signals of ``weight * mean((model - measured)^2)``.
 
-    ``outputs[test]`` has shape (n, n_samples, 4); returns shape (n,)."""
+    ``outputs[test]`` has shape (n, n_samples, 4); ``weights[test]`` is (4,) per signal, or
+    (n_samples, 4) per sample; returns shape (n,)."""
     n = next(iter(outputs.values())).shape[0]
     f = np.zeros(n)
     for test in measured.tests:
         d = outputs[test] - measured.data[test][None, :, :]
-        f += np.einsum("nsk,k->n", d * d, weights[test]) / d.shape[1]
+        w = weights[test]
+        f += np.einsum("nsk,k->n" if w.ndim == 1 else "nsk,sk->n", d * d, w) / d.shape[1]
     return f
 
 
@@ -169,6 +171,18 @@ def check_measured(measured: Traces) -> tuple[TestSpec, ...]:
     return tuple(KNOWN_TESTS[t] for t in measured.tests)
 
 
+def _sample_weights(sample_weights: Mapping[str, np.ndarray], test: str,
+                    shape: tuple[int, ...]) -> np.ndarray:
+    """The checked per-sample weight multipliers of one test."""
+    if test not in sample_weights:
+        raise ProblemError(f"sample_weights has no entry for test {test!r}")
+    w = np.asarray(sample_weights[test], dtype=float)
+    if w.shape != shape or not np.all(np.isfinite(w)) or np.any(w < 0.0):
+        raise ProblemError(f"sample_weights[{test!r}] must be finite, >= 0 and of shape "
+                           f"{shape}, got shape {w.shape}")
+    return w
+
+
 class Objective:
     """The fitness of candidates against measured traces (lower is better).
 
@@ -182,6 +196,9 @@ class Objective:
         Normalised (default) or raw fitness (:func:`signal_weights`).
     effects : array (N_EFFECTS,), optional
         Effects switched on in the monitor for every candidate.
+    sample_weights : mapping, optional
+        Per test, an (n_samples, 4) multiplier of each sample's weight (e.g. 0 where a
+        sample carries no information the model can match); default 1 everywhere.
 
     Notes
     -----
@@ -190,7 +207,8 @@ class Objective:
     """
 
     def __init__(self, measured: Traces, space: SearchSpace | None = None, *,
-                 normalise: bool = True, effects: np.ndarray | None = None) -> None:
+                 normalise: bool = True, effects: np.ndarray | None = None,
+                 sample_weights: Mapping[str, np.ndarray] | None = None) -> None:
         self.tests = check_measured(measured)
         self.measured = measured
         self.space = space or SearchSpace.of()
@@ -199,10 +217,14 @@ class Objective:
         if self.effects.shape != (N_EFFECTS,):
             raise ProblemError(f"effects must have shape ({N_EFFECTS},)")
         self.weights = signal_weights(measured, normalise)
-        # sqrt(weight / n_samples) per residual element, stacked layout
+        if sample_weights is not None:
+            self.weights = {t: w[None, :] * _sample_weights(sample_weights, t,
+                                                            measured.data[t].shape)
+                            for t, w in self.weights.items()}
+        # sqrt(weight / n_samples) per residual element, stacked layout (signal by signal)
         self._factors = np.concatenate([
-            np.repeat(np.sqrt(self.weights[t] / measured.n_samples(t)),
-                      measured.n_samples(t)) for t in measured.tests])
+            np.sqrt(np.broadcast_to(self.weights[t], measured.data[t].shape).T.ravel()
+                    / measured.n_samples(t)) for t in measured.tests])
         self._stacked = measured.stacked()
         # which output (SIGNALS order) each stacked element is
         self._signal = np.concatenate([np.repeat(np.arange(len(SIGNALS)),

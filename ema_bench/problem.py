@@ -84,18 +84,21 @@ class Problem:
     start : array (dim,), optional
         Where solvers begin (their first point): a warm start, e.g. a previous fit.
         Default: the nominal (healthy) vector.
+    sample_weights : mapping, optional
+        Per-sample weight multipliers of the fitness (:class:`~ema_bench.objective.Objective`).
     """
 
     def __init__(self, measured: Traces, budget: int, *, normalise: bool = True,
                  monitor_effects: np.ndarray | None = None, augment: Sequence[str] = (),
                  start: np.ndarray | None = None,
+                 sample_weights: Mapping[str, np.ndarray] | None = None,
                  label: str = "measured",
                  track: str = "measured", _truth: np.ndarray | None = None,
                  _meta: Mapping[str, object] | None = None) -> None:
         budget = check_budget(budget)
         self.space = SearchSpace.of(augment)
         self.objective = Objective(measured, self.space, normalise=normalise,
-                                   effects=monitor_effects)
+                                   effects=monitor_effects, sample_weights=sample_weights)
         self.names: tuple[str, ...] = self.space.names
         self.units: dict[str, str] = self.space.units
         self.lower, self.upper, self.nominal = self.space.lower, self.space.upper, \

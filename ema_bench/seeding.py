@@ -7,11 +7,13 @@ The tree (the README has it as a table)::
     │   ├── instance   child 0   random fault vector ("seeded" case)
     │   ├── noise      child 1   sensor noise, one child per test
     │   ├── solver     child 2   the solver's seed (derived by run_solver)
-    │   └── diagnosis  child 3   the missing-physics workflow on this run's traces
-    │       ├── fit        child (4, round, candidate)   each fit (its solver: run_solver)
-    │       └── bootstrap  child (5, round)              the bootstrap envelopes of a round
-    └── plan  child 6 of R   the layout of a suite of runs (the blind suite's kinds and
-                             effect order)
+    │   ├── diagnosis  child 3   the missing-physics workflow on this run's traces
+    │   │   ├── fit        child (4, round, candidate)   each fit (its solver: run_solver)
+    │   │   └── bootstrap  child (5, round)              the bootstrap envelopes of a round
+    │   ├── intervals  child 7   the parametric bootstrap of a fit's intervals
+    │   └── acquisition child 8  a blind case's acquisition-chain decoy (channel, magnitude)
+    └── plan  child 6 of R   the layout of a suite of runs (the blind suite's categories,
+                             effects and magnitudes)
 
 ``make_problem(seed=node)`` draws the instance and the noise, ``run_solver(..., seed=node)``
 gives the solver ``stream(node, "solver")``: a solver cannot replay the problem's streams
@@ -19,7 +21,8 @@ whatever it spawns.  ``ema-bench solve --root-seed R --seed k`` builds the same 
 leaderboard's row ``k`` of root seed ``R``, so it replays that row bit for bit; the Gymnasium
 environment's ``reset(seed=k)`` (``root_seed=R``) plays the same problem.  Case ``k`` of
 ``ema-bench blind --seed R`` is run ``k`` of root ``R``: its traces are those of
-``ema-bench simulate --root-seed R --seed k`` and its diagnosis that of
+``ema-bench simulate --root-seed R --seed k`` (a reference-model case; an acquisition decoy
+is then applied with the draws of its ``acquisition`` stream) and its diagnosis that of
 ``ema-bench diagnose --root-seed R --seed k``.
 """
 
@@ -71,6 +74,7 @@ STREAMS: dict[str, int] = {
     "bootstrap": 5,   # (of a diagnosis) the bootstrap of a round, indexed by round
     "plan": 6,        # (of a root seed) the layout of a suite of runs
     "intervals": 7,   # the parametric bootstrap of a fit's intervals
+    "acquisition": 8,  # (of a blind case's run) its acquisition-chain decoy's draws
 }
 
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from ema_bench.cli import main
-from ema_bench.diagnosis.blind import draw_cases
+from ema_bench.diagnosis.blind import draw_cases, measured_traces
 from ema_bench.diagnosis.workflow import Settings, diagnose
 from ema_bench.faults import random_faults
 from ema_bench.seeding import STREAMS, run_seed, stream
@@ -47,7 +47,8 @@ def case_file(tmp_path_factory):
     case = draw_cases(12, 4)[2]
     path = tmp_path_factory.mktemp("seedtree") / "case2.csv"
     faults = ",".join(f"{k}={v!r}" for k, v in case.faults.items())
-    effect = ["--effect", f"{case.effect}={case.value!r}"] if case.effect else []
+    assert case.category == "single"   # a reference-model case, as simulate makes it
+    effect = [a for k, v in case.effects.items() for a in ("--effect", f"{k}={v!r}")]
     assert main(["simulate", "--root-seed", "4", "--seed", "2", "--faults", faults, *effect,
                  "--tests", "step,sine,sine2", "--out", str(path)]) == 0
     return case, path
@@ -58,12 +59,12 @@ def test_blind_traces_replay_with_simulate(case_file):
     from ema_bench.reference import simulate_reference
 
     case, path = case_file
-    effects = {case.effect: case.value} if case.effect else {}
     # what run_case simulates for case 2 of root 4
-    blind = simulate_reference(np.array(list(case.faults.values())), effects,
+    blind = simulate_reference(np.array(list(case.faults.values())), case.effects,
                                tests=STANDARD_TESTS + HOLDOUT_TESTS,
                                seed=stream(run_seed(4, 2), "noise"))
     assert load_traces(path).allclose(blind, rtol=1e-12, atol=0.0)
+    assert load_traces(path).allclose(measured_traces(case, 4), rtol=1e-12, atol=0.0)
 
 
 def test_diagnose_seed_is_the_diagnosis_stream_of_the_run(case_file, capsys):

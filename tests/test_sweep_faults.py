@@ -356,21 +356,20 @@ def test_progress_is_one_line_per_run_when_not_a_terminal(tmp_path):
 
 
 def _fake_case(case, seed, settings):
-    """A blind case's record without the minute of diagnosis behind it."""
-    from ema_bench.diagnosis.blind import case_record
+    """A blind case's record without the minute of diagnosis behind it: a diagnosis that
+    names the hidden effects exactly, says none on null cases and unexplained on decoys."""
+    from types import SimpleNamespace
 
-    rec = {**case_record(case, seed), "verdict": "none", "named": [],
-           "partial": None, "gap_closed": 0.0, "gap_before": 1.0, "gap_after": 1.0,
-           "message": "", "evaluations": 0, "wall_s": 0.0}
-    if case.kind == "effect":
-        rec.update(verdict="effect", named=[case.effect], correct=True,
-                   named_partial=False, estimate=case.value, param_error=0.0,
-                   gap_closed=1.0)
-    elif case.kind == "null":
-        rec["false_alarm"] = False
-    else:
-        rec.update(verdict="unexplained", decoy_ok=True)
-    return rec
+    from ema_bench.diagnosis.blind import case_record, score
+
+    found = [SimpleNamespace(name=k, params={k: v}, interval=[v, v], partial=False)
+             for k, v in case.effects.items()] if case.kind == "effect" else []
+    verdict = "effect" if found else "unexplained" if case.kind == "decoy" else "none"
+    d = SimpleNamespace(verdict=verdict, effects=found, gap={"partial": None})
+    return {**case_record(case, seed), "verdict": verdict, "named": [e.name for e in found],
+            "partial": None, "gap_closed": 1.0 if found else 0.0, "gap_before": 1.0,
+            "gap_after": 0.0 if found else 1.0, "message": "", "evaluations": 0,
+            **score(case, d), "wall_s": 0.0}
 
 
 def test_blind_writes_to_a_resumable_folder_by_default(tmp_path, monkeypatch, capsys):

@@ -1,13 +1,18 @@
 """``ema-bench blind``: score the missing-physics workflow on hidden cases.
 
-Draws N cases (library effects above their detection thresholds, null cases, decoys outside
-the library) with random faults, runs ``diagnose`` on each without showing it the answer, and
-reports naming accuracy, false alarms, held-out gap closed and parameter error.  A decoy
-counts as handled when it is reported unexplained, or named with the nearest effect flagged
-partial (the model with that effect still leaves the bootstrap envelopes).  Results are
-appended to OUT/blind.jsonl as cases finish; rerunning the same command resumes (OUT defaults
-to ema-bench-blind-seed<S>-n<N> in the current folder).  Progress: a bar in a terminal, one
-line per finished case otherwise (--quiet: none).
+Draws N cases with random faults in fixed shares of seven categories: single library effects
+(1.5-4x their detection thresholds), near-threshold effects (1-1.5x), pairs of effects
+(1.5-3x each), null cases from the reference model and from the monitor model itself,
+physical decoys outside the library (quadratic damping, hinge friction) and acquisition-chain
+decoys applied to the recorded traces (a slow filter, 400 Hz mains hum, clipping, a time
+shift, drift or outliers on one channel).  It runs ``diagnose`` on each without showing it the
+answer, and reports per category: naming accuracy (top-1), both effects of a pair named,
+false alarms, decoys handled, held-out gap closed, parameter error and interval coverage.  A
+decoy counts as handled when it is reported unexplained or not detected, or named with the
+effect flagged partial (the model with it still leaves the bootstrap envelopes).  Results are
+appended to OUT/blind.jsonl as cases finish (--workers N: N processes); rerunning the same
+command resumes (OUT defaults to ema-bench-blind-seed<S>-n<N> in the current folder).
+Progress: a bar in a terminal, one line per finished case otherwise (--quiet: none).
 """
 
 from __future__ import annotations
@@ -25,11 +30,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--cases", type=int, default=30, help="hidden cases (default 30)")
     p.add_argument("--seed", type=int, default=0,
                    help="root seed R of the suite (default 0); case i is run i of it: the "
-                        "traces of 'ema-bench simulate --root-seed R --seed i', the diagnosis "
-                        "of 'ema-bench diagnose --root-seed R --seed i'")
+                        "traces of 'ema-bench simulate --root-seed R --seed i' (reference-model "
+                        "cases, before any acquisition decoy), the diagnosis of 'ema-bench "
+                        "diagnose --root-seed R --seed i'")
     p.add_argument("--out", default=None, metavar="DIR",
                    help="write blind.jsonl and summary.json here, resumable (default "
                         "ema-bench-blind-seed<S>-n<N>)")
+    p.add_argument("--workers", type=int, default=1,
+                   help="processes running cases at once (default 1; each takes one core)")
     add_json(p, "the summary and the cases")
     add_quiet(p)
     p.set_defaults(func=run)
@@ -49,36 +57,82 @@ def run(args: argparse.Namespace) -> int:
     from . import CLIError, print_json
     from .args import check_output
 
-    if args.cases < 1:
-        raise CLIError("--cases must be >= 1")
+    if args.cases < 1 or args.workers < 1:
+        raise CLIError("--cases and --workers must be >= 1")
     # before any work: the suite takes minutes per case
     out = check_output(args.out or default_out(args.seed, args.cases), "--out", folder=True)
     if args.out is None and not args.quiet:
         print(f"writing to {out}/ (rerun the same command to resume)", file=sys.stderr)
-    res = run_blind(args.cases, args.seed, out, quiet=args.quiet)
+    res = run_blind(args.cases, args.seed, out, quiet=args.quiet, workers=args.workers)
     (Path(out) / "summary.json").write_text(json.dumps(
         {"command": "ema-bench " + " ".join(sys.argv[1:]), **res["summary"]}, indent=1))
     if args.json:
         print_json(res)
         return 0
-    s = res["summary"]
-    print(f"blind suite: {s['cases']} cases, seed {args.seed}")
-    print(f"  naming accuracy (top-1): {s['naming_accuracy']:.0%} of {s['effect_cases']} "
-          f"effect cases  {s['per_effect']}")
-    print(f"  of which flagged partial (a discrepancy remains): {s['named_partial']}")
-    print(f"  false alarms: {s['false_alarms']} of {s['null_cases']} null cases")
-    o = s["decoys_by_outcome"]
-    print(f"  decoys not misnamed: {s['decoys_unexplained_or_partial']} of "
-          f"{s['decoy_cases']} (unexplained {o['unexplained']}, named but partial "
-          f"{o['named_partial']}, not detected {o['not_detected']}, named {o['named']})")
-    print(f"  median held-out gap closed: {s['median_heldout_gap_closed']:.0%}; median "
-          f"parameter error: {s['median_param_error']:.1%}")
-    if s.get("interval_coverage"):
-        print(f"  named effects whose 95 % profile interval contains the truth: "
-              f"{s['interval_coverage']}")
+    for line in summary_lines(res["summary"], args.seed):
+        print(line)
     for r in res["records"]:
-        truth = f"{r['effect']}={r['value']:.3g}" if r["effect"] else "nothing"
-        print(f"    case {r['index']:>3} {r['kind']:<6} {truth:<28} -> {r['verdict']:<11} "
-              f"{','.join(r['named']) or r.get('partial') or ''}"
-              f"{' (partial)' if r['named'] and r.get('partial') else ''}")
+        print(case_line(r))
     return 0
+
+
+def _pct(x: float, digits: int = 0) -> str:
+    return "-" if x != x else f"{x:.{digits}%}"
+
+
+def _category_line(name: str, b: dict) -> str:
+    """One line of figures of a category block of the summary."""
+    n = b["cases"]
+    if name in ("single", "near_threshold"):
+        return (f"named top-1 {b['correct']}/{n} ({_pct(b['naming_accuracy'])}), partial "
+                f"{b['named_partial']}, gap closed {_pct(b['median_heldout_gap_closed'])}, "
+                f"param error {_pct(b['median_param_error'], 2)}, intervals cover "
+                f"{b['interval_coverage'] or '-'}  {b['per_effect']}")
+    if name == "two_effect":
+        return (f"both named {b['both_named']}/{n}, at least one {b['one_named']}/{n}, gap "
+                f"closed {_pct(b['median_heldout_gap_closed'])}, intervals cover "
+                f"{b['interval_coverage'] or '-'}")
+    if name in ("null", "monitor_null"):
+        return f"false alarms {b['false_alarms']}/{n}  {b['by_verdict']}"
+    o = b["by_outcome"]
+    return (f"handled {b['ok']}/{n} (unexplained {o['unexplained']}, named but partial "
+            f"{o['named_partial']}, not detected {o['not_detected']}, named {o['named']})  "
+            f"{b['ok_by_decoy']}")
+
+
+def summary_lines(s: dict, seed: int) -> list[str]:
+    """The text summary: overall figures, then one line per category that has cases."""
+    lines = [f"blind suite: {s['cases']} cases, seed {seed}",
+             f"  naming accuracy (top-1): {_pct(s['naming_accuracy'])} of {s['effect_cases']} "
+             "single and near-threshold cases",
+             f"  false alarms: {s['false_alarms']} of {s['null_cases']} null cases (reference "
+             "and monitor data)",
+             f"  decoys not misnamed: {s['decoys_unexplained_or_partial']} of "
+             f"{s['decoy_cases']}",
+             f"  median held-out gap closed: {_pct(s['median_heldout_gap_closed'])}; median "
+             f"parameter error: {_pct(s['median_param_error'], 2)}"]
+    if s.get("interval_coverage"):
+        lines.append("  named true effects whose 95 % profile interval contains the truth: "
+                     f"{s['interval_coverage']}")
+    for name, b in s["per_category"].items():
+        if b["cases"]:
+            lines.append(f"  {name:<17} {b['cases']:>3}: {_category_line(name, b)}")
+    return lines
+
+
+def _truth(r: dict) -> str:
+    """What a case hides, shortly: its effects, decoy and channel, or nothing."""
+    effects = ",".join(f"{k}={v:.3g}" for k, v in r["effects"].items())
+    if r["category"] == "acquisition_decoy":
+        return f"{r['decoy']}({r['decoy_params'].get('signal', '')})"
+    if r["category"] == "monitor_null":
+        return "nothing (monitor)"
+    return effects or "nothing"
+
+
+def case_line(r: dict) -> str:
+    """One finished case: index, category, truth, verdict and what was named."""
+    named = ",".join(r["named"]) or r.get("partial") or ""
+    partial = " (partial)" if r["named"] and r.get("partial") else ""
+    return (f"    case {r['index']:>3} {r['category']:<17} {_truth(r):<44} -> "
+            f"{r['verdict']:<11} {named}{partial}")

@@ -5,8 +5,10 @@ The traces must hold the step and sine tests (fitted) and the held-out sine ``si
 ``ema-bench simulate --tests step,sine,sine2 --out traces.csv``.  Any format load_traces reads
 (CSV, NPZ, MAT), in one file or several: a file holding one unnamed test (no 'test' column)
 gets its name from ``--test``, one name per file in order.  Verdicts: none, effect (named,
-with its value and interval), unexplained (the gap left open, and the nearest library effect
-if it explains part of it).
+with its value and interval; two or three effects at once when no single one explains the
+discrepancy), unexplained (the discrepancy left open, and the nearest library effect or set
+if it explains part of it).  A discrepancy is a held-out fitness above what the fitted model
+plus sensor noise reaches, or training residual statistics outside their bootstrap envelopes.
 
 Examples::
 
@@ -84,9 +86,8 @@ def run(args: argparse.Namespace) -> int:
     print(f"verdict: {d.verdict}. {d.message}")
     for e in d.effects:
         (name, v), = e.params.items()
-        print(f"  {name} = {v:.4g} (95 % interval {e.interval[0]:.4g} .. {e.interval[1]:.4g}); "
-              f"held-out gap {e.gap_before:.3g} -> {e.gap_after:.3g} "
-              f"({100 * e.gap_closed:.0f} % closed){', partial' if e.partial else ''}")
+        print(f"  {name} = {v:.4g} (95 % interval {e.interval[0]:.4g} .. {e.interval[1]:.4g})"
+              f"{', partial' if e.partial else ''}")
     print("faults before -> after: " + ", ".join(
         f"{n} {v['before']:.4g} -> {v['after']:.4g}" for n, v in d.faults.items()))
     if args.report:

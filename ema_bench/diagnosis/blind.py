@@ -1,74 +1,181 @@
 """Blind test of the workflow: hidden cases it must diagnose without seeing the answer.
 
-Each case hides random faults and one of: a library effect at a random magnitude above its
-detection threshold (log-uniform in [detect, 4 detect], capped at its bound, random sign for
-two-sided effects), nothing (null case), or a decoy outside the library.  Scores: naming
-accuracy (top-1), false alarms on null cases, held-out gap closed, parameter error, and what
-became of the decoys.
+Each case hides random faults and belongs to one category (:data:`CATEGORIES`, fixed shares
+of the suite):
+
+``single``
+    one library effect at 1.5-4 times its detection threshold ``detect`` (log-uniform, capped
+    at its bound, random sign for two-sided effects); the workflow must name it first.
+``near_threshold``
+    one library effect at 1-1.5 times ``detect``.
+``two_effect``
+    two different library effects, each at 1.5-3 times ``detect``; the pairs cycle through
+    every pair of drawable effects.  The workflow should name both.
+``null``
+    the reference model with no effect: the workflow must say none.
+``monitor_null``
+    data made by the monitor model itself (the twin track): the workflow must say none.
+``physical_decoy``
+    a physical effect outside the library (:data:`~ema_bench.effects.DECOYS`) in the
+    reference model, at 1-4 times ``detect``.
+``acquisition_decoy``
+    a fault of the acquisition chain applied to the measured traces
+    (:mod:`~ema_bench.diagnosis.decoys`: a slow filter, mains hum, clipping, a time shift,
+    drift, outliers on one channel).
+
+A decoy is handled when the workflow reports it unexplained or not at all, or names an
+effect only flagged partial.  The coarse ``kind`` of a case is ``effect`` (the first three),
+``null`` or ``decoy``.  Scores: naming accuracy (top-1) of single effects, both-named rate of
+pairs, false alarms on both null kinds, decoys handled, held-out gap closed, parameter error
+and the coverage of the named effects' intervals.
+
+Records
+-------
+A case's record (:func:`run_case`) holds its identity (``key``, ``root_seed``, ``seed``,
+``model_version``), the truth (the fields of :class:`BlindCase`: ``index``, ``category``,
+``kind``, ``effects``, ``faults``, ``decoy``, ``decoy_params``), the answer (``verdict``,
+``named``, ``partial``, ``gap_closed``, ``gap_before``, ``gap_after``, ``message``,
+``evaluations``, ``wall_s``) and its scores: ``correct`` (single and near-threshold: the first
+named effect is the truth) or ``both_named`` and ``one_named`` (pairs), with
+``named_partial`` and, per true effect found, ``estimates``, ``param_errors`` (relative),
+``intervals`` and ``interval_covers`` (``name -> ...``); ``false_alarm`` (null kinds);
+``decoy_ok`` (decoys).
 """
 
 from __future__ import annotations
 
+import itertools
 import math
+import multiprocessing as mp
+import os
+import statistics
 import time
-from dataclasses import asdict, dataclass
+from collections import Counter
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from contextlib import closing
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from ..effects import DECOYS, EFFECT_NAMES, EFFECTS, LIBRARY
+from ..effects import DECOYS, EFFECT_INDEX, EFFECTS, LIBRARY, effects_vector
 from ..faults import faults_to_dict, random_faults
+from ..instances import twin_traces
 from ..leaderboard.store import RunStore, is_current, read_records
 from ..progress import progress
 from ..protocol import HOLDOUT_TESTS, STANDARD_TESTS
 from ..reference import simulate_reference
 from ..seeding import run_seed, stream
 from ..trace_cache import MODEL_VERSION
+from ..traces import Traces
+from . import decoys
 from .workflow import Settings, diagnose
 
-DRAWABLE = tuple(n for n in LIBRARY if math.isfinite(EFFECTS[EFFECT_NAMES.index(n)].detect))
-SHARE_NULL = 0.2
-SHARE_DECOY = 0.15
+DRAWABLE = tuple(n for n in LIBRARY if math.isfinite(EFFECTS[EFFECT_INDEX[n]].detect))
+#: Every unordered pair of different drawable effects (the two-effect cases cycle them).
+PAIRS: tuple[tuple[str, str], ...] = tuple(itertools.combinations(DRAWABLE, 2))
+ACQUISITION = tuple(decoys.ACQUISITION_DECOYS)
+#: Categories and their shares of a suite, in percent (largest remainders round them).
+CATEGORIES: dict[str, int] = {
+    "single": 25, "near_threshold": 14, "two_effect": 19, "null": 9, "monitor_null": 8,
+    "physical_decoy": 6, "acquisition_decoy": 19,
+}
+KINDS: dict[str, str] = {
+    "single": "effect", "near_threshold": "effect", "two_effect": "effect", "null": "null",
+    "monitor_null": "null", "physical_decoy": "decoy", "acquisition_decoy": "decoy",
+}
+#: Magnitude of the hidden effects, as a range of multiples of ``detect`` (log-uniform).
+MAGNITUDES: dict[str, tuple[float, float]] = {
+    "single": (1.5, 4.0), "near_threshold": (1.0, 1.5), "two_effect": (1.5, 3.0),
+    "physical_decoy": (1.0, 4.0),
+}
+TESTS = STANDARD_TESTS + HOLDOUT_TESTS
+
+Runner = Callable[["BlindCase", int, Settings], dict]
 
 
 @dataclass(frozen=True)
 class BlindCase:
+    """One hidden case: its category, the truth and the faults.
+
+    ``effects`` are the effects switched on in the reference model (``name -> value``, empty
+    for null and acquisition-decoy cases); ``decoy`` names the decoy (a physical effect or an
+    acquisition decoy) and ``decoy_params`` holds an acquisition decoy's keyword arguments.
+    """
+
     index: int
-    kind: str                 # "effect" | "null" | "decoy"
-    effect: str | None
-    value: float
+    category: str
+    kind: str                       # "effect" | "null" | "decoy"
+    effects: dict[str, float]
     faults: dict[str, float]
+    decoy: str | None = None
+    decoy_params: dict[str, Any] = field(default_factory=dict)
+
+
+def category_counts(n: int) -> dict[str, int]:
+    """How many of ``n`` cases each category gets: its share, rounded by largest remainder
+    (ties to the earlier category)."""
+    exact = {c: w * n for c, w in CATEGORIES.items()}          # in hundredths of a case
+    counts = {c: q // 100 for c, q in exact.items()}
+    left = n - sum(counts.values())
+    for c in sorted(CATEGORIES, key=lambda c: -(exact[c] % 100))[:left]:
+        counts[c] += 1
+    return counts
+
+
+def _magnitude(rng: np.random.Generator, name: str, lo: float, hi: float) -> float:
+    """A value of effect ``name`` log-uniform in ``[lo, hi]`` times its ``detect``, capped
+    at its upper bound; negative half the time when the effect is two-sided and the
+    negative value is within bounds."""
+    spec = EFFECTS[EFFECT_INDEX[name]]
+    top = min(hi * spec.detect, spec.upper)
+    bottom = min(lo * spec.detect, top)
+    value = float(math.exp(rng.uniform(math.log(bottom), math.log(top))))
+    if spec.lower < 0.0 and rng.random() < 0.5 and -value >= spec.lower:
+        value = -value
+    return value
+
+
+def _orders(rng: np.random.Generator) -> dict[str, list[tuple[str, ...]]]:
+    """The order each category cycles its effects (or decoys) in."""
+    def perm(items: Sequence) -> list:
+        return [items[i] for i in rng.permutation(len(items))]
+
+    return {"single": [(n,) for n in perm(DRAWABLE)],
+            "near_threshold": [(n,) for n in perm(DRAWABLE)],
+            "two_effect": perm(PAIRS),
+            "physical_decoy": [(n,) for n in DECOYS],
+            "acquisition_decoy": [(n,) for n in perm(ACQUISITION)]}
 
 
 def draw_cases(n: int, seed: int) -> list[BlindCase]:
-    """``n`` hidden cases of the suite of root seed ``seed``; kinds are laid out in fixed
-    shares, effects cycle through the drawable library so every effect appears.
+    """``n`` hidden cases of the suite of root seed ``seed``, laid out in the fixed shares of
+    :data:`CATEGORIES`; each category cycles through its effects, pairs or decoys so that
+    every one appears.
 
-    The layout (kinds, effect order, magnitudes) comes from the root's ``plan`` stream; case
-    ``i``'s faults from the ``instance`` stream of run ``i`` (``run_seed(seed, i)``)."""
-    n_null = max(1, round(SHARE_NULL * n))
-    n_decoy = max(1, round(SHARE_DECOY * n))
-    kinds = ["null"] * n_null + ["decoy"] * n_decoy + ["effect"] * (n - n_null - n_decoy)
+    The layout (categories, effect order, magnitudes) comes from the root's ``plan`` stream;
+    case ``i``'s faults from the ``instance`` stream of run ``i`` (``run_seed(seed, i)``), an
+    acquisition decoy's channel and magnitude from its ``acquisition`` stream."""
     rng = np.random.default_rng(stream(seed, "plan"))
-    rng.shuffle(kinds)
-    cases, k_eff, k_dec = [], 0, 0
-    order = [str(n) for n in rng.permutation(DRAWABLE)]
-    for i, kind in enumerate(kinds):
-        faults = faults_to_dict(random_faults(stream(run_seed(seed, i), "instance"), 1.0))
-        name, value = None, 0.0
-        if kind != "null":
-            if kind == "effect":
-                name = order[k_eff % len(order)]
-                k_eff += 1
-            else:
-                name = DECOYS[k_dec % len(DECOYS)]
-                k_dec += 1
-            spec = EFFECTS[EFFECT_NAMES.index(name)]
-            hi = min(4.0 * spec.detect, max(abs(spec.lower), spec.upper))
-            value = float(math.exp(rng.uniform(math.log(spec.detect), math.log(hi))))
-            if spec.lower < 0.0 and rng.random() < 0.5 and -value >= spec.lower:
-                value = -value
-        cases.append(BlindCase(i, kind, name, value, faults))
+    layout = [c for c, k in category_counts(n).items() for _ in range(k)]
+    rng.shuffle(layout)
+    orders, taken = _orders(rng), Counter()
+    cases = []
+    for i, category in enumerate(layout):
+        node = run_seed(seed, i)
+        faults = faults_to_dict(random_faults(stream(node, "instance"), 1.0))
+        names: tuple[str, ...] = ()
+        if category in orders:
+            names = orders[category][taken[category] % len(orders[category])]
+            taken[category] += 1
+        effects = ({name: _magnitude(rng, name, *MAGNITUDES[category]) for name in names}
+                   if category in MAGNITUDES else {})
+        decoy = names[0] if KINDS[category] == "decoy" else None
+        params = (decoys.draw(names[0], np.random.default_rng(stream(node, "acquisition")))
+                  if category == "acquisition_decoy" else {})
+        cases.append(BlindCase(i, category, KINDS[category], effects, faults, decoy, params))
     return cases
 
 
@@ -79,111 +186,261 @@ def case_record(case: BlindCase, seed: int) -> dict:
             "model_version": MODEL_VERSION, **asdict(case)}
 
 
-def run_case(case: BlindCase, seed: int, settings: Settings) -> dict:
-    """Simulate a hidden case, diagnose it blind, and score the answer.
+def measured_traces(case: BlindCase, seed: int) -> Traces:
+    """The measured traces of a hidden case (step, sine and the held-out sine2).
 
-    Case ``i`` of root ``seed`` is run ``i`` of the seed tree: the traces of ``ema-bench
-    simulate --root-seed R --seed i`` and the diagnosis of ``ema-bench diagnose --root-seed R
-    --seed i``."""
-    t0 = time.perf_counter()
-    effects = {case.effect: case.value} if case.effect else {}
-    x = np.array(list(case.faults.values()))
+    The reference model with the case's effects and the sensor noise of the run's ``noise``
+    stream (the traces of ``ema-bench simulate --root-seed R --seed i``); for
+    ``monitor_null`` the monitor model through the same sensors (its ``model`` meta hidden);
+    for ``acquisition_decoy`` the reference traces with the decoy applied."""
     node = run_seed(seed, case.index)
-    measured = simulate_reference(x, effects, tests=STANDARD_TESTS + HOLDOUT_TESTS,
-                                  seed=stream(node, "noise"))
+    x = np.array(list(case.faults.values()))
+    if case.category == "monitor_null":
+        tr = twin_traces(x, effects_vector({}), stream(node, "noise"), TESTS)
+        return tr.with_meta(model=None)
+    tr = simulate_reference(x, case.effects, tests=TESTS, seed=stream(node, "noise"))
+    if case.category == "acquisition_decoy":
+        tr = decoys.apply(case.decoy, tr, case.decoy_params)
+    return tr
+
+
+def run_case(case: BlindCase, seed: int, settings: Settings) -> dict:
+    """Make a hidden case's data, diagnose it blind, and score the answer.
+
+    Case ``i`` of root ``seed`` is run ``i`` of the seed tree: its diagnosis is that of
+    ``ema-bench diagnose --root-seed R --seed i`` on :func:`measured_traces`."""
+    t0 = time.perf_counter()
+    node = run_seed(seed, case.index)
+    measured = measured_traces(case, seed)
     # the workflow sees the traces only
     d = diagnose(measured.with_meta(faults=None, effects=None), settings,
                  seed=stream(node, "diagnosis"))
+    return {**case_record(case, seed), "verdict": d.verdict, "named": [e.name for e in d.effects],
+            "partial": d.gap.get("partial"), "gap_closed": d.gap.get("closed", 0.0),
+            "gap_before": d.gap["before"], "gap_after": d.gap["after"],
+            "message": d.message, "evaluations": d.evaluations, **score(case, d),
+            "wall_s": time.perf_counter() - t0}
+
+
+def score(case: BlindCase, d: Any) -> dict:
+    """The scores of diagnosis ``d`` (a :class:`~ema_bench.diagnosis.workflow.Diagnosis`)
+    of ``case``: by kind, see the module's docstring."""
+    if case.kind == "null":
+        return {"false_alarm": d.verdict != "none"}
+    if case.kind == "decoy":
+        partial = bool(d.gap.get("partial")) or any(e.partial for e in d.effects)
+        return {"decoy_ok": d.verdict in ("none", "unexplained") or partial}
     named = [e.name for e in d.effects]
-    rec = {**case_record(case, seed), "verdict": d.verdict, "named": named,
-           "partial": d.gap.get("partial"), "gap_closed": d.gap.get("closed", 0.0),
-           "gap_before": d.gap["before"], "gap_after": d.gap["after"],
-           "message": d.message, "evaluations": d.evaluations,
-           "wall_s": time.perf_counter() - t0}
-    if case.kind == "effect":
-        rec["correct"] = bool(named) and named[0] == case.effect
-        rec["named_partial"] = bool(d.effects) and d.effects[0].partial
-        if rec["correct"]:
-            est = d.effects[0].params[case.effect]
-            rec["estimate"] = est
-            rec["param_error"] = abs(est - case.value) / abs(case.value)
-            rec["interval"] = [float(v) for v in d.effects[0].interval]
-            rec["interval_covers"] = bool(rec["interval"][0] <= case.value
-                                          <= rec["interval"][1])
-    elif case.kind == "null":
-        rec["false_alarm"] = d.verdict != "none"
+    truth = list(case.effects)
+    if case.category == "two_effect":
+        found = [n for n in truth if n in named]
+        rec: dict[str, Any] = {"both_named": set(named) == set(truth),
+                               "one_named": bool(found)}
     else:
-        rec["decoy_ok"] = d.verdict in ("unexplained", "none") or bool(d.gap.get("partial"))
-    return rec
+        found = truth if named and named[0] == truth[0] else []
+        rec = {"correct": bool(found)}
+    rec["named_partial"] = any(e.partial for e in d.effects if e.name in found)
+    return {**rec, **_estimates(case.effects, d.effects, found)}
+
+
+def _estimates(truth: dict[str, float], findings: Sequence[Any], found: Sequence[str]) -> dict:
+    """Estimate, relative error, 95 % interval and whether it covers the truth, per found
+    true effect (``name -> ...`` dicts)."""
+    est, err, ivs, covers = {}, {}, {}, {}
+    for name in found:
+        f = next(e for e in findings if e.name == name)
+        if name not in f.params:
+            continue
+        est[name] = float(f.params[name])
+        err[name] = abs(est[name] - truth[name]) / abs(truth[name])
+        if len(f.interval) == 2:
+            ivs[name] = [float(v) for v in f.interval]
+            covers[name] = bool(ivs[name][0] <= truth[name] <= ivs[name][1])
+    return {"estimates": est, "param_errors": err, "intervals": ivs, "interval_covers": covers}
+
+
+# --- summary --------------------------------------------------------------------------------
+
+def _rate(k: int, n: int) -> float:
+    return k / n if n else math.nan
+
+
+def _median(values: Sequence[float]) -> float:
+    return float(statistics.median(values)) if values else math.nan
+
+
+def _fraction(flags: Sequence[bool]) -> str | None:
+    return f"{sum(flags)}/{len(flags)}" if flags else None
+
+
+def _tally(pairs: Sequence[tuple[str, bool]]) -> dict[str, str]:
+    """``label -> "hits/cases"``, sorted by label."""
+    hits: dict[str, list[int]] = {}
+    for label, ok in pairs:
+        hits.setdefault(label, [0, 0])
+        hits[label][0] += int(ok)
+        hits[label][1] += 1
+    return {k: f"{v[0]}/{v[1]}" for k, v in sorted(hits.items())}
+
+
+def _found(r: dict) -> bool:
+    """Whether an effect case's truth was found: named first, or both of a pair named."""
+    return bool(r.get("both_named") if r["category"] == "two_effect" else r.get("correct"))
+
+
+def _effect_block(rs: list[dict]) -> dict[str, object]:
+    """Figures shared by the effect categories: gap, parameter error, interval coverage."""
+    found = [r for r in rs if _found(r)]
+    return {
+        "named_partial": sum(bool(r.get("named_partial")) for r in found),
+        "median_heldout_gap_closed": _median([r["gap_closed"] for r in found]),
+        "median_param_error": _median([e for r in rs for e in r["param_errors"].values()]),
+        "interval_coverage": _fraction([c for r in rs for c in r["interval_covers"].values()]),
+    }
+
+
+def _single_block(rs: list[dict]) -> dict[str, object]:
+    correct = sum(r["correct"] for r in rs)
+    return {"cases": len(rs), "correct": correct, "naming_accuracy": _rate(correct, len(rs)),
+            "per_effect": _tally([(next(iter(r["effects"])), r["correct"]) for r in rs]),
+            **_effect_block(rs)}
+
+
+def _pair_block(rs: list[dict]) -> dict[str, object]:
+    both, one = sum(r["both_named"] for r in rs), sum(r["one_named"] for r in rs)
+    return {"cases": len(rs), "both_named": both, "both_named_rate": _rate(both, len(rs)),
+            "one_named": one, "one_named_rate": _rate(one, len(rs)),
+            "per_pair": _tally([("+".join(sorted(r["effects"])), r["both_named"])
+                                for r in rs]),
+            **_effect_block(rs)}
+
+
+def _null_block(rs: list[dict]) -> dict[str, object]:
+    alarms = sum(r["false_alarm"] for r in rs)
+    return {"cases": len(rs), "false_alarms": alarms, "false_alarm_rate": _rate(alarms, len(rs)),
+            "by_verdict": dict(sorted(Counter(r["verdict"] for r in rs).items()))}
+
+
+def _decoy_outcomes(rs: list[dict]) -> dict[str, int]:
+    # named, but flagged partial: handled
+    partial = [r["verdict"] == "effect" and bool(r["decoy_ok"]) for r in rs]
+    return {"unexplained": sum(r["verdict"] == "unexplained" for r in rs),
+            "named_partial": sum(partial),
+            "not_detected": sum(r["verdict"] == "none" for r in rs),
+            "named": sum(r["verdict"] == "effect" and not p for r, p in zip(rs, partial))}
+
+
+def _decoy_block(rs: list[dict]) -> dict[str, object]:
+    ok = sum(r["decoy_ok"] for r in rs)
+    return {"cases": len(rs), "ok": ok, "ok_rate": _rate(ok, len(rs)),
+            "by_outcome": _decoy_outcomes(rs),
+            "ok_by_decoy": _tally([(r["decoy"], r["decoy_ok"]) for r in rs])}
+
+
+_BLOCKS: dict[str, Callable[[list[dict]], dict[str, object]]] = {
+    "single": _single_block, "near_threshold": _single_block, "two_effect": _pair_block,
+    "null": _null_block, "monitor_null": _null_block, "physical_decoy": _decoy_block,
+    "acquisition_decoy": _decoy_block,
+}
 
 
 def summarise(records: list[dict]) -> dict[str, object]:
-    eff = [r for r in records if r["kind"] == "effect"]
-    null = [r for r in records if r["kind"] == "null"]
-    dec = [r for r in records if r["kind"] == "decoy"]
-    closed = [r["gap_closed"] for r in eff if r.get("correct")]
-    perr = [r["param_error"] for r in eff if "param_error" in r]
-    covers = [r["interval_covers"] for r in eff if "interval_covers" in r]
-    per_effect: dict[str, list[int]] = {}
-    for r in eff:
-        per_effect.setdefault(r["effect"], [0, 0])
-        per_effect[r["effect"]][0] += int(r["correct"])
-        per_effect[r["effect"]][1] += 1
+    """The suite's figures: overall (naming accuracy over single and near-threshold cases,
+    false alarms over both null kinds, decoys handled, gap closed over the found effect
+    cases, parameter error and interval coverage over every found true effect) and one block
+    per category (``per_category``)."""
+    by = {c: [r for r in records if r["category"] == c] for c in CATEGORIES}
+    named = by["single"] + by["near_threshold"]
+    effect = named + by["two_effect"]
+    null = by["null"] + by["monitor_null"]
+    dec = by["physical_decoy"] + by["acquisition_decoy"]
     return {
         "cases": len(records),
-        "effect_cases": len(eff), "naming_accuracy": (sum(r["correct"] for r in eff) / len(eff)
-                                                      if eff else math.nan),
+        "categories": {c: len(rs) for c, rs in by.items()},
+        "effect_cases": len(named),
+        "naming_accuracy": _rate(sum(r["correct"] for r in named), len(named)),
+        "per_effect": _tally([(next(iter(r["effects"])), r["correct"]) for r in named]),
         "null_cases": len(null), "false_alarms": sum(r["false_alarm"] for r in null),
         # a decoy is handled when no library effect is claimed as the whole answer
         "decoy_cases": len(dec), "decoys_unexplained_or_partial": sum(r["decoy_ok"]
                                                                       for r in dec),
-        "decoys_by_outcome": {
-            "unexplained": sum(r["verdict"] == "unexplained" for r in dec),
-            "named_partial": sum(r["verdict"] == "effect" and bool(r.get("partial"))
-                                 for r in dec),
-            "not_detected": sum(r["verdict"] == "none" for r in dec),
-            "named": sum(r["verdict"] == "effect" and not r.get("partial") for r in dec)},
-        # correct names whose model still leaves the envelopes (e.g. at heavy stiction)
-        "named_partial": sum(bool(r.get("named_partial")) for r in eff if r.get("correct")),
-        "median_heldout_gap_closed": float(np.median(closed)) if closed else math.nan,
-        "median_param_error": float(np.median(perr)) if perr else math.nan,
-        # how often the named effect's 95 % interval contains its true value
-        "interval_coverage": (f"{sum(covers)}/{len(covers)}" if covers else None),
-        "per_effect": {k: f"{v[0]}/{v[1]}" for k, v in sorted(per_effect.items())},
+        "decoys_by_outcome": _decoy_outcomes(dec),
+        # found effects whose model still leaves the envelopes (e.g. at heavy stiction)
+        **_effect_block(effect),
+        "per_category": {c: _BLOCKS[c](rs) for c, rs in by.items()},
         "wall_s": float(sum(r["wall_s"] for r in records)),
     }
 
 
+# --- running a suite ------------------------------------------------------------------------
+
 def run_blind(n: int, seed: int, out: str | Path | None = None,
-              settings: Settings | None = None, quiet: bool = True) -> dict[str, object]:
+              settings: Settings | None = None, quiet: bool = True, workers: int = 1,
+              runner: Runner | None = None) -> dict[str, object]:
     """Run (or resume, with ``out``) a blind suite of ``n`` cases and summarise it; progress
-    as :func:`~ema_bench.progress.progress` shows it unless ``quiet``."""
+    as :func:`~ema_bench.progress.progress` shows it unless ``quiet``.
+
+    ``workers`` > 1 runs the cases in that many processes; each record is appended to the
+    store (by this process) as its case finishes, and the records come back in case order.
+    ``runner`` replaces :func:`run_case` (a module-level function, for the processes)."""
     settings = settings or Settings()
     cases = draw_cases(n, seed)
-    records: list[dict] = []
     store = RunStore(Path(out) / "blind.jsonl") if out else None
     # cases of another model version are stale: run again, recorded beside the old ones
     done = {r["key"]: r for r in read_records(store.path) if is_current(r)} if store else {}
+    records: dict[int, dict] = {}
     try:
         with progress(len(cases), "blind", "case", quiet=quiet) as bar:
+            todo = []
             for case in cases:
                 rec = done.get(f"case{case.index}")
                 if rec is None:
-                    rec = run_case(case, seed, settings)
+                    todo.append(case)
+                    continue
+                _check_resumed(rec, case, seed, store.path)
+                records[case.index] = rec
+                bar.update(f"case{case.index} {rec['verdict']}")
+            with closing(run_cases(todo, seed, settings, workers, runner or run_case)) as ran:
+                for rec in ran:
                     if store:
                         store.append(rec)
-                else:
-                    _check_resumed(rec, case, seed, store.path)
-                records.append(rec)
-                bar.update(f"case{case.index} {rec['verdict']}")
+                    records[rec["index"]] = rec
+                    bar.update(f"case{rec['index']} {rec['verdict']}")
     finally:
         if store:
             store.close()
-    return {"seed": seed, "summary": summarise(records), "records": records}
+    ordered = [records[c.index] for c in cases]
+    return {"seed": seed, "summary": summarise(ordered), "records": ordered}
+
+
+def run_cases(cases: Sequence[BlindCase], seed: int, settings: Settings, workers: int = 1,
+              runner: Runner = run_case) -> Iterator[dict]:
+    """The records of ``cases`` as they finish: in order in this process, or in any order
+    from ``workers`` spawned processes (one numba thread each)."""
+    if workers <= 1 or len(cases) <= 1:
+        for case in cases:
+            yield runner(case, seed, settings)
+        return
+    from ..leaderboard.executors import _worker_init
+
+    # "spawn": numba's threading layers and fork do not mix well
+    pool = ProcessPoolExecutor(min(workers, len(cases)), mp_context=mp.get_context("spawn"),
+                               initializer=_worker_init, initargs=(os.getpid(),))
+    try:
+        futures = [pool.submit(runner, case, seed, settings) for case in cases]
+        for fut in as_completed(futures):
+            yield fut.result()
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _check_resumed(rec: dict, case: BlindCase, seed: int, path: Path) -> None:
-    """A recorded case reused on resume must be the case drawn now, of the same root seed."""
+    """A recorded case reused on resume must be the case drawn now, of the same root seed,
+    in this format (categories and an ``effects`` truth)."""
+    if "category" not in rec or "effects" not in rec:
+        raise ValueError(f"{path}: case{case.index} there is a record of the old blind-suite "
+                         "format (kinds effect/null/decoy, one effect and value); use another "
+                         "--out, or move that file away to run the suite anew")
     drawn = {**asdict(case), "root_seed": seed}
     if any(rec.get(k) != v for k, v in drawn.items()):
         raise ValueError(f"{path}: case{case.index} there is not the case drawn for this "

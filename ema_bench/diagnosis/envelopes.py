@@ -57,8 +57,9 @@ class Envelope:
 
 def fitness_of(model: dict[str, np.ndarray], data: dict[str, np.ndarray],
                weights: dict[str, np.ndarray]) -> dict[str, float]:
-    """Per-test fitness: weighted mean squared error summed over signals."""
-    return {t: float(np.sum(np.mean((model[t] - data[t]) ** 2, axis=0) * weights[t]))
+    """Per-test fitness: weighted mean squared error summed over signals (``weights[t]``
+    per signal (4,), or per sample (n_samples, 4))."""
+    return {t: float(np.sum(np.mean((model[t] - data[t]) ** 2 * weights[t], axis=0)))
             for t in model}
 
 
@@ -87,6 +88,7 @@ def bootstrap(clean: dict[str, np.ndarray], model: dict[str, np.ndarray],
               commands: dict[str, np.ndarray], weights: dict[str, np.ndarray],
               feature_tests: tuple[str, ...], n: int, seed: SeedLike,
               project: Callable[[dict[str, np.ndarray]], dict[str, np.ndarray]] | None = None,
+              mask: dict[str, np.ndarray] | None = None,
               ) -> tuple[Envelope, dict[str, np.ndarray]]:
     """Envelopes of the residual features and per-test fitness samples.
 
@@ -97,13 +99,16 @@ def bootstrap(clean: dict[str, np.ndarray], model: dict[str, np.ndarray],
     feature_tests : tests whose residual features are screened (the training tests).
     n : replicates.
     project : applied to each replicate's training residuals (see :func:`refit_projector`).
+    mask : per test, (n_samples, 4) multipliers of the residuals before their statistics
+        (the measured data's, so replicates and data are treated alike).
     """
     rows, fits = [], {t: [] for t in clean}
     names: tuple[str, ...] = ()
     for b, kid in enumerate(children(seed, n)):
         rngs = {t: np.random.default_rng(k) for t, k in zip(clean, children(kid, len(clean)))}
         data = {t: measure(clean[t], rngs[t]) for t in clean}
-        res = {t: data[t] - model[t] for t in feature_tests}
+        res = {t: (data[t] - model[t]) * (1.0 if mask is None else mask[t])
+               for t in feature_tests}
         feats = residual_features(project(res) if project else res,
                                   {t: data[t] for t in feature_tests},
                                   {t: commands[t] for t in feature_tests})

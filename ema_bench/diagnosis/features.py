@@ -15,6 +15,10 @@ from ..traces import SIGNALS
 
 ORDERS = (1, 2, 12)
 MAX_LAG = 25  # samples (ms) searched for the command cross-correlation
+# samples a statistic of a subset (moving one way, fast, slow) needs: the step test's
+# overshoot gives one or two samples of reverse speed, whose mean is one noise draw with no
+# bootstrap envelope to match (a false alarm on data from the monitor itself)
+MIN_SUPPORT = 10
 # per-signal noise std of a recorded sample: white noise plus quantisation
 NOISE_STD = np.array([np.hypot(s.noise_std, s.lsb / np.sqrt(12.0)) for s in SENSORS])
 
@@ -58,10 +62,12 @@ def features_of_test(r: np.ndarray, y: np.ndarray, cmd: np.ndarray, prefix: str
         out[p + "rms"] = float(np.sqrt(np.mean(rk**2)))
         out[p + "speed_slope"] = _proj(rk, w)
         pos, neg = rk[w > 5.0], rk[w < -5.0]
-        out[p + "speed_sign"] = float(pos.mean() - neg.mean()) if pos.size and neg.size else 0.0
+        out[p + "speed_sign"] = float(pos.mean() - neg.mean()) \
+            if min(pos.size, neg.size) >= MIN_SUPPORT else 0.0
         slow = rk[~fast]
         out[p + "fast_minus_slow_rms"] = float(np.sqrt(np.mean(rk[fast] ** 2)) -
-                                               np.sqrt(np.mean(slow**2))) if slow.size else 0.0
+                                               np.sqrt(np.mean(slow**2))) \
+            if min(slow.size, int(fast.sum())) >= MIN_SUPPORT else 0.0
         out[p + "position"] = _proj(rk, y[:, 0] - y[:, 0].mean())
         out[p + "current"] = _proj(rk, y[:, 3] - y[:, 3].mean())
         rc = rk - rk.mean()
@@ -74,7 +80,7 @@ def features_of_test(r: np.ndarray, y: np.ndarray, cmd: np.ndarray, prefix: str
         e2 = xc**2
         lags = np.arange(-MAX_LAG, MAX_LAG + 1)
         out[p + "xcorr_lag"] = float(lags @ e2 / e2.sum()) if e2.sum() > 0 else 0.0
-        if moving.sum() > 10:
+        if moving.sum() >= MIN_SUPPORT:
             amp = np.abs(phase[:, moving] @ rk[moving]) / moving.sum()
         else:
             amp = np.zeros(len(ORDERS))

@@ -1,0 +1,468 @@
+"""The blind suite's case categories (issue 15): the draw and its shares, the acquisition-chain
+decoys against hand-computed expectations, the scores and summary, and the process pool.
+No test here runs a diagnosis: one is faked where a record needs it."""
+
+from __future__ import annotations
+
+import json
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+import ema_bench.diagnosis.blind as blind
+from ema_bench.cli import main
+from ema_bench.diagnosis import decoys
+from ema_bench.diagnosis.blind import (
+    DRAWABLE,
+    PAIRS,
+    BlindCase,
+    case_record,
+    category_counts,
+    draw_cases,
+    run_blind,
+    run_case,
+    score,
+    summarise,
+)
+from ema_bench.effects import DECOYS, EFFECT_INDEX, EFFECTS, effects_vector
+from ema_bench.faults import random_faults
+from ema_bench.leaderboard.store import read_records
+from ema_bench.physics.sensors import SENSORS, measure, quantise
+from ema_bench.seeding import run_seed, stream
+from ema_bench.trace_cache import MODEL_VERSION
+from ema_bench.traces import OUTPUT_DT, SIGNALS, Traces
+
+CASES64 = draw_cases(64, 0)
+
+
+def detects(name: str, value: float) -> float:
+    """|value| in multiples of the effect's detection threshold."""
+    return abs(value) / EFFECTS[EFFECT_INDEX[name]].detect
+
+
+# --- the draw -------------------------------------------------------------------------------
+
+def test_the_draw_is_seeded_and_reproducible():
+    assert draw_cases(64, 0) == CASES64 and draw_cases(64, 1) != CASES64
+    for c in CASES64:
+        node = run_seed(0, c.index)
+        np.testing.assert_array_equal(list(c.faults.values()),
+                                      random_faults(stream(node, "instance"), 1.0))
+        if c.category == "acquisition_decoy":   # drawn from the case's own stream
+            rng = np.random.default_rng(stream(node, "acquisition"))
+            assert c.decoy_params == decoys.draw(c.decoy, rng)
+        effects_vector(c.effects)               # within bounds
+
+
+def test_shares_at_60_and_64_cases():
+    assert category_counts(64) == {"single": 16, "near_threshold": 9, "two_effect": 12,
+                                   "null": 6, "monitor_null": 5, "physical_decoy": 4,
+                                   "acquisition_decoy": 12}
+    assert category_counts(60) == {"single": 15, "near_threshold": 9, "two_effect": 11,
+                                   "null": 5, "monitor_null": 5, "physical_decoy": 4,
+                                   "acquisition_decoy": 11}
+    for n in (1, 2, 7, 30, 61, 100, 1000):
+        assert sum(category_counts(n).values()) == n
+    drawn = {c: sum(x.category == c for x in CASES64) for c in blind.CATEGORIES}
+    assert drawn == category_counts(64)
+    kinds = {c.category: c.kind for c in CASES64}
+    assert kinds == {"single": "effect", "near_threshold": "effect", "two_effect": "effect",
+                     "null": "null", "monitor_null": "null", "physical_decoy": "decoy",
+                     "acquisition_decoy": "decoy"}
+
+
+def test_every_decoy_appears_at_64_cases():
+    acq = [c for c in CASES64 if c.category == "acquisition_decoy"]
+    assert sorted({c.decoy for c in acq}) == sorted(decoys.ACQUISITION_DECOYS)
+    assert all(c.effects == {} for c in acq)
+    phys = [c for c in CASES64 if c.category == "physical_decoy"]
+    assert {c.decoy for c in phys} == set(DECOYS)
+    assert all(list(c.effects) == [c.decoy] and c.decoy_params == {} for c in phys)
+
+
+def test_effect_magnitudes_by_category():
+    eps = 1e-12
+    for c in CASES64:
+        if c.category in ("null", "monitor_null", "acquisition_decoy"):
+            assert c.effects == {}
+            continue
+        for name, value in c.effects.items():
+            m, upper = detects(name, value), EFFECTS[EFFECT_INDEX[name]].upper
+            lo, hi = blind.MAGNITUDES[c.category]
+            assert lo - eps <= m <= hi + eps and value <= upper
+        if c.category == "near_threshold":
+            assert len(c.effects) == 1
+            assert all(1.0 - eps <= detects(*kv) <= 1.5 + eps for kv in c.effects.items())
+        if c.category == "single":
+            assert len(c.effects) == 1 and set(c.effects) <= set(DRAWABLE)
+
+
+def test_two_effect_pairs_are_distinct_and_cycle():
+    pairs = [tuple(c.effects) for c in CASES64 if c.category == "two_effect"]
+    assert len(pairs) == 12 and len(set(pairs)) == 12          # 12 of the 28 pairs, no repeat
+    assert all(a != b and (a, b) in PAIRS for a, b in pairs)
+    assert len(PAIRS) == len(DRAWABLE) * (len(DRAWABLE) - 1) // 2
+    for c in CASES64:
+        if c.category == "two_effect":
+            assert all(1.5 - 1e-12 <= detects(*kv) <= 3.0 + 1e-12
+                       for kv in c.effects.items())
+    # a suite larger than the pairs uses every pair
+    big = [frozenset(c.effects) for c in draw_cases(160, 3) if c.category == "two_effect"]
+    assert len(big) >= len(PAIRS) and set(big) == {frozenset(p) for p in PAIRS}
+
+
+# --- the acquisition-chain decoys -----------------------------------------------------------
+
+def adc_traces(n: int = 400) -> Traces:
+    """Two tests of plain signals on ADC codes, inside every span: a position sine, a motor
+    angle ramp, a speed sine near the speed limit and a current that steps from 5 A to 19 A
+    (near the current limit) at sample 100."""
+    t = (np.arange(n) + 0.5) * OUTPUT_DT
+    y = np.column_stack([0.2 * np.sin(2 * np.pi * t), 50.0 * t, 740.0 * np.cos(2 * np.pi * t),
+                         np.where(np.arange(n) >= 100, 19.0, 5.0)])
+    clean = measure(y, None, noise=False)
+    return Traces({"a": clean, "b": clean[::-1].copy()}, meta={"model": "reference"})
+
+
+def changed(before: Traces, after: Traces, signal: str) -> dict[str, np.ndarray]:
+    """The change of ``signal`` per test, after checking that nothing else changed."""
+    k = SIGNALS.index(signal)
+    others = [j for j in range(4) if j != k]
+    assert after.tests == before.tests and after.dt == before.dt
+    assert dict(after.meta) == dict(before.meta)
+    out = {}
+    for t in before.tests:
+        np.testing.assert_array_equal(after.data[t][:, others], before.data[t][:, others])
+        out[t] = after.data[t][:, k] - before.data[t][:, k]
+    return out
+
+
+def lsb(signal: str) -> float:
+    return SENSORS[SIGNALS.index(signal)].lsb
+
+
+def test_the_registry_has_six_decoys():
+    assert list(decoys.ACQUISITION_DECOYS) == ["lowpass", "mains_hum", "clipping",
+                                               "time_shift", "drift", "outliers"]
+    for f in decoys.ACQUISITION_DECOYS.values():
+        assert "Stands for" in f.__doc__
+
+
+def test_time_shift_delays_one_channel_by_whole_samples():
+    tr = adc_traces()
+    out = decoys.time_shift(tr, "i_eq", 3)
+    changed(tr, out, "i_eq")
+    for t in tr.tests:
+        y, z = tr.signal(t, "i_eq"), out.signal(t, "i_eq")
+        np.testing.assert_array_equal(z[3:], y[:-3])
+        np.testing.assert_array_equal(z[:3], np.full(3, y[0]))
+    assert decoys.time_shift(tr, "i_eq", 0).allclose(tr)
+
+
+def test_clipping_saturates_at_the_level():
+    tr = adc_traces()
+    out = decoys.clipping(tr, "omega_m", 300.0)
+    changed(tr, out, "omega_m")
+    y, z = tr.signal("a", "omega_m"), out.signal("a", "omega_m")
+    inside, above = np.abs(y) < 300.0, np.abs(y) > 300.0 + lsb("omega_m")
+    np.testing.assert_array_equal(z[inside], y[inside])
+    assert above.sum() > 100 and np.abs(z).max() <= 300.0 + lsb("omega_m") / 2
+    np.testing.assert_allclose(np.abs(z[above]), 300.0, atol=lsb("omega_m") / 2)
+    np.testing.assert_array_equal(np.sign(z[above]), np.sign(y[above]))
+
+
+def test_lowpass_step_response_reaches_1_minus_1_over_e_after_tau():
+    tr = adc_traces()
+    tau = 4 * OUTPUT_DT
+    z = decoys.lowpass(tr, "i_eq", tau).signal("a", "i_eq")
+    changed(tr, decoys.lowpass(tr, "i_eq", tau), "i_eq")
+    assert np.all(z[:100] == tr.signal("a", "i_eq")[:100])            # at rest before
+    # the 4th sample from the step (the step's own counted first): one time constant
+    assert z[103] == pytest.approx(5.0 + 14.0 * (1 - math.exp(-1)), abs=lsb("i_eq") / 2)
+    assert z[107] == pytest.approx(5.0 + 14.0 * (1 - math.exp(-2)), abs=lsb("i_eq") / 2)
+    assert z[399] == pytest.approx(19.0, abs=lsb("i_eq"))
+
+
+def test_mains_hum_is_the_window_mean_of_a_400_hz_sinusoid():
+    tr = adc_traces()
+    amp, phase = 0.4, 0.7
+    d = changed(tr, decoys.mains_hum(tr, "i_eq", amp, phase=phase), "i_eq")["a"]
+    # the mean over each 1 ms window, by the midpoint rule on 2000 points a window
+    m = 2000
+    fine = (np.arange(tr.n_samples("a") * m) + 0.5) * OUTPUT_DT / m
+    expect = (amp * np.sin(2 * np.pi * 400.0 * fine + phase)).reshape(-1, m).mean(axis=1)
+    np.testing.assert_allclose(d, expect, atol=lsb("i_eq") / 2 + 1e-9)
+    # 400 Hz at 1 kHz is not aliased: a 400 Hz tone at the window centres, 0.757 of it left
+    t = tr.time("a")
+    np.testing.assert_allclose(expect, amp * 0.7568 * np.sin(2 * np.pi * 400.0 * t + phase),
+                               atol=1e-4 * amp)
+
+
+def test_drift_is_linear_in_time():
+    tr = adc_traces()
+    rate = -0.05     # rad/s
+    d = changed(tr, decoys.drift(tr, "theta_u", rate), "theta_u")
+    for t in tr.tests:
+        np.testing.assert_allclose(d[t], rate * tr.time(t), atol=lsb("theta_u") / 2 + 1e-12)
+
+
+def test_outliers_are_sparse_spikes_of_the_stated_size():
+    tr = adc_traces(1000)
+    size = 40 * SENSORS[SIGNALS.index("theta_m")].noise_std
+    d = changed(tr, decoys.outliers(tr, "theta_m", size, fraction=0.005, seed=3), "theta_m")
+    for t in tr.tests:
+        hit = np.abs(d[t]) > 0
+        assert hit.sum() == 5                                  # 0.5 % of 1000 samples
+        np.testing.assert_allclose(np.abs(d[t][hit]), size, atol=lsb("theta_m") / 2)
+    again = decoys.outliers(tr, "theta_m", size, fraction=0.005, seed=3)
+    assert again.allclose(decoys.outliers(tr, "theta_m", size, fraction=0.005, seed=3))
+
+
+def test_drawn_decoys_are_visible_and_stay_on_adc_codes():
+    tr = adc_traces(1000)
+    rng = np.random.default_rng(0)
+    for name in decoys.ACQUISITION_DECOYS:
+        for _ in range(5):
+            params = decoys.draw(name, rng)
+            json.dumps(params)                                    # a record can hold them
+            out = decoys.apply(name, tr, params)
+            k, spec = SIGNALS.index(params["signal"]), SENSORS[SIGNALS.index(params["signal"])]
+            d = changed(tr, out, params["signal"])
+            # far beyond noise: the sum of squared changes over the noise variance
+            assert sum(np.sum((v / spec.noise_std) ** 2) for v in d.values()) > 200, \
+                (name, params)
+            for t in out.tests:
+                np.testing.assert_array_equal(out.data[t][:, k], quantise(out.data[t][:, k],
+                                                                           spec))
+    with pytest.raises(KeyError, match="unknown acquisition decoy"):
+        decoys.draw("gremlins", rng)
+
+
+# --- scoring one case -----------------------------------------------------------------------
+
+def finding(name: str, value: float, interval: tuple[float, float], partial: bool = False):
+    return SimpleNamespace(name=name, params={name: value}, interval=list(interval),
+                           partial=partial)
+
+
+def diagnosis(verdict: str, *effects, partial: str | None = None):
+    return SimpleNamespace(verdict=verdict, effects=list(effects),
+                           gap={"closed": 0.8 if effects else 0.0, "before": 2.0,
+                                "after": 0.4 if effects else 2.0, "partial": partial},
+                           message="m", evaluations=7)
+
+
+def case(category: str, effects: dict | None = None, decoy: str | None = None) -> BlindCase:
+    return BlindCase(0, category, blind.KINDS[category], effects or {}, {"Na": 1.0}, decoy)
+
+
+def test_scores_of_a_pair():
+    c = case("two_effect", {"delay": 1e-3, "cogging": 0.06})
+    both = score(c, diagnosis("effect", finding("cogging", 0.05, (0.055, 0.07)),
+                              finding("delay", 1.1e-3, (9e-4, 1.2e-3))))
+    assert both["both_named"] and both["one_named"] and not both["named_partial"]
+    assert both["interval_covers"] == {"delay": True, "cogging": True}
+    assert both["param_errors"] == pytest.approx({"delay": 0.1, "cogging": 1 / 6})
+    one = score(c, diagnosis("effect", finding("delay", 1e-3, (2e-3, 3e-3), partial=True),
+                             finding("aero_spring", 80.0, (60.0, 90.0))))
+    assert not one["both_named"] and one["one_named"] and one["named_partial"]
+    assert one["interval_covers"] == {"delay": False} and one["estimates"] == {"delay": 1e-3}
+
+
+def test_scores_of_single_null_and_decoy_cases():
+    c = case("near_threshold", {"eccentricity": 0.06})
+    right = score(c, diagnosis("effect", finding("eccentricity", 0.066, (0.05, 0.07))))
+    assert right["correct"] and right["interval_covers"] == {"eccentricity": True}
+    second = score(c, diagnosis("effect", finding("cogging", 0.05, (0, 1)),
+                                finding("eccentricity", 0.06, (0.05, 0.07))))
+    assert not second["correct"] and second["interval_covers"] == {}   # top-1 only
+    assert score(case("monitor_null"), diagnosis("unexplained")) == {"false_alarm": True}
+    assert score(case("null"), diagnosis("none")) == {"false_alarm": False}
+    dec = case("acquisition_decoy", decoy="drift")
+    assert score(dec, diagnosis("effect", finding("sensor_offset", 1e-3, (0, 1))))["decoy_ok"] \
+        is False
+    assert score(dec, diagnosis("effect", finding("sensor_offset", 1e-3, (0, 1)),
+                                partial="sensor_offset"))["decoy_ok"]
+    assert score(dec, diagnosis("none"))["decoy_ok"]
+
+
+def test_run_case_builds_the_data_of_its_category_and_hides_the_truth(monkeypatch):
+    seen = []
+
+    def fake_diagnose(tr, settings, seed):
+        seen.append(tr)
+        return diagnosis("unexplained")
+
+    monkeypatch.setattr(blind, "diagnose", fake_diagnose)
+    acq = next(c for c in CASES64 if c.category == "acquisition_decoy")
+    mon = next(c for c in CASES64 if c.category == "monitor_null")
+    rec = run_case(acq, 0, blind.Settings())
+    assert rec["decoy_ok"] and rec["decoy"] == acq.decoy and rec["category"] == acq.category
+    ref = blind.simulate_reference(np.array(list(acq.faults.values())), {}, tests=blind.TESTS,
+                                   seed=stream(run_seed(0, acq.index), "noise"))
+    assert seen[0].allclose(decoys.apply(acq.decoy, ref, acq.decoy_params))
+    assert not seen[0].allclose(ref)
+    assert run_case(mon, 0, blind.Settings())["false_alarm"]
+    twin = blind.twin_traces(np.array(list(mon.faults.values())), effects_vector({}),
+                             stream(run_seed(0, mon.index), "noise"), blind.TESTS)
+    assert seen[1].allclose(twin)
+    for tr in seen:
+        assert tr.meta["faults"] is None and tr.meta["effects"] is None
+    assert seen[1].meta["model"] is None
+
+
+# --- the summary ----------------------------------------------------------------------------
+
+def rec(category: str, verdict: str = "none", effects: dict | None = None, **kw) -> dict:
+    return {"category": category, "kind": blind.KINDS[category], "verdict": verdict,
+            "effects": effects or {}, "decoy": None, "partial": None, "gap_closed": 0.0,
+            "wall_s": 1.0, **kw}
+
+
+def eff(category, effects, gap, errors, covers, **kw):
+    return rec(category, "effect", effects, gap_closed=gap, param_errors=errors,
+               interval_covers=covers, named_partial=kw.pop("named_partial", False), **kw)
+
+
+HAND = [
+    eff("single", {"eccentricity": 0.1}, 0.9, {"eccentricity": 0.1}, {"eccentricity": True},
+        correct=True),
+    eff("single", {"cogging": 0.05}, 0.2, {}, {}, correct=False),
+    eff("single", {"eccentricity": 0.1}, 0.7, {"eccentricity": 0.3},
+        {"eccentricity": False}, correct=True, named_partial=True),
+    eff("near_threshold", {"delay": 5e-4}, 0.8, {"delay": 0.2}, {"delay": True},
+        correct=True),
+    eff("near_threshold", {"delay": 5e-4}, 0.1, {}, {}, correct=False),
+    eff("two_effect", {"delay": 1e-3, "cogging": 0.06}, 0.6,
+        {"delay": 0.05, "cogging": 0.4}, {"delay": True, "cogging": True},
+        both_named=True, one_named=True),
+    eff("two_effect", {"eccentricity": 0.1, "aero_spring": 100.0}, 0.5,
+        {"eccentricity": 0.5}, {"eccentricity": False}, both_named=False, one_named=True),
+    rec("null", false_alarm=False),
+    rec("null", "effect", false_alarm=True),
+    rec("monitor_null", false_alarm=False),
+    rec("monitor_null", "unexplained", false_alarm=True),
+    rec("physical_decoy", "unexplained", {"quadratic_damping": 10.0},
+        decoy="quadratic_damping", decoy_ok=True),
+    rec("physical_decoy", "effect", {"hinge_friction": 2.0}, decoy="hinge_friction",
+        partial="aero_spring", decoy_ok=True),
+    rec("acquisition_decoy", "effect", decoy="lowpass", decoy_ok=False),
+    rec("acquisition_decoy", "none", decoy="drift", decoy_ok=True),
+    rec("acquisition_decoy", "unexplained", decoy="lowpass", decoy_ok=True),
+]
+
+
+def test_summary_overall_figures_by_hand():
+    s = summarise(HAND)
+    assert s["cases"] == 16 and s["wall_s"] == 16.0
+    assert s["categories"] == {"single": 3, "near_threshold": 2, "two_effect": 2, "null": 2,
+                               "monitor_null": 2, "physical_decoy": 2,
+                               "acquisition_decoy": 3}
+    assert s["effect_cases"] == 5 and s["naming_accuracy"] == pytest.approx(3 / 5)
+    assert s["per_effect"] == {"cogging": "0/1", "delay": "1/2", "eccentricity": "2/2"}
+    assert (s["null_cases"], s["false_alarms"]) == (4, 2)
+    assert (s["decoy_cases"], s["decoys_unexplained_or_partial"]) == (5, 4)
+    assert s["decoys_by_outcome"] == {"unexplained": 2, "named_partial": 1,
+                                      "not_detected": 1, "named": 1}
+    # found: the three correct single/near cases and the pair named in full
+    assert s["named_partial"] == 1
+    assert s["median_heldout_gap_closed"] == pytest.approx(0.75)        # .9 .7 .8 .6
+    assert s["median_param_error"] == pytest.approx(0.25)  # .1 .3 .2 .05 .4 .5
+    assert s["interval_coverage"] == "4/6"
+
+
+def test_summary_per_category_by_hand():
+    b = summarise(HAND)["per_category"]
+    assert b["single"] == {"cases": 3, "correct": 2, "naming_accuracy": pytest.approx(2 / 3),
+                           "per_effect": {"cogging": "0/1", "eccentricity": "2/2"},
+                           "named_partial": 1, "median_heldout_gap_closed": pytest.approx(0.8),
+                           "median_param_error": pytest.approx(0.2),
+                           "interval_coverage": "1/2"}
+    assert b["near_threshold"]["naming_accuracy"] == 0.5
+    assert b["near_threshold"]["interval_coverage"] == "1/1"
+    assert b["two_effect"] == {"cases": 2, "both_named": 1, "both_named_rate": 0.5,
+                               "one_named": 2, "one_named_rate": 1.0,
+                               "per_pair": {"aero_spring+eccentricity": "0/1",
+                                            "cogging+delay": "1/1"},
+                               "named_partial": 0,
+                               "median_heldout_gap_closed": pytest.approx(0.6),
+                               "median_param_error": pytest.approx(0.4),
+                               "interval_coverage": "2/3"}
+    assert b["null"] == {"cases": 2, "false_alarms": 1, "false_alarm_rate": 0.5,
+                         "by_verdict": {"effect": 1, "none": 1}}
+    assert b["monitor_null"]["by_verdict"] == {"none": 1, "unexplained": 1}
+    assert b["physical_decoy"] == {"cases": 2, "ok": 2, "ok_rate": 1.0,
+                                   "by_outcome": {"unexplained": 1, "named_partial": 1,
+                                                  "not_detected": 0, "named": 0},
+                                   "ok_by_decoy": {"hinge_friction": "1/1",
+                                                   "quadratic_damping": "1/1"}}
+    assert b["acquisition_decoy"]["ok_by_decoy"] == {"drift": "1/1", "lowpass": "1/2"}
+    assert b["acquisition_decoy"]["by_outcome"] == {"unexplained": 1, "named_partial": 0,
+                                                    "not_detected": 1, "named": 1}
+
+
+def test_summary_of_missing_categories():
+    s = summarise([r for r in HAND if r["category"] == "null"])
+    assert math.isnan(s["naming_accuracy"]) and s["interval_coverage"] is None
+    assert s["per_category"]["two_effect"]["cases"] == 0
+    assert s["false_alarms"] == 1
+
+
+# --- running a suite ------------------------------------------------------------------------
+
+def cheap_case(case: BlindCase, seed: int, settings) -> dict:
+    """A module-level stand-in for run_case (a worker process imports it): names the
+    hidden effects exactly, says none on null cases and unexplained on decoys."""
+    found = [finding(k, v, (v, v)) for k, v in case.effects.items()] \
+        if case.kind == "effect" else []
+    verdict = "effect" if found else "unexplained" if case.kind == "decoy" else "none"
+    d = diagnosis(verdict, *found)
+    return {**case_record(case, seed), "verdict": verdict, "named": [e.name for e in found],
+            "partial": None, "gap_closed": d.gap["closed"], "gap_before": 2.0,
+            "gap_after": d.gap["after"], "message": "", "evaluations": 0,
+            **score(case, d), "wall_s": 0.0}
+
+
+def test_workers_give_the_records_of_one_process(tmp_path):
+    one = run_blind(6, 2, tmp_path / "one", workers=1, runner=cheap_case)
+    two = run_blind(6, 2, tmp_path / "two", workers=2, runner=cheap_case)
+    assert [r["index"] for r in two["records"]] == list(range(6))
+    assert two["records"] == one["records"] and two["summary"] == one["summary"]
+    stored = {r["key"]: r for r in read_records(tmp_path / "two" / "blind.jsonl")}
+    assert sorted(stored) == sorted(f"case{i}" for i in range(6))
+    assert stored["case3"] == json.loads(json.dumps(one["records"][3], sort_keys=True))
+    # resumed from the store: nothing runs again, the same records come back in order
+    again = run_blind(6, 2, tmp_path / "two", workers=2, runner=None)
+    assert [r["key"] for r in again["records"]] == [f"case{i}" for i in range(6)]
+
+
+def test_a_store_of_the_old_format_is_refused_clearly(tmp_path):
+    old = {"key": "case0", "root_seed": 0, "seed": 0, "model_version": MODEL_VERSION,
+           "index": 0, "kind": "effect", "effect": "delay", "value": 1e-3, "faults": {},
+           "verdict": "effect"}
+    (tmp_path / "blind.jsonl").write_text(json.dumps(old) + "\n")
+    with pytest.raises(ValueError, match="old blind-suite format"):
+        run_blind(2, 0, tmp_path, runner=cheap_case)
+
+
+def test_cli_prints_one_line_per_category_and_the_truth_of_each_case(tmp_path, monkeypatch,
+                                                                     capsys):
+    monkeypatch.setattr(blind, "run_case", cheap_case)
+    assert main(["blind", "--cases", "30", "--seed", "0", "--out", str(tmp_path), "-q"]) == 0
+    out = capsys.readouterr().out
+    for category in blind.CATEGORIES:
+        assert sum(line.strip().startswith(category + " ") for line in out.splitlines()) \
+            == 1, category
+    cases = draw_cases(30, 0)
+    pair = next(c for c in cases if c.category == "two_effect")
+    a, b = pair.effects
+    line = next(s for s in out.splitlines() if s.startswith(f"    case {pair.index:>3} "))
+    assert f"{a}=" in line and f",{b}=" in line
+    acq = next(c for c in cases if c.category == "acquisition_decoy")
+    line = next(s for s in out.splitlines() if s.startswith(f"    case {acq.index:>3} "))
+    assert f"{acq.decoy}({acq.decoy_params['signal']})" in line
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["per_category"]["two_effect"]["both_named_rate"] == 1.0
+    assert main(["blind", "--cases", "3", "--workers", "0"]) == 2
