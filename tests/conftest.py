@@ -1,7 +1,40 @@
 """Session set-up: the reference-trace cache lives in a fresh folder for the test run (child
-processes of CLI tests inherit it), so tests neither read nor fill the user's cache."""
+processes of CLI tests inherit it), so tests neither read nor fill the user's cache.
 
+Under mutmut (docs/mutation-testing.md) two more things, before anything imports numba or the
+solver zoo:
+
+* numba's ``workqueue`` threading layer: mutmut forks one child per mutant from a process that
+  has already run the parallel monitor kernel, and GNU OpenMP (numba's default layer here)
+  kills such a child with SIGTERM at its first parallel call ("fork() called from a process
+  already using GNU OpenMP"), which mutmut counts as "suspicious".  ``workqueue`` restarts
+  its threads after a fork.
+* ``ema_bench_solvers`` is the mutated copy ``mutants/solvers``, imported as ``solvers``:
+  mutmut names a mutant after its file's path and activates it only in the module of that
+  name, while the editable install would map ``ema_bench_solvers`` to the unmutated
+  ``solvers/`` folder.
+"""
+
+import importlib
 import os
+import pkgutil
+import sys
 import tempfile
+from pathlib import Path
 
 os.environ.setdefault("EMA_BENCH_CACHE", tempfile.mkdtemp(prefix="ema-bench-test-cache-"))
+
+
+def _under_mutmut() -> None:
+    os.environ.setdefault("NUMBA_THREADING_LAYER", "workqueue")
+    root = Path(__file__).resolve().parent.parent
+    if (root / "solvers" / "__init__.py").is_file() and "ema_bench_solvers" not in sys.modules:
+        solvers = importlib.import_module("solvers")
+        sys.modules["ema_bench_solvers"] = solvers
+        for module in pkgutil.iter_modules(solvers.__path__):
+            name = module.name
+            sys.modules[f"ema_bench_solvers.{name}"] = importlib.import_module(f"solvers.{name}")
+
+
+if "mutmut" in sys.modules:
+    _under_mutmut()

@@ -7,6 +7,7 @@ own counter (budget, one batch per generation), its seed, and its accuracy on th
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -29,7 +30,7 @@ from ema_bench_solvers.ga_operators import (
     stalled,
     stochastic_uniform,
 )
-from ema_bench_solvers.paper_ga import run_paper_ga
+from ema_bench_solvers.paper_ga import _evaluate_unit, _individual_type, run_paper_ga
 
 
 # --- population split ---------------------------------------------------------------------
@@ -336,3 +337,295 @@ def test_generation_loop_keeps_the_elites_and_adapts_the_step_as_matlab():
         improved_seen |= improved
         shrunk_seen |= not improved
     assert improved_seen and shrunk_seen                 # both branches were exercised
+
+
+# --- the loop on a stand-in problem -----------------------------------------------------------
+# What run_paper_ga uses of a Problem, on the unit box with a fitness that costs nothing, so
+# the loop can be followed generation by generation: every scored batch is kept.
+class BoxProblem:
+    def __init__(self, fitness, budget: int, dim: int = 4, start=None) -> None:
+        self.fitness, self.budget, self.dim = fitness, budget, dim
+        self.start = np.full(dim, 0.5) if start is None else np.asarray(start, float)
+        self.evaluations = 0
+        self.batches: list[np.ndarray] = []
+        self.scores: list[np.ndarray] = []
+
+    @property
+    def remaining(self) -> int:
+        return self.budget - self.evaluations
+
+    def to_unit(self, X):
+        return np.asarray(X, dtype=float)  # the box is [0, 1]^dim
+
+    def from_unit(self, U):
+        return np.asarray(U, dtype=float)
+
+    def evaluate(self, X):
+        X = np.array(X, dtype=float)
+        assert 0 < len(X) <= self.remaining
+        f = np.asarray(self.fitness(X), dtype=float)
+        self.evaluations += len(X)
+        self.batches.append(X)
+        self.scores.append(f)
+        return f
+
+
+TARGET = np.array([0.8, 0.3, 0.6, 0.2])
+
+
+def sphere(X):
+    return np.sum((X - TARGET) ** 2, axis=1)
+
+
+def constant(X):
+    return np.ones(len(X))
+
+
+def test_loop_record_and_logbook_by_hand():
+    # N = 80: ceil(4) = 4 elites, round(0.8 * 76) = 61 crossover children, 15 mutants
+    p = BoxProblem(sphere, budget=80 + 3 * 76)
+    run = run_paper_ga(p)
+    assert (run.population, run.elite_count, run.n_crossover, run.n_mutants) == (80, 4, 61, 15)
+    assert run.stop_reason == "budget" and run.generations == 3
+    assert [len(b) for b in p.batches] == [80, 76, 76, 76]
+    # the default seed is 0
+    q = BoxProblem(sphere, budget=80 + 3 * 76)
+    run_paper_ga(q, seed=0)
+    for a, b in zip(p.batches, q.batches):
+        np.testing.assert_array_equal(a, b)
+    # the logbook, generation by generation, from the scored batches: the population of
+    # generation g is the 4 best of generation g - 1 (unevaluated) and the new children
+    log = run.logbook
+    assert str(log).splitlines()[0].split() == ["gen", "nevals", "best", "mean", "step",
+                                                "best_xover", "best_mutant"]
+    pop = p.scores[0]
+    assert log[0] == {"gen": 0, "nevals": 80, "best": pop.min(), "mean": pytest.approx(pop.mean()),
+                      "step": 1.0, "best_xover": np.inf, "best_mutant": np.inf}
+    for g in (1, 2, 3):
+        kids = p.scores[g]
+        pop = np.concatenate([np.sort(pop)[:4], kids])
+        assert log[g]["gen"] == g and log[g]["nevals"] == 76
+        assert log[g]["best"] == pop.min()
+        assert log[g]["mean"] == pytest.approx(pop.mean(), rel=1e-12)
+        assert log[g]["best_xover"] == kids[:61].min()
+        assert log[g]["best_mutant"] == kids[61:].min()
+    assert run.final_step == log[3]["step"]
+
+
+def test_loop_settings_reach_the_operators():
+    p = BoxProblem(sphere, budget=10_000)
+    run = run_paper_ga(p, population=20, elite_count=0, crossover_fraction=0.5,
+                       max_generations=2)
+    assert (run.elite_count, run.n_crossover, run.n_mutants) == (0, 10, 10)
+    assert [len(b) for b in p.batches] == [20, 20, 20]  # no elites: all 20 are new
+    # no crossover at all: the logbook's best crossover child is +inf
+    p = BoxProblem(sphere, budget=10_000)
+    run = run_paper_ga(p, population=10, crossover_fraction=0.0, max_generations=2)
+    assert run.n_crossover == 0 and [r["best_xover"] for r in run.logbook] == [np.inf] * 3
+    # the smallest population: one elite and one crossover child per generation
+    p = BoxProblem(sphere, budget=10_000)
+    run = run_paper_ga(p, population=2, max_generations=3)
+    assert (run.elite_count, run.n_crossover, run.n_mutants) == (1, 1, 0)
+    assert p.evaluations == 2 + 3 and run.stop_reason == "max_generations"
+    # max_generations = 0: the initial population only
+    p = BoxProblem(sphere, budget=10_000)
+    run = run_paper_ga(p, max_generations=0)
+    assert run.generations == 0 and run.stop_reason == "max_generations" and p.evaluations == 80
+
+
+def test_loop_refuses_bad_settings_by_name():
+    p = BoxProblem(sphere, budget=100)
+    with pytest.raises(ValueError, match="^population must be at least 2, got 1$"):
+        run_paper_ga(p, population=1)
+    with pytest.raises(ValueError, match="^max_generations must be >= 0, got -1$"):
+        run_paper_ga(p, max_generations=-1)
+    assert p.evaluations == 0
+
+
+@pytest.mark.parametrize("budget, generations, evaluations", [
+    (0, 0, 0),                # nothing left: no population, no generation
+    (1, 0, 1),                # one individual: scored, but no full population to breed
+    (80, 0, 80),              # exactly the initial population
+    (81, 1, 81),              # one child more
+    (80 + 76 + 1, 2, 157),    # a generation, then one child
+])
+def test_loop_spends_the_budget_to_the_last_evaluation(budget, generations, evaluations):
+    p = BoxProblem(sphere, budget=budget)
+    run = run_paper_ga(p)
+    assert (run.generations, p.evaluations, run.stop_reason) == (generations, evaluations,
+                                                                 "budget")
+    if budget == 0:
+        assert run.logbook[0]["best"] == np.inf and run.logbook[0]["mean"] == np.inf
+
+
+def test_loop_budget_argument_caps_what_the_problem_allows():
+    p = BoxProblem(sphere, budget=10_000)
+    run = run_paper_ga(p, budget=100)
+    assert p.evaluations == 100 and run.stop_reason == "budget"
+
+
+def test_loop_stalls_after_fifty_generations_without_change():
+    # constant fitness: the best never changes, MATLAB's stall test stops at generation 50
+    p = BoxProblem(constant, budget=100_000)
+    run = run_paper_ga(p)
+    assert run.stop_reason == "stall" and run.generations == 50
+    # ... unless the budget ends with that very generation: the budget is the reason then
+    p = BoxProblem(constant, budget=80 + 50 * 76)
+    run = run_paper_ga(p)
+    assert run.stop_reason == "budget" and run.generations == 50
+
+
+def test_loop_stall_tolerance_and_floor():
+    # f = 1e-5 (1 + |u - t|^2): improving by far more than 1e-6 relative, so no stall (the
+    # relative test); MATLAB's floor of 1 makes it an absolute test, which 1e-5-sized
+    # changes pass: a stall at generation 50
+    def small(X):
+        return 1e-5 * (1.0 + sphere(X))
+
+    run = run_paper_ga(BoxProblem(small, budget=100_000), max_generations=50)
+    assert run.stop_reason == "max_generations"
+    run = run_paper_ga(BoxProblem(small, budget=100_000), max_generations=50, stall_floor=1.0)
+    assert run.stop_reason == "stall" and run.generations == 50
+
+    # f = 1 + 1e-9 |u - t|^2: it improves, but by less than 1e-6 relative over 50 generations
+    def flat(X):
+        return 1.0 + 1e-9 * sphere(X)
+
+    run = run_paper_ga(BoxProblem(flat, budget=80 + 60 * 76))
+    assert run.stop_reason == "stall" and run.generations == 50
+
+
+def test_loop_step_rule_without_improvement():
+    # no generation improves: the step is 1 for generations 0-2, then shrinks 4 times per
+    # generation down to the given floor
+    p = BoxProblem(constant, budget=100_000)
+    run = run_paper_ga(p, max_generations=9, min_step=1e-3)
+    assert run.logbook.select("step") == [1.0, 1.0, 1.0, 0.25, 0.0625, 0.015625, 0.00390625,
+                                          1e-3, 1e-3, 1e-3]
+
+
+def _crossover_pairs(U, s, kids, ratio):
+    """For each child: the pairs (better, worse) of the population with
+    ``kid = worse + ratio (better - worse)``, and whether it is a convex combination of a
+    pair instead (the feasible fallback)."""
+    b = U[:, None, :]
+    w = U[None, :, :]
+    line = w + ratio * (b - w)                                   # [better, worse]
+    heuristic = []
+    convex = []
+    for kid in kids:
+        hit = np.argwhere(np.all(np.abs(line - kid) < 1e-12, axis=2))
+        heuristic.append([(i, j) for i, j in hit if s[i] <= s[j]])
+        d = kid - w                                              # kid = worse + a (b - w)
+        span = b - w
+        with np.errstate(invalid="ignore", divide="ignore"):
+            a = np.sum(d * span, axis=2) / np.sum(span * span, axis=2)
+        resid = np.abs(d - a[:, :, None] * span).max(axis=2)
+        convex.append(bool(np.any((resid < 1e-12) & (a >= 0) & (a <= 1))))
+    return heuristic, convex
+
+
+def test_crossover_children_extrapolate_from_the_worse_past_the_better_parent():
+    p = BoxProblem(sphere, budget=80 + 76)
+    run_paper_ga(p, seed=2)
+    U, s = p.batches[0], p.scores[0]
+    heuristic, convex = _crossover_pairs(U, s, p.batches[1][:61], 1.2)
+    # every child is worse + 1.2 (better - worse) of a pair, the better being the one with
+    # the lower score, or (outside the box) a point between the two
+    assert all(h or c for h, c in zip(heuristic, convex))
+    assert sum(bool(h) for h in heuristic) >= 30
+    # the pairs come from the whole population, not one individual, and are not all copies
+    parents = {k for h in heuristic for pair in h for k in pair}
+    assert len(parents) >= 20 and int(np.argmin(s)) in parents
+    copies = sum(bool(np.any(np.all(U == kid, axis=1))) for kid in p.batches[1][:61])
+    assert copies <= 10
+
+
+def test_crossover_ratio_and_mutation_fallback_reach_the_operators():
+    # ratio 1: every child is its better parent
+    p = BoxProblem(sphere, budget=80 + 76)
+    run_paper_ga(p, crossover_ratio=1.0)
+    U = p.batches[0]
+    for kid in p.batches[1][:61]:
+        assert np.any(np.all(np.abs(U - kid) < 1e-12, axis=1))
+    # MATLAB's copy fallback: at step 1 no direction fits from inside the box, so the
+    # generation-1 mutants are copies of their parents; the default shrink moves them
+    for fallback, copies in (("copy", 15), ("shrink", 0)):
+        p = BoxProblem(sphere, budget=80 + 76)
+        run_paper_ga(p, mutation_fallback=fallback)
+        U = p.batches[0]
+        assert sum(bool(np.any(np.all(U == kid, axis=1))) for kid in p.batches[1][61:]) == copies
+
+
+def test_elites_are_the_best_with_ties_in_population_order(monkeypatch):
+    """MATLAB sorts stably: among individuals with the same score the earlier ones are the
+    elites, in that order, at the head of the next population.  A scaling that gives the
+    first four places of the population the expectations 8 : 4 : 2 : 1 (and the rest none)
+    shows who is where: generation 2's parents are generation 1's elites, each as often as
+    its place says."""
+    import ema_bench_solvers.paper_ga as paper_ga
+
+    weights = np.array([8.0, 4.0, 2.0, 1.0])
+
+    def first_four(scores, n_parents):
+        e = np.zeros(len(scores))
+        e[:4] = weights
+        return n_parents * e / e.sum()
+
+    parents: list[np.ndarray] = []
+    real_mate, real_mutate = paper_ga.heuristic_crossover, paper_ga.adaptive_feasible_mutation
+
+    def mate(p1, p2, *args, **kwargs):
+        parents.append(np.concatenate([p1, p2]))
+        return real_mate(p1, p2, *args, **kwargs)
+
+    def mutate(X, *args, **kwargs):
+        parents.append(X)
+        return real_mutate(X, *args, **kwargs)
+
+    monkeypatch.setattr(paper_ga, "rank_scaling", first_four)
+    monkeypatch.setattr(paper_ga, "heuristic_crossover", mate)
+    monkeypatch.setattr(paper_ga, "adaptive_feasible_mutation", mutate)
+
+    def levels(X):  # four levels of score: about 20 individuals tie at each
+        return np.floor(4 * X[:, 0])
+
+    for seed in range(5):
+        parents.clear()
+        p = BoxProblem(levels, budget=80 + 2 * 76)
+        run_paper_ga(p, seed=seed)
+        U, s = p.batches[0], p.scores[0]
+        best = np.flatnonzero(s == s.min())
+        assert len(best) > 10
+        gen2 = np.concatenate(parents[2:])  # calls: mate and mutate of generation 1, then 2
+        assert len(gen2) == 137             # 2 * 61 + 15 parents
+        # 137 parents in the ratio 8 : 4 : 2 : 1 are 73.1, 36.5, 18.3 and 9.1 expected
+        counts = [int(np.sum(np.all(gen2 == U[i], axis=1))) for i in best[:4]]
+        for c, lo in zip(counts, (73, 36, 18, 9)):
+            assert lo <= c <= lo + 1, (seed, counts)
+
+
+def test_evaluate_unit_clips_into_the_box_and_skips_empty_batches():
+    p = BoxProblem(lambda X: X.sum(axis=1), budget=10)
+    f = _evaluate_unit(p, np.array([[-0.5, 1.5, 0.25, 1.0]]))
+    assert f.tolist() == [2.25] and p.batches[0].tolist() == [[0.0, 1.0, 0.25, 1.0]]
+    empty = _evaluate_unit(p, np.empty((0, 4)))
+    assert empty.shape == (0,) and len(p.batches) == 1 and p.evaluations == 1
+
+
+def test_deap_types_are_created_once_and_minimise(monkeypatch):
+    from deap import base, creator
+
+    monkeypatch.delattr(creator, "PaperGAFitnessMin", raising=False)
+    monkeypatch.delattr(creator, "PaperGAIndividual", raising=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # DEAP warns when a type is created again
+        Individual = _individual_type()
+        assert _individual_type() is Individual
+    fitness = creator.PaperGAFitnessMin
+    assert issubclass(fitness, base.Fitness) and fitness.weights == (-1.0,)
+    assert Individual.__name__ == "PaperGAIndividual" and issubclass(Individual, list)
+    good, bad = Individual([0.1, 0.2]), Individual([0.3, 0.4])
+    assert good == [0.1, 0.2]
+    good.fitness.values, bad.fitness.values = (1.0,), (2.0,)
+    assert good.fitness > bad.fitness  # the lower score is the fitter one

@@ -9,7 +9,15 @@ import numpy as np
 import pytest
 
 import ema_bench.objective as objective_module
-from ema_bench.faults import CASES, FAULT_NAMES, LOWER, NOMINAL, UPPER, random_faults
+from ema_bench.faults import (
+    CASES,
+    FAULT_NAMES,
+    FAULT_UNITS,
+    LOWER,
+    NOMINAL,
+    UPPER,
+    random_faults,
+)
 from ema_bench.instances import make_problem
 from ema_bench.objective import PENALTY, signal_scales
 from ema_bench.physics.sensors import SENSORS
@@ -373,3 +381,145 @@ def test_same_seed_sequence_object_gives_the_same_instance_twice():
     a = make_problem("small", track="twin", seed=ss, budget=1)
     b = make_problem("small", track="twin", seed=ss, budget=1)
     assert a.measured.allclose(b.measured)
+
+
+# ---- edges found by mutation testing (docs/mutation-testing.md) ------------------------------
+
+
+def test_budget_check_edges_and_messages():
+    from ema_bench.problem import MAX_BUDGET, check_budget
+
+    assert check_budget(MAX_BUDGET) == MAX_BUDGET and check_budget(np.int64(3)) == 3
+    for bad in (True, 0, 2.0, "5"):
+        with pytest.raises(ProblemError, match=r"^budget must be a positive integer, got "):
+            check_budget(bad)
+    with pytest.raises(ProblemError, match=r"^budget 1000000001 is beyond the maximum of 1e\+09 "
+                                           r"evaluations \(about 12 days at 1 ms each\)$"):
+        check_budget(MAX_BUDGET + 1)
+
+
+def test_problem_defaults_and_what_it_passes_on():
+    measured = make_problem("small", track="twin", seed=0, budget=1).measured
+    p = Problem(measured, 3)
+    assert (p.label, p.track, p.normalise, p.augment) == ("measured", "measured", True, ())
+    assert p.units == FAULT_UNITS
+    assert not p.has_truth
+    # monitor effects and sample weights reach the objective; augment the search space
+    E = np.zeros(objective_module.N_EFFECTS)
+    E[0] = 0.05
+    twice = {t: np.full(measured.data[t].shape, 2.0) for t in measured.tests}
+    q = Problem(measured, 3, monitor_effects=E, augment=("delay",), sample_weights=twice)
+    np.testing.assert_array_equal(q.objective.effects, E)
+    assert q.augment == ("delay",) and q.units["delay"] == "s"
+    base = Problem(measured, 3, monitor_effects=E, augment=("delay",))
+    x = np.r_[CASES["small"].x, 5e-4]
+    assert q.evaluate(x) == pytest.approx(2 * base.evaluate(x), rel=1e-12)
+
+
+def test_warm_start_is_kept_read_only():
+    x = np.array([0.9, 0.3, 0.01, 1.1e5])
+    p = make_problem("small", track="twin", seed=0, budget=1, start=x)
+    np.testing.assert_array_equal(p.start, x)
+    with pytest.raises(ValueError, match="read-only"):
+        p.start[0] = 1.0
+    assert make_problem("small", track="twin", seed=0, budget=1).start.tolist() == NOMINAL.tolist()
+
+
+def test_limit_zero_stops_the_problem():
+    p = make_problem("small", track="twin", seed=0, budget=5)
+    p.evaluate(NOMINAL)
+    p.limit(0)
+    assert p.remaining == 0 and p.budget == 1
+    with pytest.raises(BudgetExhausted):
+        p.evaluate(NOMINAL)
+
+
+def test_failed_simulations_log_at_most_three_warnings_per_batch(monkeypatch, caplog):
+    real = objective_module.simulate_monitor
+
+    def failing(X, *args, **kwargs):
+        outputs, ok = real(X, *args, **kwargs)
+        return outputs, np.zeros_like(ok)
+
+    p = make_problem("small", track="twin", seed=0, budget=5)
+    monkeypatch.setattr(objective_module, "simulate_monitor", failing)
+    X = candidates(5)
+    with caplog.at_level("WARNING", logger="ema_bench.problem"):
+        p.evaluate(X)
+    messages = [r.getMessage() for r in caplog.records]
+    assert len(messages) == 3 and p.failures == 5
+    assert messages[0] == (f"simulation failed at {dict(zip(FAULT_NAMES, X[0].tolist()))}: scored "
+                           f"penalty 1e+12")
+
+
+class _StubObjective:
+    """An objective that scores row i by its first column, instantly (for the log)."""
+
+    def __init__(self, tests):
+        self.tests = tests
+
+    def evaluate(self, X):
+        return X[:, 0].copy(), {}, np.zeros(len(X), dtype=bool)
+
+
+def test_the_log_grows_past_its_first_chunk_and_keeps_every_evaluation():
+    p = make_problem("small", track="twin", seed=0, budget=20_000)
+    p.objective = _StubObjective(p.objective.tests)
+    rng = np.random.default_rng(0)
+    X = LOWER + rng.random((15_000, 4)) * (UPPER - LOWER)
+    p.evaluate(X[:9000])        # more than twice the first 4096 rows: grows to 9000
+    p.evaluate(X[9000:12_000])  # doubles to 18000
+    p.evaluate(X[12_000:])      # fits
+    h = p.history()
+    np.testing.assert_array_equal(h["x"], X)
+    np.testing.assert_array_equal(h["fitness"], X[:, 0])
+    assert h["wall_s"].dtype == float and np.all(np.diff(h["wall_s"]) >= 0.0)
+    assert p.evaluations == 15_000
+
+
+def test_wall_clock_and_first_success_by_hand():
+    import time
+
+    p = make_problem("small", track="twin", seed=0, budget=10)
+    t_built = time.perf_counter()
+    truth = CASES["small"].x
+    time.sleep(0.05)
+    p.evaluate(NOMINAL)              # 1: far from the truth
+    time.sleep(0.05)
+    p.evaluate(truth)                # 2: the truth itself, the best so far
+    time.sleep(0.05)
+    p.evaluate(candidates(1)[0])     # 3: worse
+    t_done = time.perf_counter()
+    wall = p.history()["wall_s"]
+    assert 0.0 < wall[0] < wall[1] < wall[2] <= t_done - t_built + 0.5
+    assert wall[1] - wall[0] >= 0.05 and wall[2] - wall[1] >= 0.05
+    assert p.first_success() == 2
+    assert p.parameter_hits((1.0, 0.01, 0.0)) == [1, 2, 2]  # every point is within 100 %
+    assert p.first_success_wall_s() == wall[1]
+    clock = p.first_success_clock()
+    assert clock - wall[1] <= t_built and t_built - (clock - wall[1]) < 0.04
+    # nothing succeeds yet: None, None, None
+    q = make_problem("small", track="twin", seed=0, budget=10)
+    q.evaluate(NOMINAL)
+    assert q.first_success() is None and q.first_success_wall_s() is None
+    assert q.first_success_clock() is None
+
+
+def test_measured_problems_have_no_truth_to_score():
+    measured = make_problem("small", track="twin", seed=0, budget=1).measured
+    p = make_problem(measured=measured, budget=2)
+    msg = "^the true faults of measured data are unknown"
+    with pytest.raises(ProblemError, match=msg + ": no score$"):
+        p.score(NOMINAL)
+    with pytest.raises(ProblemError, match=msg + "$"):
+        p.parameter_hits((0.01,))
+    with pytest.raises(ProblemError, match=msg + "$"):
+        p.fitness_at_truth()
+
+
+def test_empty_batch_outputs_have_the_tests_shapes():
+    p = make_problem("small", track="twin", seed=0, budget=2)
+    f, outputs = p.evaluate_outputs(np.empty((0, 4)))
+    assert f.shape == (0,) and p.evaluations == 0
+    assert {t: v.shape for t, v in outputs.items()} == {"step": (0, 300, 4),
+                                                        "sine": (0, 1000, 4)}

@@ -14,7 +14,7 @@ import math
 import pytest
 
 from ema_bench.leaderboard.check import compare
-from ema_bench.leaderboard.scores import ALL, ert, score_records
+from ema_bench.leaderboard.scores import ALL, ert, run_cost, score_records
 from ema_bench.suite import SUITE_ID
 from ema_bench.trace_cache import MODEL_VERSION
 
@@ -250,3 +250,13 @@ def test_a_failed_run_is_unsuccessful_at_its_budget_and_left_out_of_medians():
     assert s.accuracy["Na"] == pytest.approx(99.0)
     (plain,) = [x for x in score_records(MIXED) if x.case == "small"]
     assert plain.errors == 0
+
+
+def test_a_success_without_its_evaluation_count_costs_the_whole_budget():
+    # a successful record that does not say when it succeeded (none, or 0) is charged its
+    # budget, never nothing: ERT (700 + 1000) / 1 success
+    counted = rec("a", 0, 120, budget=700)
+    blank = {**counted, "evals_to_success": None}
+    assert run_cost(counted) == 120 and run_cost(blank) == 700
+    assert run_cost({**counted, "evals_to_success": 0}) == 700
+    assert ert([blank, rec("a", 1, None)]) == pytest.approx(1700.0)

@@ -157,3 +157,58 @@ def test_an_effect_seen_only_on_the_held_out_test_is_detected():
     assert discrepancy(1.5, med, threshold, []).detected
     assert not discrepancy(float(np.median(boot)), med, threshold, []).detected
     assert discrepancy(med, med, threshold, [("feature", 1.0, 9.0)]).detected
+
+
+# --- each rule exactly at its edge (mutation survivors; values exact in binary) -------------
+def test_the_rules_hold_exactly_at_their_edges():
+    base = Discrepancy(holdout=0.5, floor=0.0, threshold=0.25, severity=0.0, n_flagged=0)
+    after = Discrepancy(0.25, 0.0, 0.25, 0.0, 0)
+    # closes 50 % with an improvement of exactly the noise band (0.25): not evidence
+    assert acceptance_reasons(base=base, after=after, fit_before=2.0, fit_after=1.0,
+                              values={}, trivial={}, intervals={}, accept_closed=0.5) == [
+        "held-out improvement within the bootstrap spread"]
+    # judged on the statistics, a held-out fitness exactly at the threshold is allowed
+    assert _reasons(base=STATS_ONLY, after_holdout=0.2, after_severity=0.0) == []
+    # a value exactly on its trivial band is trivial, either sign
+    for v in (0.001, -0.001):
+        assert _reasons(values={"delay": v}) == [
+            f"delay {v:.3g} inside its trivial band +-0.001"]
+    # an interval ending exactly at zero includes it
+    assert _reasons(intervals={"delay": (-0.01, 0.0)}) == ["delay: interval includes zero"]
+    # no gap at all (held-out exactly at the floor): nothing to close, nothing lost
+    assert closed_share(0.1, 0.05, 0.1) == 1.0
+    # any severity, however small, is judged on the statistics
+    small = Discrepancy(0.15, 0.1, 0.2, 0.5, 1)
+    assert closure(small, Discrepancy(0.15, 0.1, 0.2, 0.1, 1)) == ("statistics",
+                                                                  pytest.approx(0.8))
+    d = discrepancy(0.5, 0.1, 0.2, [])
+    assert (d.holdout, d.floor, d.threshold) == (0.5, 0.1, 0.2)
+
+
+def test_the_held_out_spread_is_the_larger_of_mad_and_half_the_std():
+    # MAD rules: [1..5] has median 3, MAD 1 -> 1.4826 (half the std: 0.707)
+    med, z, thr = holdout_test(6.0, np.array([1.0, 2.0, 3.0, 4.0, 5.0]), z_max=4.0)
+    assert med == 3.0 and z == pytest.approx(3.0 / 1.4826)
+    assert thr == pytest.approx(3.0 + 4.0 * 1.4826)
+    # half the std rules: nine zeros and a 10 have MAD 0, std 3 -> 1.5
+    boot = np.r_[np.zeros(9), 10.0]
+    med, z, thr = holdout_test(3.0, boot, z_max=4.0)
+    assert med == 0.0 and z == pytest.approx(2.0)
+    assert thr == 10.0                                   # never below the largest replicate
+    assert holdout_test(3.0, boot, z_max=10.0)[2] == pytest.approx(15.0)
+    # identical replicates: the spread is floored, the z-score stays finite
+    med, z, thr = holdout_test(1.0, np.ones(10), z_max=4.0)
+    assert (med, z) == (1.0, 0.0) and thr == pytest.approx(1.0 + 4e-12, rel=0, abs=1e-15)
+
+
+def test_the_parameter_price_at_its_edges():
+    # exactly the price: paid
+    assert parsimony_reasons(0.75, {"a": 0.5}, 0.25) == []
+    assert parsimony_reasons(0.95, {"a": 0.05}, 1.0) == [
+        "adds 90 % over a (< 100 % per added effect)"]
+    # a held-out gain of exactly the noise band is not a gain; without a band any gain is
+    assert parsimony_reasons(1.0, {"a": 0.5}, 0.25, holdout=0.25, sub_holdout={"a": 0.5},
+                             noise_band=0.25) == [
+        "held-out improvement over a within the bootstrap spread"]
+    assert parsimony_reasons(1.0, {"a": 0.5}, 0.25, holdout=0.25,
+                             sub_holdout={"a": 0.3}) == []
