@@ -68,11 +68,11 @@ def test_workflow_needs_a_held_out_test():
         diagnose(tr, SETTINGS)
 
 
-# three cases of the committed 60-case suite (leaderboards/blind, root seed 3802): a pair of
+# three cases of the committed 60-case suite (leaderboards/blind, root seed 6988): a pair of
 # effects, data made by the monitor itself, and a single effect at heavy stiction, run blind
 # with the default settings
-SEED, N_CASES = 3802, 60
-PAIR, MONITOR_NULL, SINGLE = 38, 5, 51
+SEED, N_CASES = 6988, 60
+PAIR, MONITOR_NULL, SINGLE = 3, 0, 17
 BLIND = [draw_cases(N_CASES, SEED)[i] for i in (PAIR, MONITOR_NULL, SINGLE)]
 COMMITTED = Path(__file__).resolve().parents[1] / "leaderboards" / "blind" / "blind.jsonl"
 
@@ -90,8 +90,8 @@ def test_small_blind_suite(blind_records):
     assert not pair["named_partial"]
     # data from the monitor model itself: nothing is missing
     assert null["verdict"] == "none" and not null["false_alarm"]
-    # heavy stiction (Fst 0.77 N m): the single effect still named, and sized
-    assert BLIND[2].faults["Fst"] > 0.7 and single["correct"]
+    # heavy stiction (Fst 0.69 N m): the single effect still named, and sized
+    assert BLIND[2].faults["Fst"] > 0.65 and single["correct"]
     assert all(e < 0.1 for e in single["param_errors"].values())
     s = summarise(blind_records)
     assert s["false_alarms"] == 0 and s["naming_accuracy"] == 1.0
@@ -153,6 +153,27 @@ def test_the_readme_delay_recipe_names_the_delay(tmp_path):
     bad = subprocess.run(CLI + ["diagnose", str(tmp_path / "missing.csv")],
                          capture_output=True, text=True)
     assert bad.returncode == 2 and "missing.csv" in bad.stderr
+
+
+def test_the_readme_two_effect_recipe_names_both(tmp_path):
+    """README: `--effect sensor_offset=1.5e-3,gear_stiffness=0.7` on the nominal case.  Each
+    effect alone makes the held-out fit worse (the offset 3x), so only their joint fit
+    explains the traces."""
+    path = tmp_path / "two.csv"
+    subprocess.run(CLI + ["simulate", "--tests", "step,sine,sine2", "--effect",
+                          "sensor_offset=1.5e-3,gear_stiffness=0.7", "--out", str(path)],
+                   check=True, capture_output=True)
+    res = subprocess.run(CLI + ["diagnose", str(path), "--json"], capture_output=True,
+                         text=True, timeout=900)
+    assert res.returncode == 0, res.stderr
+    out = json.loads(res.stdout)
+    named = {e["name"]: e for e in out["effects"]}
+    assert out["verdict"] == "effect" and set(named) == {"sensor_offset", "gear_stiffness"}
+    for name, truth in (("sensor_offset", 1.5e-3), ("gear_stiffness", 0.7)):
+        e = named[name]
+        assert e["partial"] is False and abs(e["params"][name] - truth) < 0.03 * truth
+    singles = {c["name"]: c for c in out["candidates"] if len(c["effects"]) == 1}
+    assert singles["sensor_offset"]["closed"] < 0.0 and not singles["sensor_offset"]["accepted"]
 
 
 @pytest.mark.parametrize("seed", [0, 1])

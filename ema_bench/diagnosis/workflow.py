@@ -74,8 +74,7 @@ class Settings:
     accept_closed: float = 0.7  # share of the discrepancy a set must close to be named
     partial_closed: float = 0.3  # ... to be flagged as the nearest, partial explanation
     max_effects: int = 3        # largest set of effects named at once
-    pair_pool: int = 4          # best singles whose pairs are fitted jointly ...
-    pair_min_closed: float = 0.1  # ... among those closing at least this much alone
+    pair_pool: int = 4          # best singles (training fit) whose pairs are fitted jointly
     grow_k: int = 3             # re-screened effects tried on top of an accepted set
     # each effect beyond the first must close this much more of the discrepancy than the
     # set without it (the price of a parameter)
@@ -517,8 +516,14 @@ def _search(search: _Search, result: Diagnosis) -> Trial | None:
         chosen = _best(singles, s.pair_penalty)
     if chosen is None or chosen.still_detected:
         # two effects at once: each alone may close too little, the pair all of it
-        pool = sorted((t for t in singles if t.closed >= s.pair_min_closed),
-                      key=lambda t: (-t.closed, -t.score))[:s.pair_pool]
+        # the pool is what the training data ask for (a value outside the trivial band, a
+        # better training fit), best first; not what each closes alone on the held-out test,
+        # which can be negative for both halves of a pair (a sensor offset alone made the
+        # held-out fit 3x worse on the nominal case with a soft gear, the pair closes it)
+        pool = sorted((t for t in singles
+                       if t.train_fitness[1] < t.train_fitness[0]
+                       and all(abs(v) > _spec(n).trivial for n, v in t.values.items())),
+                      key=lambda t: t.train_fitness[1])[:s.pair_pool]
         for a, b in combinations(pool, 2):
             effects = tuple(sorted(a.effects + b.effects))
             faults = (a if a.train_fitness[1] <= b.train_fitness[1] else b)
