@@ -68,11 +68,11 @@ def test_workflow_needs_a_held_out_test():
         diagnose(tr, SETTINGS)
 
 
-# three cases of the committed 60-case suite (leaderboards/blind, root seed 6988): a pair of
+# three cases of the committed 60-case suite (leaderboards/blind, root seed 9672): a pair of
 # effects, data made by the monitor itself, and a single effect at heavy stiction, run blind
 # with the default settings
-SEED, N_CASES = 6988, 60
-PAIR, MONITOR_NULL, SINGLE = 3, 0, 17
+SEED, N_CASES = 9672, 60
+PAIR, MONITOR_NULL, SINGLE = 11, 4, 43
 BLIND = [draw_cases(N_CASES, SEED)[i] for i in (PAIR, MONITOR_NULL, SINGLE)]
 COMMITTED = Path(__file__).resolve().parents[1] / "leaderboards" / "blind" / "blind.jsonl"
 
@@ -90,7 +90,7 @@ def test_small_blind_suite(blind_records):
     assert not pair["named_partial"]
     # data from the monitor model itself: nothing is missing
     assert null["verdict"] == "none" and not null["false_alarm"]
-    # heavy stiction (Fst 0.69 N m): the single effect still named, and sized
+    # heavy stiction (Fst 0.82 N m): the single effect still named, and sized
     assert BLIND[2].faults["Fst"] > 0.65 and single["correct"]
     assert all(e < 0.1 for e in single["param_errors"].values())
     s = summarise(blind_records)

@@ -278,22 +278,38 @@ def _jacobian(x: np.ndarray, augment: tuple[str, ...], lower: np.ndarray,
     return y[0], (y[1:] - y[0]).T / h
 
 
-def interval(model: Fit, measured: Traces, params: tuple[str, ...] | None = None,
-             level: float = 0.95) -> dict[str, list[float]]:
-    """Profile-likelihood intervals of augmented effects (default: the last one) on the
-    training tests (:func:`ema_bench.uncertainty.intervals`): the noise level is estimated
-    from the residuals, so misfit widens them, and the faults and other effects are
-    re-optimised along each profile, so it follows a curved valley instead of its tangent."""
+def profile(model: Fit, measured: Traces, params: tuple[str, ...], level: float = 0.95):
+    """Profile-likelihood intervals of the augmented effects ``params`` on the training tests
+    (:func:`ema_bench.uncertainty.intervals`, an :class:`~ema_bench.uncertainty.Intervals`):
+    the noise level is estimated from the residuals, so misfit widens them, and the faults
+    and other effects are re-optimised along each profile, so it follows a curved valley
+    instead of its tangent."""
     from ..uncertainty import intervals
 
-    params = params or model.augment[-1:]
     train = _subset(measured, TRAIN)
     objective = Objective(train, SearchSpace.of(model.augment),
                           sample_weights=stick_weights(train))
-    iv = intervals(objective, model.x, method="profile", level=level, track="measured",
-                   params=params, model_form="none", calibrate=False)
-    return {n: [float(iv.low[N_FAULTS + model.augment.index(n)]),
-                float(iv.high[N_FAULTS + model.augment.index(n)])] for n in params}
+    return intervals(objective, model.x, method="profile", level=level, track="measured",
+                     params=params, model_form="none", calibrate=False)
+
+
+def interval(model: Fit, measured: Traces, params: tuple[str, ...] | None = None,
+             level: float = 0.95, calibrate: bool = True) -> dict[str, list[float]]:
+    """Intervals of augmented effects (default: the last one), ``name -> [low, high]``:
+    their :func:`profile` intervals, each half-width multiplied (with ``calibrate``) by the
+    shipped split-conformal factor for the model-form bias the noise does not account for
+    (:mod:`~ema_bench.diagnosis.interval_calibration`)."""
+    from .interval_calibration import factor
+
+    params = params or model.augment[-1:]
+    iv = profile(model, measured, params, level)
+    q = factor(level) if calibrate else 1.0
+    out = {}
+    for n in params:
+        i = N_FAULTS + model.augment.index(n)
+        c = float(iv.estimate[i])      # the profiles' centre (the polished fit)
+        out[n] = [c - q * (c - float(iv.low[i])), c + q * (float(iv.high[i]) - c)]
+    return out
 
 
 def screen(measured: Traces, model: Fit, lower: np.ndarray, upper: np.ndarray,
