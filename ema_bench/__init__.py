@@ -23,6 +23,7 @@ from .faults import CASES, FAULT_NAMES, FAULTS  # noqa: E402
 from .instances import make_problem  # noqa: E402
 from .monitor import monitor_traces, simulate_monitor  # noqa: E402
 from .problem import BudgetExhausted, Problem, ProblemError  # noqa: E402
+from .prognostics.campaign import make_campaign  # noqa: E402
 from .reference import simulate_reference  # noqa: E402
 from .registry import (  # noqa: E402
     SolveResult,
@@ -35,6 +36,6 @@ from .traces import Traces, TracesError, load_traces  # noqa: E402
 __all__ = [
     "CASES", "FAULTS", "FAULT_NAMES", "BudgetExhausted", "Problem", "ProblemError",
     "SolveResult", "Traces", "TracesError", "available_solvers", "load_traces",
-    "make_problem", "monitor_traces", "register_solver", "run_solver", "simulate_monitor",
-    "simulate_reference",
+    "make_campaign", "make_problem", "monitor_traces", "register_solver", "run_solver",
+    "simulate_monitor", "simulate_reference",
 ]

@@ -30,6 +30,7 @@ COMMANDS: dict[str, str] = {
     "validate": "validate",
     "targets": "targets",
     "coverage": "coverage",
+    "campaign": "campaign",
 }
 
 

@@ -1,0 +1,315 @@
+"""``ema-bench campaign``: degradation campaigns, tracked to a remaining-useful-life prediction.
+
+A campaign is a fleet of actuators whose faults grow over flights by documented degradation
+laws, inspected every few flights (the step and sine tests).  ``make`` draws one and writes it
+to a folder (per-inspection traces, a manifest, the hidden truth); ``track`` runs a tracker
+over it, inspection by inspection, writing estimates, intervals and RUL predictions as it goes
+(rerunning resumes); ``score`` compares them with the hidden truth.
+
+Examples::
+
+    ema-bench campaign make fleet-v1 --units 20 --track twin --seed 0 --out fleet
+    ema-bench campaign track fleet --tracker particle --out fleet-particle
+    ema-bench campaign score fleet-particle --json
+"""
+
+from __future__ import annotations
+
+import argparse
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("campaign", help="degradation campaigns: make, track, score (RUL)",
+                       description=__doc__,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    actions = p.add_subparsers(dest="action", metavar="ACTION", required=True)
+    _register_make(actions)
+    _register_track(actions)
+    _register_score(actions)
+
+
+# --- make (campaign drawing and files) -------------------------------------------------------
+
+def _register_make(actions: argparse._SubParsersAction) -> None:
+    from .args import add_json, add_quiet
+
+    p = actions.add_parser(
+        "make", help="draw a campaign and write its inspection traces, manifest and truth",
+        description="Draw a fleet of actuators from the named campaign's degradation laws, "
+                    "inspect each unit every K flights (step and sine tests) and write "
+                    "DIR/manifest.json (what a tracker sees), DIR/uNNN/iNNN.npz (traces) and "
+                    "DIR/truth.json (hidden: faults, end of life, true RUL).  Same seed, same "
+                    "files.  An existing campaign in DIR is replaced.")
+    p.add_argument("name", metavar="NAME", help="campaign name (e.g. fleet-v1)")
+    p.add_argument("--units", type=int, default=20, help="units of the fleet (default 20)")
+    p.add_argument("--track", choices=("twin", "reference"), default="twin",
+                   help="inspection traces from the monitor model plus noise (twin, default) "
+                        "or from the reference model (about 0.18 s per inspection)")
+    p.add_argument("--seed", type=int, default=0, help="root seed (default 0)")
+    p.add_argument("--split", choices=("test", "train"), default="test",
+                   help="test: units stop at 50-95 %% of life, RUL hidden (default); train: "
+                        "units run to failure")
+    p.add_argument("--every", type=int, default=None, metavar="K",
+                   help="flights between inspections (default: the campaign's, 10 for "
+                        "fleet-v1)")
+    p.add_argument("--out", default=None, metavar="DIR",
+                   help="folder to write (default ema-bench-campaign-NAME-TRACK-SPLIT-"
+                        "seedS-nN)")
+    add_json(p, "the summary")
+    add_quiet(p)
+    p.set_defaults(func=_run_make)
+
+
+def _run_make(args: argparse.Namespace) -> int:
+    import time
+
+    from ..prognostics.campaign import (
+        CampaignError,
+        default_out,
+        get_spec,
+        make_campaign,
+        prepare_folder,
+    )
+    from . import CLIError, print_json
+    from .args import check_output
+
+    if args.units < 1:
+        raise CLIError(f"--units must be >= 1, got {args.units}")
+    if args.every is not None and args.every < 1:
+        raise CLIError(f"--every must be >= 1, got {args.every}")
+    if args.seed < 0:
+        raise CLIError(f"--seed must be >= 0, got {args.seed}")
+    try:  # before any work
+        get_spec(args.name)
+        out = args.out or default_out(args.name, args.track, args.split, args.seed, args.units)
+        prepare_folder(out)
+    except CampaignError as exc:
+        raise CLIError(str(exc)) from None
+    check_output(out, "--out", folder=True)
+    t0 = time.perf_counter()
+    c = make_campaign(args.name, units=args.units, split=args.split, track=args.track,
+                      seed=args.seed, inspection_every=args.every, out=out, quiet=args.quiet)
+    seconds = round(time.perf_counter() - t0, 2)
+    inspections = sum(len(v) for v in c.units.values())
+    summary = {"path": str(c.root), "name": c.name, "split": c.split, "track": c.track,
+               "seed": c.seed, "units": len(c.units), "inspections": inspections,
+               "inspection_every": c.inspection_every, "seconds": seconds}
+    if args.json:
+        print_json(summary)
+        return 0
+    print(f"campaign {c.name}: {len(c.units)} {c.split} units, {c.track} track, seed {c.seed}, "
+          f"an inspection every {c.inspection_every} flights")
+    print(f"  {inspections} inspections written to {c.root}/ in {seconds:.1f} s; hidden "
+          "truth in truth.json")
+    print(f"  next: ema-bench campaign track {c.root} --tracker NAME --out DIR2")
+    return 0
+
+
+# --- track (trackers) ------------------------------------------------------------------------
+
+def _register_track(actions: argparse._SubParsersAction) -> None:
+    from .args import add_json, add_quiet
+
+    p = actions.add_parser(
+        "track", help="run a tracker over a campaign: fault estimates and RUL per inspection",
+        description="Run a registered tracker over every unit of the campaign in DIR, "
+                    "inspection by inspection, and write DIR2/track.jsonl (one line per unit "
+                    "and inspection: estimates with 95 %% intervals, RUL median and 95 %% "
+                    "interval, failing fault, replace) as each finishes, plus "
+                    "DIR2/manifest.json.  Rerunning the same command resumes: units already "
+                    "complete are skipped.  A unit's tracking stops at its first replacement; "
+                    "a tracker that fails on a unit is recorded as a failed unit.  'ema-bench "
+                    "campaign track --list' lists the trackers (the 'ema_bench.trackers' "
+                    "entry-point group: the baselines and any installed plugin).")
+    p.add_argument("campaign", metavar="DIR", nargs="?", help="campaign folder")
+    p.add_argument("--tracker", metavar="NAME", help="registered tracker (see --list)")
+    p.add_argument("--out", metavar="DIR2", help="output folder (created; resumed if it "
+                                                 "holds this same run)")
+    p.add_argument("--seed", type=int, default=0,
+                   help="root seed: unit k's tracker gets run node (S, k) (default 0)")
+    p.add_argument("--workers", type=int, default=1, metavar="N",
+                   help="units tracked at once in worker processes (default 1)")
+    p.add_argument("--list", action="store_true", help="list the registered trackers and exit")
+    add_json(p, "the summary (or the list)")
+    add_quiet(p)
+    p.set_defaults(func=_run_track)
+
+
+def _run_track(args: argparse.Namespace) -> int:
+    import time
+
+    from ..prognostics.campaign import CampaignError, load_campaign
+    from ..prognostics.tracking import (
+        TrackerError,
+        available_trackers,
+        get_tracker,
+        read_track,
+        track_campaign,
+    )
+    from . import CLIError, print_json
+    from .args import check_output
+
+    if args.list:
+        trackers = available_trackers()
+        if args.json:
+            print_json([{"name": t.name, "description": t.description, "config": t.config,
+                         "module": t.factory.__module__} for t in trackers.values()])
+        else:
+            width = max((len(n) for n in trackers), default=0)
+            for t in trackers.values():
+                print(f"{t.name:<{width}}  {t.description}")
+        return 0
+    missing = [o for o, v in (("DIR", args.campaign), ("--tracker", args.tracker),
+                              ("--out", args.out)) if not v]
+    if missing:
+        raise CLIError(f"give {', '.join(missing)} (or --list)")
+    if args.seed < 0:
+        raise CLIError(f"--seed must be >= 0, got {args.seed}")
+    if args.workers < 1:
+        raise CLIError(f"--workers must be >= 1, got {args.workers}")
+    try:  # before any work
+        get_tracker(args.tracker)
+        campaign = load_campaign(args.campaign)
+    except (TrackerError, CampaignError) as exc:
+        raise CLIError(str(exc)) from None
+    check_output(args.out, "--out", folder=True)
+    t0 = time.perf_counter()
+    try:
+        out = track_campaign(campaign, args.tracker, args.out, seed=args.seed,
+                             workers=args.workers, quiet=args.quiet)
+    except TrackerError as exc:
+        raise CLIError(str(exc)) from None
+    seconds = round(time.perf_counter() - t0, 2)
+    log = read_track(out)
+    steps = sum(len(rows) for rows in log.steps.values())
+    replaced = sorted(u for u, rows in log.steps.items() if rows and rows[-1]["replace"])
+    summary = {"path": str(out), "tracker": args.tracker, "seed": args.seed,
+               "campaign": str(campaign.root), "units": len(campaign.units),
+               "steps": steps, "replaced": replaced, "failed": sorted(log.failed),
+               "evaluations": sum(r["evaluations"] for rows in log.steps.values()
+                                  for r in rows), "seconds": seconds}
+    if args.json:
+        print_json(summary)
+        return 0
+    print(f"tracker {args.tracker} on {campaign.name} ({campaign.root}): {len(campaign.units)} "
+          f"units, {steps} inspections tracked in {seconds:.1f} s")
+    print(f"  replacement called on {len(replaced)} unit(s); {len(log.failed)} failed"
+          + (f" ({', '.join(sorted(log.failed))})" if log.failed else ""))
+    print(f"  written to {out}/track.jsonl; next: ema-bench campaign score {out}")
+    return 0
+
+
+# --- score (metrics) -------------------------------------------------------------------------
+
+def _register_score(actions: argparse._SubParsersAction) -> None:
+    from .args import add_json
+
+    p = actions.add_parser(
+        "score", help="score tracking runs against the campaign's hidden truth",
+        description="Score one or more tracking runs (DIR2 of 'ema-bench campaign track') "
+                    "against their campaign's truth.json: RUL RMSE and MAE, the PHM08 score "
+                    "(late predictions cost more), alpha-lambda accuracy (the share of failing "
+                    "units whose prediction at lambda of their life is within +-alpha of the "
+                    "true RUL), RUL interval coverage, false and early replacements, "
+                    "prognostic horizon, monotonicity, per-fault tracking error and interval "
+                    "coverage, detection delay and false-alarm rate (rules: "
+                    "ema_bench/prognostics/scoring.py).  Several runs: one table row each; "
+                    "--plots DIR draws the RUL predictions, the first failing units' faults "
+                    "and the fleet's RUL errors.")
+    p.add_argument("runs", metavar="DIR2", nargs="+", help="tracking run folder(s)")
+    p.add_argument("--alpha", type=float, default=0.2,
+                   help="alpha of the alpha-lambda cone (default 0.2)")
+    p.add_argument("--lam", type=float, default=0.5,
+                   help="lambda: share of life at which alpha-lambda is judged (default 0.5)")
+    p.add_argument("--oracle", action="store_true",
+                   help="also the campaign's oracle bound: the alpha-lambda and RUL coverage of "
+                        "a tracker knowing each unit's law parameters and true faults (what "
+                        "the future's randomness leaves to any tracker; ~0.5 s per unit)")
+    p.add_argument("--plots", metavar="DIR", help="write PNG plots here")
+    p.add_argument("--markdown", metavar="FILE", help="write the table as Markdown here")
+    add_json(p, "the figures (one object per run, with per-unit rows)")
+    p.set_defaults(func=_run_score)
+
+
+#: Columns of the score table: key, header, format.
+_COLUMNS = (("units", "units", "{:d}"), ("failing_units", "failing", "{:d}"),
+            ("rul_rmse", "RUL RMSE", "{:.1f}"), ("rul_mae", "RUL MAE", "{:.1f}"),
+            ("phm08_score", "PHM08", "{:.3g}"), ("alpha_lambda", "alpha-lambda", "{:.0%}"),
+            ("rul_coverage", "RUL 95 % cover", "{:.0%}"),
+            ("oracle_alpha_lambda", "oracle alpha-lambda", "{:.0%}"),
+            ("false_replacements", "false repl.", "{:d}"),
+            ("early_replacements", "early repl.", "{:d}"),
+            ("prognostic_horizon", "PH", "{:.0f}"), ("monotonicity", "monot.", "{:.2f}"),
+            ("detection_delay", "detect delay", "{:.0f}"),
+            ("false_alarm_rate", "false alarms", "{:.1%}"))
+
+
+def score_table(results: list[dict]) -> list[str]:
+    """The Markdown table of scored runs: one row per run."""
+    import math
+
+    head = ["tracker", "track"] + [h for _, h, _ in _COLUMNS] + [
+        f"{n} err / cover" for n in ("Na", "Fst", "BLK")]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for r in results:
+        cells = [r["tracker"], r["track"]]
+        for key, _, fmt in _COLUMNS:
+            v = r.get(key, math.nan)
+            cells.append("-" if v != v else fmt.format(v))
+        cells += [f"{100 * r['fault_error'][n]:.2f} % / {r['fault_coverage'][n]:.0%}"
+                  for n in ("Na", "Fst", "BLK")]
+        lines.append("| " + " | ".join(cells) + " |")
+    return lines
+
+
+def _run_score(args: argparse.Namespace) -> int:
+    import sys
+    from pathlib import Path
+
+    from ..prognostics.scoring import score_tracking
+    from . import CLIError, print_json
+
+    if not 0.0 < args.alpha < 1.0 or not 0.0 <= args.lam <= 1.0:
+        raise CLIError("--alpha must lie in (0, 1) and --lam in [0, 1]")
+    results = [score_tracking(run, alpha=args.alpha, lam=args.lam, oracle=args.oracle)
+               for run in args.runs]
+    for run, r in zip(args.runs, results):
+        if r["untracked"]:  # on stderr: stdout stays the table (or the JSON)
+            print(f"note: {run}: {len(r['untracked'])} unit(s) not tracked "
+                  f"({', '.join(r['untracked'])}); failing ones count as misses in "
+                  "alpha_lambda and rul_coverage", file=sys.stderr)
+    if args.plots:
+        _plots(args.runs, results, Path(args.plots), args.alpha)
+    lines = score_table(results)
+    if args.markdown:
+        Path(args.markdown).write_text("\n".join(lines) + "\n")
+    if args.json:
+        print_json(results[0] if len(results) == 1 else results)
+        return 0
+    for line in lines:
+        print(line)
+    return 0
+
+
+def _plots(runs: list[str], results: list[dict], folder, alpha: float, n_units: int = 3
+           ) -> None:
+    from ..prognostics.campaign import load_campaign, load_truth
+    from ..prognostics.plots import plot_errors, plot_rul, plot_unit
+    from ..prognostics.tracking import campaign_path, read_track
+
+    folder.mkdir(parents=True, exist_ok=True)
+    errors = {}
+    for run, res in zip(runs, results):
+        log = read_track(run)
+        camp = load_campaign(campaign_path(run, log.manifest), traces=False)
+        truth = load_truth(camp.root)
+        tag = f"{res['tracker']}-{res['track']}"
+        plot_rul(log.steps, truth, folder / f"rul_{tag}.png", alpha,
+                 title=f"{res['tracker']} on {res['campaign']} ({res['track']} track)")
+        failing = [u["unit"] for u in res["per_unit"] if u["eol"] is not None][:n_units]
+        for unit in failing:
+            plot_unit(log.steps[unit], truth[unit], camp.thresholds,
+                      folder / f"unit_{tag}_{unit}.png",
+                      title=f"{res['tracker']}: unit {unit} ({res['track']} track)")
+        errors[tag] = [u["rul"] - u["true_rul"] for u in res["per_unit"] if u["eol"] is not None]
+    plot_errors(errors, folder / "rul_errors.png")

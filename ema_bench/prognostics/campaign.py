@@ -1,0 +1,500 @@
+"""Campaigns: a fleet of actuators degrading over flights, inspected every few flights.
+
+:func:`make_campaign` draws a fleet from a named :class:`CampaignSpec` (:data:`CAMPAIGNS`),
+simulates each unit's life with :mod:`~ema_bench.prognostics.laws`, runs the standard step and
+sine tests at every inspection and writes a folder::
+
+    DIR/manifest.json   what a tracker may see (format "ema-bench-campaign", version 1)
+    DIR/u000/i000.npz   the traces of unit u000's inspection 0 (Traces.save)
+    DIR/truth.json      the hidden truth: faults, effects, end of life, true RUL
+
+:func:`load_campaign` reads the manifest back (checked: clear errors on missing, broken or
+mislabelled files) as a :class:`Campaign`; :func:`load_truth` reads the truth.
+
+Seeds: one root seed ``S``; unit ``u`` is run ``u`` of it (``run_seed(S, u)``, as a
+leaderboard row): its laws come from that node's ``instance`` stream, its stopping point from
+its ``plan`` stream and inspection ``i``'s sensor noise from ``stream(node, "noise", i)``.
+Which units drift in gain only is the root's ``plan`` stream.  Same seed, same files, byte
+for byte.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import re
+import shutil
+import zipfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..faults import FAULT_NAMES, LOWER, UPPER
+from ..seeding import as_seed_sequence, run_seed, stream
+from ..traces import Traces, load_traces
+from .laws import THRESHOLDS, FleetLaws, UnitHistory, unit_history
+
+FORMAT = "ema-bench-campaign"
+TRUTH_FORMAT = "ema-bench-campaign-truth"
+VERSION = 1
+SPLITS = ("train", "test")
+TRACKS = ("twin", "reference")
+#: Marker of a folder being written (removed when the manifest is in place).
+PARTIAL = ".ema-bench-campaign-partial"
+_UNIT_DIR = re.compile(r"u\d{3,}")
+_NPZ = re.compile(r"i\d{3,}\.npz")
+
+
+class CampaignError(ValueError):
+    """A campaign that cannot be made or read; the message names the file and the fault."""
+
+
+@dataclass(frozen=True)
+class CampaignSpec:
+    """A named campaign design.
+
+    Attributes
+    ----------
+    inspection_every : int
+        Flights between inspections.
+    drift_share : float
+        Share of units that degrade by gain drift only (never fail): ``round(share * units)``.
+    test_stop : (float, float)
+        Test units stop at a share of their life drawn uniformly in this range.
+    """
+
+    name: str
+    description: str
+    laws: FleetLaws = field(default_factory=FleetLaws)
+    inspection_every: int = 10
+    drift_share: float = 0.15
+    test_stop: tuple[float, float] = (0.5, 0.95)
+    tests: tuple[str, ...] = ("step", "sine")
+
+
+#: The named campaigns.  fleet-v1: median life about 300 flights, an inspection every 10.
+CAMPAIGNS: dict[str, CampaignSpec] = {
+    "fleet-v1": CampaignSpec(
+        "fleet-v1",
+        "friction, backlash and coil-short wear with gain drift; life 150-520 flights "
+        "(10-90 %), an inspection every 10 flights (about 30 per life); 15 % gain-drift-only "
+        "units"),
+}
+
+
+@dataclass(frozen=True)
+class InspectionRecord:
+    """One inspection of one unit, as the manifest lists it.
+
+    ``conditions``: what the operator logged (``ambient_temp_C``, ``winding_temp_C`` in
+    degC; ``flights_since_last``, ``duty_since_last`` in flights and standard-flight
+    equivalents)."""
+
+    unit: str
+    index: int
+    flight: int
+    path: Path
+    conditions: dict
+
+
+@dataclass(frozen=True)
+class Campaign:
+    """What a tracker sees of a campaign: its settings and its inspections (no truth)."""
+
+    root: Path
+    name: str
+    track: str
+    seed: int
+    split: str
+    inspection_every: int
+    thresholds: dict[str, float]
+    laws: dict
+    units: dict[str, list[InspectionRecord]]
+    tests: tuple[str, ...] = ("step", "sine")
+    model_version: str = ""
+
+    def traces(self, rec: InspectionRecord) -> Traces:
+        """The measured traces of an inspection."""
+        return load_traces(rec.path)
+
+    def info(self) -> dict:
+        """The manifest's settings without the inspection list (for tracker factories)."""
+        return {"name": self.name, "track": self.track, "seed": self.seed, "split": self.split,
+                "inspection_every": self.inspection_every, "thresholds": dict(self.thresholds),
+                "laws": self.laws, "tests": list(self.tests),
+                "model_version": self.model_version, "root": str(self.root)}
+
+
+def get_spec(name: str) -> CampaignSpec:
+    """The registered campaign ``name``; CampaignError listing the known ones."""
+    try:
+        return CAMPAIGNS[name]
+    except KeyError:
+        raise CampaignError(f"unknown campaign {name!r}; known: {list(CAMPAIGNS)}") from None
+
+
+def default_out(name: str, track: str, split: str, seed: int, units: int) -> Path:
+    """The folder :func:`make_campaign` writes to without ``out``: named by what it holds."""
+    return Path(f"ema-bench-campaign-{name}-{track}-{split}-seed{seed}-n{units}")
+
+
+# --- making ----------------------------------------------------------------------------------
+
+def make_campaign(name: str = "fleet-v1", *, units: int = 20, split: str = "test",
+                  track: str = "twin", seed: int = 0, inspection_every: int | None = None,
+                  out: Path | str | None = None, quiet: bool = True) -> Campaign:
+    """Draw a campaign, write it to ``out`` and return it.
+
+    Parameters
+    ----------
+    name : str
+        A registered campaign (:data:`CAMPAIGNS`).
+    units : int
+        Units of the fleet (``u000`` ...).
+    split : {"test", "train"}
+        Train units run to failure (inspections up to the last one before EOL); test units
+        stop at a random share of their life (``spec.test_stop``), their RUL hidden.
+    track : {"twin", "reference"}
+        Inspection traces from the monitor model plus sensor noise, or from the reference
+        model (about 0.18 s per inspection).
+    seed : int
+        Root seed: same seed, same files.
+    inspection_every : int, optional
+        Flights between inspections (default: the spec's).
+    out : path, optional
+        Folder (created; an existing campaign there is replaced; any other non-empty folder
+        is refused).  Default :func:`default_out`.
+    quiet : bool
+        No progress bar / lines.
+    """
+    from ..progress import progress
+    from ..trace_cache import MODEL_VERSION
+
+    spec = get_spec(name)
+    units, seed = _count(units, "units"), _count(seed, "seed", minimum=0)
+    every = spec.inspection_every if inspection_every is None else _count(
+        inspection_every, "inspection_every")
+    if split not in SPLITS:
+        raise CampaignError(f"unknown split {split!r}; known: {list(SPLITS)}")
+    if track not in TRACKS:
+        raise CampaignError(f"unknown track {track!r}; known: {list(TRACKS)}")
+    root = Path(out) if out is not None else default_out(name, track, split, seed, units)
+    prepare_folder(root)
+    (root / PARTIAL).write_text(json.dumps({"name": name, "seed": seed}))
+
+    node = as_seed_sequence(seed)
+    drift = _drift_units(node, units, spec.drift_share)
+    manifest_units, truth_units = [], {}
+    with progress(units, f"campaign {name}", unit="unit", quiet=quiet) as bar:
+        for u in range(units):
+            label = f"u{u:03d}"
+            inspections, truth = _make_unit(root, label, run_seed(seed, u), spec, every,
+                                            split, track, wear=u not in drift)
+            manifest_units.append({"unit": label, "inspections": inspections})
+            truth_units[label] = truth
+            bar.update(label)
+
+    from .. import __version__
+    manifest = {"format": FORMAT, "version": VERSION, "name": name, "track": track,
+                "seed": seed, "split": split, "inspection_every": every,
+                "tests": list(spec.tests), "thresholds": dict(THRESHOLDS),
+                "laws": spec.laws.to_dict(), "description": spec.description,
+                "model_version": MODEL_VERSION, "package_version": __version__,
+                "units": manifest_units}
+    truth = {"format": TRUTH_FORMAT, "version": VERSION, "name": name, "seed": seed,
+             "units": truth_units}
+    _write_json(root / "truth.json", truth)
+    _write_json(root / "manifest.json", manifest)
+    (root / PARTIAL).unlink()
+    return load_campaign(root)
+
+
+def _count(v: Any, what: str, minimum: int = 1) -> int:
+    if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < minimum:
+        raise CampaignError(f"{what} must be an integer >= {minimum}, got {v!r}")
+    return int(v)
+
+
+def _drift_units(node: np.random.SeedSequence, units: int, share: float) -> set[int]:
+    """Which units degrade by gain drift only: a fixed count, placed by the plan stream."""
+    rng = np.random.default_rng(stream(node, "plan"))
+    order = rng.permutation(units)
+    return {int(u) for u in order[:int(round(share * units))]}
+
+
+def _inspection_flights(h: UnitHistory, every: int, split: str, stop: tuple[float, float],
+                        rng: np.random.Generator) -> list[int]:
+    """Flights of a unit's inspections: every ``every`` flights before its horizon (EOL, or
+    the would-be EOL of a unit that never fails); a test unit stops at an inspection drawn
+    uniformly among those in ``stop`` (shares of the horizon)."""
+    # the draw is made for every unit so one unit's split does not shift another's streams
+    u = rng.uniform(*stop)
+    before = list(range(0, h.horizon, every))  # strictly before EOL
+    if split == "train":
+        return before
+    lo, hi = stop
+    inside = [f for f in before if lo * h.horizon <= f <= hi * h.horizon]
+    if not inside:  # a life shorter than the spacing allows: the first at or after lo
+        inside = [f for f in before if f >= lo * h.horizon] or before[-1:]
+    # the inspection nearest to the drawn share u (ties: the earlier one)
+    last = min(inside, key=lambda f: (abs(f - u * h.horizon), f))
+    return before[:before.index(last) + 1]
+
+
+def _conditions(h: UnitHistory, flight: int, previous: int | None) -> dict:
+    start = 0 if previous is None else previous
+    return {"ambient_temp_C": round(float(h.ambient[flight]), 1),
+            "winding_temp_C": round(float(h.winding[flight]), 1),
+            "flights_since_last": flight - start,
+            "duty_since_last": round(float(h.duty[start:flight].sum()), 3)}
+
+
+def _make_unit(root: Path, label: str, node: np.random.SeedSequence, spec: CampaignSpec,
+               every: int, split: str, track: str, *, wear: bool) -> tuple[list[dict], dict]:
+    """Simulate one unit, write its inspection files; (manifest entries, truth record)."""
+    from ..effects import effects_to_dict
+    from ..protocol import STANDARD_TESTS
+
+    tests = tuple(t for t in STANDARD_TESTS if t.name in spec.tests)
+    h = unit_history(stream(node, "instance"), spec.laws, wear=wear)
+    flights = _inspection_flights(h, every, split, spec.test_stop,
+                                  np.random.default_rng(stream(node, "plan")))
+    (root / label).mkdir(exist_ok=True)
+    entries, faults, effects = [], {}, {}
+    for i, f in enumerate(flights):
+        # the laws may pass a box bound only after EOL; clip anyway so the models accept it
+        x = np.clip(h.faults[f], LOWER, UPPER)
+        e = h.effects(f)
+        traces = simulate_inspection(x, e, stream(node, "noise", i), tests, track)
+        meta = {k: traces.meta[k] for k in ("model", "noise", "adc") if k in traces.meta}
+        traces = Traces(traces.data, dt=traces.dt,
+                        meta={**meta, "unit": label, "inspection": i, "flight": f})
+        rel = f"{label}/i{i:03d}.npz"
+        save_traces(traces, root / rel)
+        entries.append({"index": i, "flight": f, "file": rel,
+                        "conditions": _conditions(h, f, flights[i - 1] if i else None)})
+        faults[str(f)] = [float(v) for v in x]
+        effects[str(f)] = effects_to_dict(e)
+    last = flights[-1]
+    after = range(last + every, h.horizon, every) if h.eol is not None else range(0)
+    truth = {"unit": label, "eol": h.eol, "failing_fault": h.failing_fault,
+             "last_flight": last, "true_rul": None if h.eol is None else h.eol - last,
+             "life_fraction": None if h.eol is None else last / h.eol,
+             "kind": h.kind, "horizon": h.horizon,
+             "faults": faults, "effects": effects,
+             # the hidden future of a test unit, at the inspection spacing, and at its EOL
+             "faults_after": {str(f): [float(v) for v in np.clip(h.faults[f], LOWER, UPPER)]
+                              for f in after},
+             "faults_at_eol": None if h.eol is None else [float(v) for v in h.faults[h.eol]],
+             "params": h.params.to_dict()}
+    return entries, truth
+
+
+def simulate_inspection(x: np.ndarray, e: np.ndarray, seed: np.random.SeedSequence,
+                        tests: tuple, track: str) -> Traces:
+    """One inspection's measured traces at faults ``x`` and effects ``e``: the monitor model
+    (``twin``) or the reference model (``reference``) through the sensors, noise from
+    ``seed``."""
+    if track == "twin":
+        from ..instances import twin_traces
+
+        return twin_traces(x, e, seed, tests)
+    from ..reference import simulate_reference
+
+    return simulate_reference(x, e, seed=seed, tests=tests)
+
+
+def save_traces(traces: Traces, path: Path) -> None:
+    """:meth:`Traces.save` to ``.npz`` with fixed zip timestamps, so the same traces give the
+    same bytes (``numpy.savez`` stamps each member with the time of writing)."""
+    traces.save(path)
+    with zipfile.ZipFile(path) as z:
+        members = [(info, z.read(info)) for info in z.infolist()]
+    tmp = path.with_name(path.name + ".tmp")
+    with zipfile.ZipFile(tmp, "w") as z:
+        for info, data in members:
+            fixed = zipfile.ZipInfo(info.filename, date_time=(1980, 1, 1, 0, 0, 0))
+            fixed.compress_type = info.compress_type
+            fixed.external_attr = info.external_attr
+            z.writestr(fixed, data)
+    os.replace(tmp, path)
+
+
+def _write_json(path: Path, doc: dict) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(doc, indent=1) + "\n")
+    os.replace(tmp, path)
+
+
+def prepare_folder(root: Path) -> None:
+    """Make ``root`` ready for a campaign: created when absent; an earlier campaign (or a
+    partly written one) there is removed, file by file; CampaignError for a file, or a
+    non-empty folder that holds something else."""
+    root = Path(root)
+    if root.exists() and not root.is_dir():
+        raise CampaignError(f"{root}: exists and is not a folder")
+    if root.is_dir() and any(root.iterdir()):
+        manifest = root / "manifest.json"
+        if not (root / PARTIAL).exists():
+            if not manifest.is_file():
+                raise CampaignError(f"{root}: exists and is not a campaign folder (no "
+                                    "manifest.json); give a new or empty folder")
+            _read_json(manifest, FORMAT, "manifest")  # refuses another tool's manifest
+        _clear(root)
+    root.mkdir(parents=True, exist_ok=True)
+
+
+def _clear(root: Path) -> None:
+    """Remove what a campaign writes (and nothing else) from ``root``."""
+    for name in ("manifest.json", "truth.json", "manifest.json.tmp", "truth.json.tmp", PARTIAL):
+        (root / name).unlink(missing_ok=True)
+    for d in root.iterdir():
+        if d.is_dir() and _UNIT_DIR.fullmatch(d.name):
+            for f in d.iterdir():
+                if f.is_file() and (_NPZ.fullmatch(f.name) or f.name.endswith(".npz.tmp")):
+                    f.unlink()
+            if not any(d.iterdir()):
+                shutil.rmtree(d)
+
+
+# --- reading ---------------------------------------------------------------------------------
+
+def _read_json(path: Path, fmt: str, what: str) -> dict:
+    """A JSON document of format ``fmt`` and a supported version; CampaignError otherwise."""
+    if not path.is_file():
+        raise CampaignError(f"{path}: no such file")
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except json.JSONDecodeError as exc:
+        raise CampaignError(f"{path}: broken {what}: not valid JSON ({exc.msg} at line "
+                            f"{exc.lineno})") from None
+    except UnicodeDecodeError:
+        raise CampaignError(f"{path}: broken {what}: not a text file") from None
+    if not isinstance(doc, dict) or doc.get("format") != fmt:
+        got = doc.get("format") if isinstance(doc, dict) else type(doc).__name__
+        hint = (" (a tracking run's manifest: give the campaign folder it names)"
+                if isinstance(doc, dict) and "tracker" in doc else "")
+        raise CampaignError(f"{path}: not a campaign {what} (format {got!r}, expected "
+                            f"{fmt!r}){hint}")
+    if doc.get("version") != VERSION:
+        raise CampaignError(f"{path}: {what} version {doc.get('version')!r} is not supported "
+                            f"(this ema-bench reads version {VERSION}); remake the campaign")
+    return doc
+
+
+def _folder(path: Path | str) -> Path:
+    path = Path(path)
+    if path.is_file() and path.name in ("manifest.json", "truth.json"):
+        path = path.parent
+    if not path.exists():
+        raise CampaignError(f"{path}: no such campaign folder")
+    if not path.is_dir():
+        raise CampaignError(f"{path}: not a campaign folder")
+    if (path / PARTIAL).exists():
+        raise CampaignError(f"{path}: the campaign was not finished (interrupted while being "
+                            "made); make it again")
+    if not (path / "manifest.json").exists():
+        raise CampaignError(f"{path}: not a campaign folder (no manifest.json; make one with "
+                            "'ema-bench campaign make')")
+    return path
+
+
+def _need(doc: dict, key: str, kind: type | tuple[type, ...], where: str) -> Any:
+    if key not in doc:
+        raise CampaignError(f"{where}: missing {key!r}")
+    v = doc[key]
+    if not isinstance(v, kind) or (kind is int and isinstance(v, bool)):
+        raise CampaignError(f"{where}: {key!r} has the wrong type ({type(v).__name__})")
+    return v
+
+
+def load_campaign(path: Path | str, traces: bool = True) -> Campaign:
+    """Read a campaign folder (or its manifest.json), checking the manifest and (``traces``)
+    that every inspection file is there.  CampaignError (one line naming the file) otherwise.
+
+    ``traces=False`` is for what needs the settings only (scoring: a committed leaderboard
+    keeps a campaign's manifest and truth, not its traces, which ``campaign make``
+    regenerates byte for byte)."""
+    root = _folder(path)
+    mpath = root / "manifest.json"
+    doc = _read_json(mpath, FORMAT, "manifest")
+    where = str(mpath)
+    name = _need(doc, "name", str, where)
+    track = _need(doc, "track", str, where)
+    split = _need(doc, "split", str, where)
+    seed = _need(doc, "seed", int, where)
+    every = _need(doc, "inspection_every", int, where)
+    thresholds = _need(doc, "thresholds", dict, where)
+    laws = _need(doc, "laws", dict, where)
+    tests = _need(doc, "tests", list, where)
+    if track not in TRACKS or split not in SPLITS or every < 1:
+        raise CampaignError(f"{where}: bad track, split or inspection_every "
+                            f"({track!r}, {split!r}, {every!r})")
+    bad = [k for k, v in thresholds.items()
+           if k not in FAULT_NAMES or isinstance(v, bool) or not isinstance(v, (int, float))]
+    if bad:
+        raise CampaignError(f"{where}: bad threshold(s) {bad}; faults: {list(FAULT_NAMES)}")
+    units: dict[str, list[InspectionRecord]] = {}
+    for k, u in enumerate(_need(doc, "units", list, where)):
+        if not isinstance(u, dict):
+            raise CampaignError(f"{where}: unit entry {k} is not an object")
+        label = _need(u, "unit", str, f"{where}: unit entry {k}")
+        if label in units:
+            raise CampaignError(f"{where}: unit {label} is listed twice")
+        units[label] = _records(root, label, _need(u, "inspections", list,
+                                                   f"{where}: unit {label}"), where, traces)
+    return Campaign(root=root, name=name, track=track, seed=seed, split=split,
+                    inspection_every=every,
+                    thresholds={k: float(v) for k, v in thresholds.items()}, laws=laws,
+                    units=units, tests=tuple(tests),
+                    model_version=str(doc.get("model_version", "")))
+
+
+def _records(root: Path, label: str, items: list, where: str,
+             traces: bool = True) -> list[InspectionRecord]:
+    out: list[InspectionRecord] = []
+    for i, item in enumerate(items):
+        at = f"{where}: unit {label} inspection {i}"
+        if not isinstance(item, dict):
+            raise CampaignError(f"{at}: not an object")
+        index = _need(item, "index", int, at)
+        flight = _need(item, "flight", int, at)
+        rel = _need(item, "file", str, at)
+        conditions = _need(item, "conditions", dict, at)
+        if index != i:
+            raise CampaignError(f"{at}: index {index} out of order (expected {i})")
+        if out and flight <= out[-1].flight:
+            raise CampaignError(f"{at}: flight {flight} is not after the previous "
+                                f"inspection's ({out[-1].flight})")
+        file = root / rel
+        if Path(rel).is_absolute() or ".." in Path(rel).parts:
+            raise CampaignError(f"{at}: file {rel!r} must lie inside the campaign folder")
+        if traces and not file.is_file():
+            raise CampaignError(f"{at}: file {rel} is missing")
+        out.append(InspectionRecord(label, index, flight, file, conditions))
+    return out
+
+
+def load_truth(path: Path | str) -> dict[str, dict]:
+    """The hidden truth of a campaign, per unit (``truth.json``): ``eol`` (flight or None),
+    ``failing_fault``, ``last_flight``, ``true_rul``, ``life_fraction``, ``kind``,
+    ``horizon``, ``faults`` and ``effects`` per inspection flight (keys are flights as
+    strings), ``faults_after`` (the future at the inspection spacing, before EOL),
+    ``faults_at_eol`` and the unit's law ``params``."""
+    root = _folder(path)
+    doc = _read_json(root / "truth.json", TRUTH_FORMAT, "truth file")
+    units = _need(doc, "units", dict, str(root / "truth.json"))
+    return units
+
+
+def life_summary(truth: dict[str, dict]) -> dict:
+    """Fleet life figures from a truth: EOL quartiles (flights) and failing-fault shares."""
+    eols = [t["eol"] for t in truth.values() if t["eol"] is not None]
+    faults = [t["failing_fault"] for t in truth.values() if t["failing_fault"]]
+    q = np.percentile(eols, [25, 50, 75]).tolist() if eols else [math.nan] * 3
+    return {"units": len(truth), "failing": len(eols), "eol_quartiles": q,
+            "failing_fault": {n: faults.count(n) for n in THRESHOLDS},
+            "inspections": sum(len(t["faults"]) for t in truth.values())}

@@ -1,0 +1,127 @@
+"""Plots of a tracked campaign: one unit's faults and prediction cone, RUL against true RUL
+with the alpha-lambda cone, and the fleet's RUL errors per tracker (matplotlib, Agg)."""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from ..faults import FAULT_INDEX, FAULT_UNITS
+from ..plots import plt
+
+
+def _truth_path(truth: Mapping) -> tuple[np.ndarray, np.ndarray]:
+    """Flights and true faults (k, 4) of a unit: its inspections, then its hidden future."""
+    pts = {int(f): v for f, v in truth["faults"].items()}
+    pts.update({int(f): v for f, v in (truth.get("faults_after") or {}).items()})
+    flights = np.array(sorted(pts))
+    return flights, np.array([pts[f] for f in flights], dtype=float)
+
+
+def plot_unit(rows: Sequence[Mapping], truth: Mapping, thresholds: Mapping[str, float],
+              path: str | os.PathLike, title: str = "") -> None:
+    """A unit's failing faults over flights: the truth (dashed past the last inspection), the
+    tracker's estimates with their 95 % intervals, the threshold, and the prediction cone of
+    the last inspection (from its estimate to the threshold at the predicted end of life,
+    median and 95 % RUL interval).
+
+    ``rows``: the unit's steps of ``track.jsonl`` in flight order; ``truth``: its record of
+    ``truth.json``.  Saves a PNG to ``path``."""
+    names = list(thresholds)
+    fig, axes = plt.subplots(1, len(names), figsize=(4.6 * len(names), 3.6), squeeze=False)
+    flights, true = _truth_path(truth)
+    last = int(truth["last_flight"])
+    fl = np.array([r["flight"] for r in rows], dtype=float)
+    final = rows[-1] if rows else None
+    for ax, name in zip(axes[0], names):
+        j = FAULT_INDEX[name]
+        seen = flights <= last
+        ax.plot(flights[seen], true[seen, j], "k-", lw=1.2, label="truth")
+        ax.plot(flights[flights >= last], true[flights >= last, j], "k--", lw=1.0,
+                label="truth (hidden)")
+        if rows:
+            est = np.array([r["estimate"][name] for r in rows])
+            lo = np.array([r["low"][name] for r in rows])
+            hi = np.array([r["high"][name] for r in rows])
+            ax.errorbar(fl, est, yerr=[est - lo, hi - est], fmt="o", ms=3, lw=0.8,
+                        color="C0", label="estimate, 95 %")
+        thr = thresholds[name]
+        ax.axhline(thr, color="C3", lw=1.0, label="threshold")
+        if final is not None and final.get("failing_fault") == name and \
+                math.isfinite(final["rul"]):
+            f0, x0 = final["flight"], final["estimate"][name]
+            for rul, style in ((final["rul"], "-"), (final["rul_low"], ":"),
+                               (final["rul_high"], ":")):
+                if math.isfinite(rul):
+                    ax.plot([f0, f0 + rul], [x0, thr], style, color="C1", lw=1.2)
+            ax.plot([], [], "-", color="C1", label="predicted EOL (median, 95 %)")
+        if truth.get("eol") is not None:
+            ax.axvline(truth["eol"], color="0.5", lw=0.8, ls="-.", label="true EOL")
+        ax.set_xlabel("flight")
+        ax.set_ylabel(f"{name} [{FAULT_UNITS[name]}]")
+        ax.grid(alpha=0.3)
+    axes[0, 0].legend(fontsize=7)
+    fig.suptitle(title or f"unit {truth['unit']}", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_rul(units: Mapping[str, Sequence[Mapping]], truth: Mapping[str, Mapping],
+             path: str | os.PathLike, alpha: float = 0.2, title: str = "") -> None:
+    """Predicted against true RUL over each failing unit's life (x: true RUL, counting down),
+    with 95 % RUL intervals and the alpha cone ``(1 +- alpha)`` true RUL.  ``units``: unit ->
+    its steps of ``track.jsonl``.  Saves a PNG to ``path``."""
+    fig, ax = plt.subplots(figsize=(6.2, 5.0))
+    top = 1.0
+    for k, (unit, rows) in enumerate(sorted(units.items())):
+        eol = truth[unit].get("eol")
+        if eol is None or not rows:
+            continue
+        t = np.array([eol - r["flight"] for r in rows], dtype=float)
+        p = np.array([r["rul"] for r in rows], dtype=float)
+        lo = np.array([r["rul_low"] for r in rows], dtype=float)
+        hi = np.array([r["rul_high"] for r in rows], dtype=float)
+        top = max(top, float(t.max()))
+        c = f"C{k % 10}"
+        ax.plot(t, np.minimum(p, 3 * t.max()), "-o", ms=2.5, lw=0.8, color=c)
+        ax.fill_between(t, lo, np.minimum(hi, 3 * t.max()), color=c, alpha=0.08, lw=0)
+    x = np.array([0.0, top])
+    ax.plot(x, x, "k-", lw=1.0, label="perfect")
+    ax.fill_between(x, (1 - alpha) * x, (1 + alpha) * x, color="k", alpha=0.12,
+                    label=f"alpha = {alpha:g} cone")
+    ax.set_xlim(top * 1.02, 0)     # time runs left to right: RUL counts down
+    ax.set_ylim(0, 2.0 * top)
+    ax.set_xlabel("true RUL [flights]")
+    ax.set_ylabel("predicted RUL [flights] (median, 95 % band)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc="upper left")
+    ax.set_title(title or "RUL predictions over life", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_errors(errors: Mapping[str, Sequence[float]], path: str | os.PathLike,
+                title: str = "") -> None:
+    """The fleet's RUL errors (predicted - true, flights; late > 0) per tracker, as box plots
+    with every unit's point.  Saves a PNG to ``path``."""
+    names = list(errors)
+    fig, ax = plt.subplots(figsize=(1.6 + 1.4 * len(names), 4.2))
+    data = [np.asarray(errors[n], dtype=float) for n in names]
+    data = [d[np.isfinite(d)] for d in data]
+    ax.boxplot(data, showfliers=False)
+    ax.set_xticks(range(1, len(names) + 1), names)
+    rng = np.random.default_rng(0)   # jitter only
+    for i, d in enumerate(data, start=1):
+        ax.plot(i + rng.uniform(-0.12, 0.12, d.size), d, "o", ms=3, alpha=0.6)
+    ax.axhline(0.0, color="k", lw=0.8)
+    ax.set_ylabel("RUL error at the last inspection [flights] (late > 0)")
+    ax.grid(alpha=0.3, axis="y")
+    ax.set_title(title or "RUL error over the fleet", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

@@ -1,0 +1,554 @@
+"""Trackers: follow a unit's faults inspection by inspection and predict its remaining life.
+
+A tracker is a *factory* decorated with :func:`register_tracker`, in a module named by an entry
+point of the group ``ema_bench.trackers``, exactly like solvers (:mod:`ema_bench.registry`)::
+
+    # pyproject.toml of any package
+    [project.entry-points."ema_bench.trackers"]
+    my-tracker = "my_package.my_module"
+
+``factory(campaign_info, seed, **config)`` is called once per unit (``campaign_info``:
+:meth:`Campaign.info`, the manifest's settings; ``seed``: the unit's ``SeedSequence``) and
+returns a closure ``step(inspection) -> TrackStep`` that keeps the unit's state; it is called
+with the unit's :class:`Inspection` objects in flight order.  The baselines live in the
+top-level ``trackers/`` folder (installed as ``ema_bench_trackers``) and register through
+ema-bench's own entry points.
+
+:func:`track_campaign` runs a tracker over a campaign and writes ``OUT/track.jsonl`` (one line
+per unit and inspection, appended as each finishes; rerunning resumes) and
+``OUT/manifest.json``; :func:`read_track` reads it back.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.metadata
+import json
+import logging
+import math
+import os
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from ..faults import FAULT_NAMES
+from ..seeding import run_seed, stream
+from ..traces import Traces
+
+if TYPE_CHECKING:
+    from ..problem import Problem
+    from .campaign import Campaign
+
+log = logging.getLogger("ema_bench")
+
+ENTRY_POINT_GROUP = "ema_bench.trackers"
+TRACK_FILE = "track.jsonl"
+MANIFEST_FILE = "manifest.json"
+FORMAT = "ema-bench-track"
+VERSION = 1
+#: Fields of a step that may be infinite: JSON has no infinity, so they are written as null.
+INFINITE_FIELDS = ("rul", "rul_low", "rul_high")
+
+
+class TrackerError(LookupError):
+    """Unknown tracker name, a broken plugin, a bad step or an output folder of another run."""
+
+
+# --- what a tracker sees and answers ---------------------------------------------------------
+
+@dataclass(frozen=True)
+class Inspection:
+    """One inspection of one unit, as a tracker gets it.
+
+    Attributes
+    ----------
+    unit, index, flight
+        Unit label, inspection number (0, 1, ...) and flight (flights since new).
+    traces
+        The measured step and sine traces.
+    conditions
+        What the operator logged (``ambient_temp_C``, ``winding_temp_C`` in degC,
+        ``flights_since_last``, ``duty_since_last``).
+    thresholds
+        Failure threshold per failing fault, physical units (``Gprop`` has none).
+    inspection_every
+        Flights between inspections (the campaign's design).
+    """
+
+    unit: str
+    index: int
+    flight: int
+    traces: Traces
+    conditions: dict
+    thresholds: dict[str, float]
+    inspection_every: int
+
+    def problem(self, start: np.ndarray | None = None, budget: int = 2000,
+                effects: np.ndarray | None = None) -> Problem:
+        """The identification problem of this inspection: its traces, warm-started at
+        ``start`` (physical fault vector; default nominal), counting evaluations against
+        ``budget``.
+
+        ``effects`` (array (N_EFFECTS,), optional): effects switched on in the monitor for
+        every candidate, e.g. the confounders a tracker infers from the logged ``conditions``
+        (:func:`ema_bench.prognostics.laws.confounders`)."""
+        if effects is None:
+            from ..instances import make_problem
+
+            return make_problem(measured=self.traces, start=start, budget=budget)
+        from ..problem import Problem
+
+        return Problem(self.traces, budget, start=start,
+                       monitor_effects=np.asarray(effects, dtype=float),
+                       label=f"{self.unit}/i{self.index:03d}", track="measured")
+
+
+@dataclass
+class TrackStep:
+    """A tracker's answer to one inspection.
+
+    Attributes
+    ----------
+    flight : int
+        The inspection's flight.
+    estimate, low, high : dict
+        Fault estimates and their 95 % interval ends, physical units, every fault.
+    rul : float
+        Median predicted remaining useful life, flights (``inf``: no failure in sight).
+    rul_low, rul_high : float
+        95 % interval of the RUL, flights (``rul_high`` may be ``inf``).
+    failing_fault : str or None
+        The fault predicted to cross its threshold first.
+    replace : bool
+        The tracker calls for replacement now (tracking of the unit stops there).
+    evaluations : int
+        Model runs this step cost.
+    extra : dict
+        Anything else the tracker wants recorded (JSON-friendly).
+    """
+
+    flight: int
+    estimate: dict[str, float]
+    low: dict[str, float]
+    high: dict[str, float]
+    rul: float
+    rul_low: float
+    rul_high: float
+    failing_fault: str | None
+    replace: bool
+    evaluations: int
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+def check_step(step: object, inspection: Inspection) -> TrackStep:
+    """``step`` if it is a sound answer to ``inspection``; :class:`TrackerError` naming the
+    fault otherwise (not a TrackStep, a missing or non-finite estimate, a NaN or negative RUL,
+    RUL ends out of order, an unknown failing fault)."""
+    if not isinstance(step, TrackStep):
+        raise TrackerError(f"a tracker must return a TrackStep, got {type(step).__name__}")
+    for what in ("estimate", "low", "high"):
+        d = getattr(step, what)
+        missing = [n for n in FAULT_NAMES if n not in d]
+        bad = [n for n in FAULT_NAMES if n in d and not math.isfinite(float(d[n]))]
+        if missing or bad:
+            raise TrackerError(f"step {what}: missing {missing} or not finite {bad}")
+    ruls = [float(step.rul_low), float(step.rul), float(step.rul_high)]
+    if any(math.isnan(r) or r < 0 for r in ruls) or not ruls[0] <= ruls[1] <= ruls[2]:
+        raise TrackerError(f"step RUL must be >= 0 and rul_low <= rul <= rul_high, got {ruls}")
+    if step.failing_fault is not None and step.failing_fault not in inspection.thresholds:
+        raise TrackerError(f"step failing_fault {step.failing_fault!r} has no threshold "
+                           f"(thresholds: {list(inspection.thresholds)})")
+    if int(step.flight) != inspection.flight:
+        raise TrackerError(f"step flight {step.flight} is not the inspection's "
+                           f"({inspection.flight})")
+    return step
+
+
+# --- the registry (the same structure as ema_bench.registry for solvers) ---------------------
+
+StepFn = Callable[[Inspection], TrackStep]
+Factory = Callable[..., StepFn]
+
+
+@dataclass(frozen=True)
+class TrackerInfo:
+    name: str
+    factory: Factory
+    description: str
+    config: dict[str, Any] = field(default_factory=dict)  # keywords passed to the factory
+
+    def start(self, campaign_info: Mapping, seed: np.random.SeedSequence) -> StepFn:
+        """A fresh closure for one unit."""
+        return self.factory(dict(campaign_info), seed, **self.config)
+
+
+_REGISTRY: dict[str, TrackerInfo] = {}
+_loaded = False
+
+
+def register_tracker(name: str, /, *, description: str, **config: Any
+                     ) -> Callable[[Factory], Factory]:
+    """Decorator: make ``factory`` available as tracker ``name``.
+
+    Keyword ``config`` is passed to the factory for every unit: one factory registers several
+    configured variants (``register_tracker("particle-512", ..., n_particles=512)(factory)``).
+    """
+    def deco(factory: Factory) -> Factory:
+        old = _REGISTRY.get(name)
+        if old is not None and (old.factory is not factory or old.config != config):
+            raise TrackerError(f"tracker name {name!r} is registered twice "
+                               f"({old.factory.__module__} and {factory.__module__})")
+        _REGISTRY[name] = TrackerInfo(name, factory, description, dict(config))
+        return factory
+    return deco
+
+
+def load_tracker_plugins() -> None:
+    """Import every module named in the ``ema_bench.trackers`` entry-point group (once)."""
+    global _loaded
+    if _loaded:
+        return
+    _loaded = True
+    for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
+        try:
+            ep.load()
+        except Exception as exc:  # a broken plugin must not take the baselines down
+            import warnings
+            warnings.warn(f"tracker plugin {ep.name!r} ({ep.value}) failed to load: {exc}",
+                          RuntimeWarning, stacklevel=2)
+
+
+def _load_named(name: str) -> None:
+    """Import only the plugin module(s) whose entry point is ``name``."""
+    for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP, name=name):
+        try:
+            ep.load()
+        except Exception as exc:
+            raise TrackerError(f"tracker plugin {name!r} ({ep.value}) failed to load: "
+                               f"{exc}") from exc
+
+
+def available_trackers() -> dict[str, TrackerInfo]:
+    """Every registered tracker, by name (sorted)."""
+    load_tracker_plugins()
+    return dict(sorted(_REGISTRY.items()))
+
+
+def get_tracker(name: str) -> TrackerInfo:
+    """The tracker registered as ``name`` (its plugin module only is imported; all of them
+    when the name is unknown, for the error message, which lists the known ones)."""
+    if name not in _REGISTRY:
+        _load_named(name)
+    if name in _REGISTRY:
+        return _REGISTRY[name]
+    trackers = available_trackers()
+    if name not in trackers:
+        raise TrackerError(f"unknown tracker {name!r}; registered: {list(trackers)}")
+    return trackers[name]
+
+
+# --- records ---------------------------------------------------------------------------------
+
+def _key(unit: str, index: int | str) -> str:
+    return f"{unit}/{index:03d}" if isinstance(index, int) else f"{unit}/{index}"
+
+
+def step_record(inspection: Inspection, step: TrackStep) -> dict:
+    """The JSON line of a step: ``{"key", "unit", "index", "flight", **TrackStep}`` with
+    infinite RULs as null and floats as plain floats."""
+    d = asdict(step)
+    for k in ("estimate", "low", "high"):
+        d[k] = {n: float(d[k][n]) for n in FAULT_NAMES}
+    for k in INFINITE_FIELDS:
+        v = float(d[k])
+        d[k] = v if math.isfinite(v) else None
+    d["replace"] = bool(d["replace"])
+    d["evaluations"] = int(d["evaluations"])
+    d["flight"] = int(d["flight"])
+    d["extra"] = json.loads(json.dumps(d["extra"], default=_jsonable))
+    return {"key": _key(inspection.unit, inspection.index), "unit": inspection.unit,
+            "index": inspection.index, **d}
+
+
+def _jsonable(o: object) -> object:
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    return str(o)
+
+
+def error_record(unit: str, index: int, flight: int, exc: BaseException) -> dict:
+    """The line of a unit whose tracker raised or answered nonsense at inspection ``index``."""
+    return {"key": _key(unit, "error"), "unit": unit, "index": index, "flight": flight,
+            "status": "error", "error": f"{type(exc).__name__}: {exc}"}
+
+
+def _restore(record: dict) -> dict:
+    """A step line as the tracker answered it: null RULs back to ``inf``."""
+    r = dict(record)
+    for k in INFINITE_FIELDS:
+        if r.get(k, 0) is None:
+            r[k] = math.inf
+    return r
+
+
+@dataclass
+class TrackLog:
+    """A tracking run read back (:func:`read_track`).
+
+    ``steps``: unit -> its step records in inspection order (up to and including the first
+    ``replace``; RULs ``inf`` where the file says null); ``failed``: unit -> its error record
+    (its steps before the failure stay in ``steps``); ``manifest``: the run's manifest."""
+
+    steps: dict[str, list[dict]]
+    failed: dict[str, dict]
+    manifest: dict
+
+
+def read_track(out: Path | str) -> TrackLog:
+    """Read ``OUT/track.jsonl`` and ``OUT/manifest.json`` of :func:`track_campaign`."""
+    from ..leaderboard.store import read_records
+
+    out = Path(out)
+    mpath = out / MANIFEST_FILE
+    if not mpath.is_file():
+        raise TrackerError(f"{out}: not a tracking run (no {MANIFEST_FILE}; run "
+                           "'ema-bench campaign track' first)")
+    manifest = json.loads(mpath.read_text(encoding="utf-8"))
+    if manifest.get("format") != FORMAT:
+        raise TrackerError(f"{mpath}: not a tracking run's manifest (format "
+                           f"{manifest.get('format')!r}, expected {FORMAT!r})")
+    steps, failed = _group(read_records(out / TRACK_FILE))
+    return TrackLog(steps, failed, manifest)
+
+
+def campaign_path(out: Path | str, manifest: Mapping) -> Path:
+    """The campaign folder of the tracking run in ``out`` (its manifest stores it relative to
+    ``out``)."""
+    return Path(out) / manifest["campaign"]
+
+
+def _group(records: list[dict]) -> tuple[dict[str, list[dict]], dict[str, dict]]:
+    steps: dict[str, dict[int, dict]] = {}
+    failed: dict[str, dict] = {}
+    for r in records:
+        if r.get("status") == "error":
+            failed[r["unit"]] = r
+        else:
+            steps.setdefault(r["unit"], {})[int(r["index"])] = _restore(r)
+    out: dict[str, list[dict]] = {}
+    for unit, by_index in steps.items():
+        rows = [by_index[i] for i in sorted(by_index)]
+        first = next((k for k, r in enumerate(rows) if r["replace"]), len(rows) - 1)
+        out[unit] = rows[:first + 1]
+    return out, failed
+
+
+def _complete(campaign: Campaign, records: list[dict]) -> set[str]:
+    """Units tracked to the end: every inspection has its step, or a step called for
+    replacement, or the unit failed."""
+    steps, failed = _group(records)
+    done = set(failed)
+    for unit, rows in steps.items():
+        n = len(campaign.units.get(unit, ()))
+        if rows and (rows[-1]["replace"] or {r["index"] for r in rows} >= set(range(n))):
+            done.add(unit)
+    return done
+
+
+# --- running a tracker over a campaign -------------------------------------------------------
+
+def unit_seed(seed: int, k: int) -> np.random.SeedSequence:
+    """The tracker's seed for the ``k``-th unit of the manifest: the ``solver`` stream of run
+    node ``(seed, k)`` (a tracker is that unit's solver), as the campaign's unit ``k`` is run
+    ``k`` of its own root seed."""
+    return stream(run_seed(seed, k), "solver")
+
+
+def _manifest(campaign: Campaign, info: TrackerInfo, seed: int, out: Path) -> dict:
+    from .. import __version__
+    from ..registry import library_versions
+    from ..trace_cache import MODEL_VERSION
+
+    return {"format": FORMAT, "version": VERSION, "tracker": info.name,
+            "description": info.description, "config": json.loads(json.dumps(
+                info.config, default=_jsonable)),
+            "seed": seed,
+            # relative to the run folder: the two move together (a committed leaderboard)
+            "campaign": os.path.relpath(Path(campaign.root).resolve(), Path(out).resolve()),
+            "campaign_name": campaign.name, "track": campaign.track, "split": campaign.split,
+            "campaign_seed": campaign.seed, "model_version": MODEL_VERSION,
+            "package_version": __version__, "versions": library_versions("scipy", "cma")}
+
+
+_SAME_RUN = ("format", "tracker", "config", "seed", "campaign", "campaign_name", "track",
+             "split", "campaign_seed")
+
+
+def _prepare(out: Path, manifest: dict) -> None:
+    """Create ``out`` with its manifest, or check that the run already there is this one."""
+    out.mkdir(parents=True, exist_ok=True)
+    mpath = out / MANIFEST_FILE
+    if mpath.exists():
+        try:
+            old = json.loads(mpath.read_text(encoding="utf-8"))
+        except (json.JSONDecodeError, UnicodeDecodeError):
+            raise TrackerError(f"{mpath}: broken manifest; give another output folder") from None
+        diff = [k for k in _SAME_RUN if old.get(k) != manifest.get(k)]
+        if diff:
+            raise TrackerError(
+                f"{out}: holds another tracking run (tracker {old.get('tracker')!r}, seed "
+                f"{old.get('seed')!r}, campaign {old.get('campaign')!r}; differs in {diff}); "
+                "give another output folder")
+        return
+    if (out / TRACK_FILE).exists():
+        raise TrackerError(f"{out}: has a {TRACK_FILE} but no {MANIFEST_FILE}; give another "
+                           "output folder")
+    tmp = mpath.with_name(mpath.name + ".tmp")
+    tmp.write_text(json.dumps(manifest, indent=1) + "\n")
+    os.replace(tmp, mpath)
+
+
+def track_unit(campaign: Campaign, info: TrackerInfo, unit: str, seed: np.random.SeedSequence,
+               store) -> str:
+    """Track one unit from its first inspection, appending each step to ``store`` (a
+    :class:`~ema_bench.leaderboard.store.RunStore`) as it finishes.
+
+    Returns ``"replaced"``, ``"tracked"`` or ``"failed"``.  A tracker that raises, or answers
+    something :func:`check_step` refuses, is logged and recorded as an error line: the unit
+    has failed, the run goes on."""
+    records = campaign.units[unit]
+    ctx = campaign.info()
+    index, flight = 0, records[0].flight if records else 0
+    try:
+        step_fn = info.start(ctx, seed)
+        for rec in records:
+            index, flight = rec.index, rec.flight
+            insp = Inspection(unit=unit, index=rec.index, flight=rec.flight,
+                              traces=campaign.traces(rec), conditions=dict(rec.conditions),
+                              thresholds=dict(campaign.thresholds),
+                              inspection_every=campaign.inspection_every)
+            step = check_step(step_fn(insp), insp)
+            store.append(step_record(insp, step))
+            if step.replace:
+                return "replaced"
+    except Exception as exc:  # one unit's failure must not stop the fleet
+        log.warning("tracker %s failed on unit %s at inspection %d (flight %d): %s: %s",
+                    info.name, unit, index, flight, type(exc).__name__, exc)
+        store.append(error_record(unit, index, flight, exc))
+        return "failed"
+    return "tracked"
+
+
+def _worker(root: str, name: str, module: str, unit: str, k: int, seed: int, path: str) -> str:
+    """One unit in a worker process: the tracker's module imported by name (a tracker
+    registered in a script's ``__main__`` is not importable there)."""
+    from ..leaderboard.store import RunStore
+    from .campaign import load_campaign
+
+    if name not in _REGISTRY:
+        try:
+            importlib.import_module(module)
+        except ImportError:
+            pass
+    info = get_tracker(name)
+    with RunStore(path) as store:
+        return track_unit(load_campaign(root), info, unit, unit_seed(seed, k), store)
+
+
+def track_campaign(campaign: Campaign | Path | str, tracker: str, out: Path | str,
+                   seed: int = 0, workers: int = 1, quiet: bool = True) -> Path:
+    """Run ``tracker`` over every unit of ``campaign`` and write ``out``.
+
+    Parameters
+    ----------
+    campaign : Campaign or path
+        A campaign (:func:`~ema_bench.prognostics.campaign.load_campaign` reads a path).
+    tracker : str
+        A registered tracker (:func:`available_trackers`).
+    out : path
+        Output folder: ``track.jsonl`` (one line per unit and inspection, ``{"key", "unit",
+        "index", "flight", **TrackStep}``, written as each step finishes; RULs that are
+        infinite are null) and ``manifest.json`` (tracker, seed, campaign, versions).
+    seed : int
+        Root seed: unit ``k`` of the manifest gets :func:`unit_seed` ``(seed, k)``.
+    workers : int
+        Units tracked at once, in worker processes (1: in this process).
+    quiet : bool
+        No progress bar or lines.
+
+    Notes
+    -----
+    Resumable: units already complete (every inspection tracked, a replacement called, or a
+    failure recorded) are skipped; a unit tracked part of the way is tracked again from its
+    first inspection (a tracker's state is not saved), and its lines already written are not
+    written twice.  A unit's tracking stops at its first step with ``replace``.  A failed
+    unit is not retried; delete its lines to retry it.
+    """
+    from ..leaderboard.store import RunStore, read_records
+    from ..progress import progress
+    from .campaign import load_campaign
+
+    info = get_tracker(tracker)
+    if isinstance(seed, bool) or int(seed) != seed or seed < 0:
+        raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
+    if isinstance(workers, bool) or int(workers) != workers or workers < 1:
+        raise ValueError(f"workers must be a positive integer, got {workers!r}")
+    camp = campaign if not isinstance(campaign, str | Path) else load_campaign(campaign)
+    out = Path(out)
+    _prepare(out, _manifest(camp, info, int(seed), out))
+    path = out / TRACK_FILE
+    with RunStore(path):   # cuts a torn last line of an interrupted run before reading
+        pass
+    done = _complete(camp, read_records(path))
+    todo = [(k, u) for k, u in enumerate(camp.units) if u not in done]
+    counts: dict[str, int] = {}
+    t0 = time.perf_counter()
+    with progress(len(camp.units), f"track {tracker}", unit="unit", quiet=quiet) as bar:
+        if done:
+            bar.update(f"{len(done)} already done", n=len(done))
+        if workers == 1 or len(todo) <= 1:
+            with RunStore(path) as store:
+                for k, unit in todo:
+                    status = track_unit(camp, info, unit, unit_seed(int(seed), k), store)
+                    counts[status] = counts.get(status, 0) + 1
+                    bar.update(f"{unit} {status}")
+        else:
+            for unit, status in _parallel(camp, info, todo, int(seed), path, int(workers)):
+                counts[status] = counts.get(status, 0) + 1
+                bar.update(f"{unit} {status}")
+    log.debug("tracked %d unit(s) in %.1f s: %s", len(todo), time.perf_counter() - t0, counts)
+    return out
+
+
+def _parallel(camp: Campaign, info: TrackerInfo, todo: list[tuple[int, str]], seed: int,
+              path: Path, workers: int):
+    """Units in ``workers`` spawned processes, one numba thread each; yields (unit, status)
+    as they finish.  A worker that dies records its unit as failed."""
+    import multiprocessing as mp
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    from ..leaderboard.executors import _worker_init
+    from ..leaderboard.store import RunStore
+
+    # "spawn": numba's threading layers and fork do not mix well
+    with ProcessPoolExecutor(max_workers=min(workers, len(todo)),
+                             mp_context=mp.get_context("spawn"), initializer=_worker_init,
+                             initargs=(os.getpid(),)) as pool:
+        futures = {pool.submit(_worker, str(camp.root), info.name, info.factory.__module__,
+                               unit, k, seed, str(path)): unit for k, unit in todo}
+        for fut in as_completed(futures):
+            unit = futures[fut]
+            try:
+                yield unit, fut.result()
+            except Exception as exc:   # the worker died or could not start the tracker
+                log.warning("tracking unit %s failed: %s: %s", unit, type(exc).__name__, exc)
+                first = camp.units[unit][0] if camp.units[unit] else None
+                with RunStore(path) as store:
+                    store.append(error_record(unit, 0, first.flight if first else 0, exc))
+                yield unit, "failed"

@@ -1,0 +1,269 @@
+"""Trackers: the registry (entry points, decorator), the run loop (records, resume, failures,
+workers), the command line, and each baseline on a short synthetic degradation.
+
+The synthetic campaign is written by hand: unit u000's friction rises linearly (4e-3 N m per
+flight: it crosses its threshold at flight 126.7), unit u001 drifts in gain only; six
+inspections each, every 10 flights, twin traces at a temperature that switches no confounder
+on.
+"""
+
+from __future__ import annotations
+
+import importlib.metadata
+import json
+import math
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ema_bench.cli import main
+from ema_bench.effects import N_EFFECTS
+from ema_bench.faults import FAULT_NAMES, NOMINAL
+from ema_bench.instances import twin_traces
+from ema_bench.prognostics.campaign import load_campaign, save_traces
+from ema_bench.prognostics.laws import THRESHOLDS
+from ema_bench.prognostics.tracking import (
+    ENTRY_POINT_GROUP,
+    TRACK_FILE,
+    Inspection,
+    TrackerError,
+    TrackStep,
+    available_trackers,
+    get_tracker,
+    read_track,
+    register_tracker,
+    track_campaign,
+    track_unit,
+    unit_seed,
+)
+from ema_bench.protocol import STANDARD_TESTS
+from ema_bench.seeding import child
+
+BASELINES = ("refit-trend", "kalman", "particle", "fleet-bayes")
+FLIGHTS = [0, 10, 20, 30, 40, 50]
+FST_RATE = 4e-3                         # N m per flight
+EOL = (THRESHOLDS["Fst"] - NOMINAL[1]) / FST_RATE   # 126.7 flights
+
+
+def truth(unit: str, flight: int) -> np.ndarray:
+    x = np.array([1.0, NOMINAL[1], 0.001, 1e5])
+    if unit == "u000":
+        x[1] += FST_RATE * flight
+    else:
+        x[3] += 150.0 * flight * (-1) ** (flight // 20)   # gain wanders, nothing wears
+    return x
+
+
+@pytest.fixture(scope="module")
+def synthetic(tmp_path_factory) -> Path:
+    root = tmp_path_factory.mktemp("synthetic")
+    units = []
+    for unit in ("u000", "u001"):
+        (root / unit).mkdir()
+        items = []
+        for i, f in enumerate(FLIGHTS):
+            rel = f"{unit}/i{i:03d}.npz"
+            save_traces(twin_traces(truth(unit, f), np.zeros(N_EFFECTS),
+                                    child(7, 10 * int(unit[1:]) + i), STANDARD_TESTS),
+                        root / rel)
+            items.append({"index": i, "flight": f, "file": rel, "conditions": {
+                "ambient_temp_C": 25.0, "winding_temp_C": 20.0, "flights_since_last":
+                10 if i else 0, "duty_since_last": 10.0 if i else 0.0}})
+        units.append({"unit": unit, "inspections": items})
+    manifest = {"format": "ema-bench-campaign", "version": 1, "name": "synthetic",
+                "track": "twin", "seed": 0, "split": "test", "inspection_every": 10,
+                "tests": ["step", "sine"], "thresholds": THRESHOLDS, "laws": {},
+                "units": units}
+    (root / "manifest.json").write_text(json.dumps(manifest))
+    return root
+
+
+# --- a cheap third-party tracker, registered by decorator --------------------------------------
+
+CALLS: list[tuple[str, int]] = []
+INTERRUPT: dict[str, object] = {}
+
+
+def _step(insp: Inspection, rul: float, seed_value: float) -> TrackStep:
+    x = {n: float(v) for n, v in zip(FAULT_NAMES, NOMINAL)}
+    return TrackStep(flight=insp.flight, estimate=x, low=x, high=x, rul=rul,
+                     rul_low=rul / 2, rul_high=math.inf, failing_fault="Fst",
+                     replace=insp.flight >= 40 and insp.unit == "u000", evaluations=0,
+                     extra={"seed": seed_value})
+
+
+@register_tracker("test-countdown", description="test tracker: RUL 100 - flight")
+def countdown(campaign_info, seed):
+    value = float(np.random.default_rng(seed).random())
+
+    def step(insp: Inspection) -> TrackStep:
+        CALLS.append((insp.unit, insp.index))
+        if INTERRUPT.get("at") == (insp.unit, insp.index):
+            raise KeyboardInterrupt
+        return _step(insp, 100.0 - insp.flight, value)
+    return step
+
+
+@register_tracker("test-broken", description="test tracker: raises, or answers NaN")
+def broken(campaign_info, seed):
+    def step(insp: Inspection) -> TrackStep:
+        if insp.unit == "u000" and insp.index == 2:
+            raise RuntimeError("boom")
+        return _step(insp, math.nan if insp.unit == "u001" else 50.0, 0.0)
+    return step
+
+
+def lines(out: Path) -> list[dict]:
+    return [json.loads(s) for s in (out / TRACK_FILE).read_text().splitlines()]
+
+
+# --- registry ---------------------------------------------------------------------------------
+
+def test_baselines_are_found_through_entry_points():
+    eps = {ep.name: ep for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP)}
+    assert set(BASELINES) <= set(eps)
+    registered = available_trackers()
+    for name in BASELINES:
+        assert eps[name].value.startswith("ema_bench_trackers.")
+        info = registered[name]
+        assert info.factory.__module__ == eps[name].value
+        assert info.description and "\n" not in info.description
+
+
+def test_unknown_tracker_lists_the_known_ones(synthetic, tmp_path, capsys):
+    with pytest.raises(TrackerError, match=r"unknown tracker 'nope'; registered: .*refit-trend"):
+        get_tracker("nope")
+    with pytest.raises(TrackerError, match="refit-trend"):
+        track_campaign(synthetic, "nope", tmp_path / "out")
+    assert not (tmp_path / "out").exists()
+    assert main(["campaign", "track", str(synthetic), "--tracker", "nope", "--out",
+                 str(tmp_path / "o")]) == 2
+    assert "unknown tracker 'nope'; registered:" in capsys.readouterr().err
+    assert main(["campaign", "track", str(synthetic), "--out", str(tmp_path / "o")]) == 2
+    assert "give --tracker" in capsys.readouterr().err
+
+
+def test_a_name_is_registered_once():
+    with pytest.raises(TrackerError, match="registered twice"):
+        register_tracker("test-countdown", description="again")(broken)
+    register_tracker("test-countdown", description="same")(countdown)   # the same: fine
+
+
+# --- the run loop -----------------------------------------------------------------------------
+
+def test_third_party_tracker_end_to_end(synthetic, tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(["campaign", "track", str(synthetic), "--tracker", "test-countdown", "--out",
+                 str(out), "--seed", "3", "--quiet", "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["replaced"] == ["u000"] and summary["failed"] == []
+    raw = lines(out)
+    # u000 stops at its replacement (flight 40); u001 runs to its last inspection
+    assert [(r["unit"], r["index"]) for r in raw] == [("u000", i) for i in range(5)] + [
+        ("u001", i) for i in range(6)]
+    assert all(r["rul_high"] is None for r in raw)          # inf is written as null
+    log = read_track(out)
+    assert log.manifest["tracker"] == "test-countdown" and log.manifest["seed"] == 3
+    assert (out / log.manifest["campaign"]).resolve() == synthetic.resolve()
+    row = log.steps["u001"][3]
+    assert row["rul"] == 70.0 and row["rul_high"] == math.inf and row["flight"] == 30
+    assert set(row["estimate"]) == set(FAULT_NAMES)
+    # each unit its own seed: the solver stream of run node (seed, k)
+    for k, unit in enumerate(("u000", "u001")):
+        expect = float(np.random.default_rng(unit_seed(3, k)).random())
+        assert log.steps[unit][0]["extra"]["seed"] == expect
+    assert main(["campaign", "track", "--list", "--json"]) == 0
+    listed = {t["name"] for t in json.loads(capsys.readouterr().out)}
+    assert {"test-countdown", *BASELINES} <= listed
+
+
+def test_failures_are_recorded_not_fatal(synthetic, tmp_path, caplog):
+    out = track_campaign(synthetic, "test-broken", tmp_path / "run")
+    log = read_track(out)
+    assert set(log.failed) == {"u000", "u001"}
+    assert "RuntimeError: boom" in log.failed["u000"]["error"]
+    assert log.failed["u000"]["index"] == 2 and len(log.steps["u000"]) == 2
+    assert "u001" not in log.steps and "rul_low <= rul" in log.failed["u001"]["error"]
+    assert "failed on unit u000" in caplog.text
+    n = len(lines(out))
+    track_campaign(synthetic, "test-broken", out)        # failed units are complete
+    assert len(lines(out)) == n
+
+
+def test_resume_after_interruption_writes_no_duplicates(synthetic, tmp_path):
+    out = tmp_path / "run"
+    CALLS.clear()
+    INTERRUPT["at"] = ("u001", 2)
+    with pytest.raises(KeyboardInterrupt):
+        track_campaign(synthetic, "test-countdown", out)
+    INTERRUPT.clear()
+    with open(out / TRACK_FILE, "a") as fh:              # a write torn by the kill
+        fh.write('{"key": "u001/0')
+    CALLS.clear()
+    track_campaign(synthetic, "test-countdown", out)
+    assert {u for u, _ in CALLS} == {"u001"}              # u000 was complete: skipped
+    keys = [(r["unit"], r["index"]) for r in lines(out)]
+    assert len(keys) == len(set(keys)) == 11
+    CALLS.clear()
+    track_campaign(synthetic, "test-countdown", out)     # all complete: nothing to do
+    assert CALLS == []
+    with pytest.raises(TrackerError, match="another tracking run"):
+        track_campaign(synthetic, "test-broken", out)
+
+
+def test_workers_track_units_in_parallel(synthetic, tmp_path):
+    out = track_campaign(synthetic, "test-countdown", tmp_path / "run", workers=2)
+    log = read_track(out)
+    assert len(log.steps["u000"]) == 5 and len(log.steps["u001"]) == 6 and not log.failed
+
+
+# --- the baselines on a short synthetic degradation ------------------------------------------
+
+class Store:
+    def __init__(self) -> None:
+        self.rows: list[dict] = []
+
+    def append(self, record: dict) -> None:
+        self.rows.append(record)
+
+
+@pytest.mark.parametrize("name", BASELINES)
+def test_baseline_follows_a_linear_friction_rise(synthetic, name):
+    camp = load_campaign(synthetic)
+    info = get_tracker(name)
+    rows = {}
+    for k, unit in enumerate(camp.units):
+        store = Store()
+        assert track_unit(camp, info, unit, unit_seed(0, k), store) == "tracked"
+        rows[unit] = store.rows
+    covered = [sum(r["low"][n] <= v <= r["high"][n] for n, v in zip(FAULT_NAMES, truth(
+        "u000", r["flight"]))) for r in rows["u000"]]
+    assert sum(covered) >= 0.9 * 4 * len(FLIGHTS), covered     # intervals hold the truth
+    last = rows["u000"][-1]
+    true_rul = EOL - last["flight"]
+    assert last["failing_fault"] == "Fst"
+    assert 0.6 * true_rul <= last["rul"] <= 1.6 * true_rul, last
+    assert last["rul_low"] <= true_rul <= (last["rul_high"] or math.inf), last
+    assert not any(r["replace"] for rows_ in rows.values() for r in rows_)
+    assert all(r["evaluations"] > 0 for r in rows["u000"])
+    # gain drift only: no failure in sight
+    assert rows["u001"][-1]["rul"] is None or rows["u001"][-1]["rul"] > 3 * true_rul
+
+
+def test_configured_baseline_through_track_campaign(synthetic, tmp_path):
+    """A configured variant of a baseline (registered keywords reach its factory) through
+    track_campaign; a copy of the output folder resumes against the campaign it names."""
+    register_tracker("test-kalman-light", description="kalman, cheap",
+                     first_budget=400, n_paths=400)(get_tracker("kalman").factory)
+    out = track_campaign(synthetic, "test-kalman-light", tmp_path / "run")
+    log = read_track(out)
+    assert log.manifest["config"] == {"first_budget": 400, "n_paths": 400}
+    assert len(log.steps["u000"]) == len(log.steps["u001"]) == len(FLIGHTS)
+    assert log.steps["u000"][0]["evaluations"] < 600 and not log.failed
+    moved = tmp_path / "moved"
+    shutil.copytree(out, moved)
+    n = len(lines(moved))
+    track_campaign(synthetic, "test-kalman-light", moved)
+    assert len(lines(moved)) == n
