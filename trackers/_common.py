@@ -242,6 +242,35 @@ def condition_effects(campaign_info: Mapping) -> Callable[[Inspection], np.ndarr
     return effects
 
 
+@dataclass
+class UnitSetup:
+    """What every baseline derives from the campaign and the unit's seed: the thresholds,
+    the inspection spacing (flights), the failing faults and their thresholds in damage
+    units, the inspection fitter (its seed family) and the Monte Carlo seed family."""
+
+    thresholds: Mapping[str, float]
+    every: float
+    names: list[str]
+    d_thr: np.ndarray
+    fitter: Fitter
+    mc_seed: np.random.SeedSequence
+    effects: Callable[[Inspection], np.ndarray | None]
+
+
+def unit_setup(campaign_info: Mapping, seed: np.random.SeedSequence, first_budget: int,
+               global_budget: int, conditions: bool = True) -> UnitSetup:
+    """A baseline's start on one unit (``conditions``: switch the logged conditions'
+    confounders on in the monitor, :func:`condition_effects`)."""
+    thresholds = campaign_info["thresholds"]
+    names = failing_faults(thresholds)
+    fit_seed, mc_seed = split_seed(seed)
+    effects = condition_effects(campaign_info) if conditions else (lambda insp: None)
+    fitter = Fitter(campaign_info.get("track", "measured"), fit_seed, first_budget,
+                    global_budget, effects=effects)
+    return UnitSetup(thresholds, float(campaign_info["inspection_every"]), names,
+                     damage_thresholds(names, thresholds), fitter, mc_seed, effects)
+
+
 # --- remaining useful life -------------------------------------------------------------------
 
 Advance = Callable[[float], np.ndarray]

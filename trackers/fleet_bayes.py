@@ -44,17 +44,13 @@ from ._common import (
     HORIZON_FLIGHTS,
     REPLACE_HORIZON,
     REPLACE_PROB,
-    Fitter,
-    condition_effects,
-    damage_thresholds,
-    failing_faults,
     first_passage,
     make_step,
     replace_now,
     rng_of,
-    split_seed,
     summarise,
     to_damage,
+    unit_setup,
 )
 
 N_PATHS = 2000
@@ -85,14 +81,10 @@ def _normal_ll(x: float | np.ndarray, mean: np.ndarray, var: np.ndarray) -> np.n
 def factory(campaign_info: dict, seed: np.random.SeedSequence, *, n_paths: int = N_PATHS,
             first_budget: int = 1500, global_budget: int = 1000,
             replace_prob: float = REPLACE_PROB):
-    thresholds = campaign_info["thresholds"]
-    every = float(campaign_info["inspection_every"])
+    u = unit_setup(campaign_info, seed, first_budget, global_budget)
+    thresholds, every, names, d_thr, fitter, mc_seed = (u.thresholds, u.every, u.names, u.d_thr,
+                                                        u.fitter, u.mc_seed)
     laws = {**FleetLaws().to_dict(), **campaign_info.get("laws", {})}
-    names = failing_faults(thresholds)
-    d_thr = damage_thresholds(names, thresholds)
-    fit_seed, mc_seed = split_seed(seed)
-    fitter = Fitter(campaign_info.get("track", "measured"), fit_seed, first_budget,
-                    global_budget, effects=condition_effects(campaign_info))
     fst_grid, fst_prior = _grid(laws["fst_rate_median"], laws["fst_rate_sigma"])
     blk_grid, blk_prior = _grid(laws["blk_rate_median"], laws["blk_rate_sigma"])
     na_grid, na_prior = _grid(laws["na_growth_median"], laws["na_growth_sigma"])

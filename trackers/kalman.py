@@ -50,10 +50,6 @@ from ._common import (
     REPLACE_PROB,
     Z95,
     Advance,
-    Fitter,
-    condition_effects,
-    damage_thresholds,
-    failing_faults,
     first_passage,
     from_damage,
     growth,
@@ -61,9 +57,9 @@ from ._common import (
     process_noise,
     replace_now,
     rng_of,
-    split_seed,
     summarise,
     to_damage,
+    unit_setup,
 )
 
 RATE0 = {"linear": 5e-3, "exponential": 0.05}
@@ -170,15 +166,10 @@ def factory(campaign_info: dict, seed: np.random.SeedSequence, *, n_paths: int =
             first_budget: int = 1500, global_budget: int = 1000,
             replace_prob: float = REPLACE_PROB, conditions: bool = True,
             noise_scale: float = 1.0):
-    thresholds = campaign_info["thresholds"]
-    every = float(campaign_info["inspection_every"])
-    names = failing_faults(thresholds)
+    u = unit_setup(campaign_info, seed, first_budget, global_budget, conditions)
+    thresholds, every, names, d_thr, fitter, mc_seed = (u.thresholds, u.every, u.names, u.d_thr,
+                                                        u.fitter, u.mc_seed)
     j = [FAULT_INDEX[n] for n in names]
-    d_thr = damage_thresholds(names, thresholds)
-    fit_seed, mc_seed = split_seed(seed)
-    fitter = Fitter(campaign_info.get("track", "measured"), fit_seed, first_budget,
-                    global_budget, effects=condition_effects(campaign_info) if conditions
-                    else None)
     q_y, q_r = process_noise(names, noise_scale)
     filters = [TrendFilter(growth(n), q_y[k], q_r[k]) for k, n in enumerate(names)]
 

@@ -63,11 +63,7 @@ from ._common import (
     REPLACE_HORIZON,
     REPLACE_PROB,
     Fit,
-    Fitter,
     RulSummary,
-    condition_effects,
-    damage_thresholds,
-    failing_faults,
     first_passage,
     from_damage,
     growth,
@@ -75,9 +71,9 @@ from ._common import (
     process_noise,
     replace_now,
     rng_of,
-    split_seed,
     summarise,
     to_damage,
+    unit_setup,
 )
 
 N_PARTICLES = 200
@@ -278,14 +274,10 @@ def factory(campaign_info: dict, seed: np.random.SeedSequence, *,
             paths_per_particle: int = PATHS_PER_PARTICLE, first_budget: int = 1500,
             global_budget: int = 1000, replace_prob: float = REPLACE_PROB,
             conditions: bool = True):
-    thresholds = campaign_info["thresholds"]
-    every = float(campaign_info["inspection_every"])
-    names = failing_faults(thresholds)
-    d_thr = damage_thresholds(names, thresholds)
-    fit_seed, mc_seed = split_seed(seed)
-    effects = condition_effects(campaign_info) if conditions else (lambda insp: None)
-    fitter = Fitter(campaign_info.get("track", "measured"), fit_seed, first_budget,
-                    global_budget, effects=effects)
+    u = unit_setup(campaign_info, seed, first_budget, global_budget, conditions)
+    thresholds, every, names, d_thr, fitter, mc_seed = (u.thresholds, u.every, u.names, u.d_thr,
+                                                        u.fitter, u.mc_seed)
+    effects = u.effects
     cloud = Cloud(names, thresholds)
     jump = np.zeros(N_FAULTS)
     jump[cloud.j] = JUMP_SD

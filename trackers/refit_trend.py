@@ -52,18 +52,14 @@ from ._common import (
     RANGE,
     REPLACE_HORIZON,
     REPLACE_PROB,
-    Fitter,
     RulSummary,
-    condition_effects,
-    damage_thresholds,
-    failing_faults,
     first_passage,
     make_step,
     replace_now,
     rng_of,
-    split_seed,
     summarise,
     to_damage,
+    unit_setup,
 )
 
 WINDOW = 12
@@ -211,15 +207,10 @@ def predict(trends: list[Trend | None], d_now: np.ndarray, s_now: np.ndarray,
 def factory(campaign_info: dict, seed: np.random.SeedSequence, *, window: int = WINDOW,
             n_paths: int = N_PATHS, first_budget: int = 1500, global_budget: int = 1000,
             replace_prob: float = REPLACE_PROB, conditions: bool = True):
-    thresholds = campaign_info["thresholds"]
-    every = float(campaign_info["inspection_every"])
-    names = failing_faults(thresholds)
+    u = unit_setup(campaign_info, seed, first_budget, global_budget, conditions)
+    thresholds, every, names, d_thr, fitter, mc_seed = (u.thresholds, u.every, u.names, u.d_thr,
+                                                        u.fitter, u.mc_seed)
     j = [FAULT_INDEX[n] for n in names]
-    d_thr = damage_thresholds(names, thresholds)
-    fit_seed, mc_seed = split_seed(seed)
-    fitter = Fitter(campaign_info.get("track", "measured"), fit_seed, first_budget,
-                    global_budget, effects=condition_effects(campaign_info) if conditions
-                    else None)
     t_hist: list[float] = []
     d_hist: list[np.ndarray] = []
     s_hist: list[np.ndarray] = []
