@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .plugins import PluginRegistry
 from .seeding import SeedLike, as_seed_sequence, stream
 
 if TYPE_CHECKING:
@@ -56,12 +57,12 @@ class SolverInfo:
     config: dict[str, Any] = field(default_factory=dict)  # keywords passed to func
 
 
-_REGISTRY: dict[str, SolverInfo] = {}
-_loaded = False
-
-
 class SolverError(LookupError):
     """Unknown solver name or a broken plugin."""
+
+
+_SOLVERS: PluginRegistry[SolverInfo] = PluginRegistry(ENTRY_POINT_GROUP, "solver", SolverError,
+                                                      lambda info: info.func)
 
 
 def register_solver(name: str, /, *, description: str, library: str,
@@ -71,58 +72,26 @@ def register_solver(name: str, /, *, description: str, library: str,
     Keyword ``config`` is passed to ``func`` on every run: one function registers several
     configured variants (``register_solver("ng-de", ..., optimizer="TwoPointsDE")(solve)``)."""
     def deco(func: SolveFn) -> SolveFn:
-        old = _REGISTRY.get(name)
-        if old is not None and (old.func is not func or old.config != config):
-            raise SolverError(f"solver name {name!r} is registered twice "
-                              f"({old.func.__module__} and {func.__module__})")
-        _REGISTRY[name] = SolverInfo(name, func, description, library, dict(config))
+        _SOLVERS.add(name, SolverInfo(name, func, description, library, dict(config)))
         return func
     return deco
 
 
 def load_plugins() -> None:
     """Import every module named in the ``ema_bench.solvers`` entry-point group (once)."""
-    global _loaded
-    if _loaded:
-        return
-    _loaded = True
-    for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
-        try:
-            ep.load()
-        except Exception as exc:  # a broken plugin must not take the zoo down
-            import warnings
-            warnings.warn(f"solver plugin {ep.name!r} ({ep.value}) failed to load: {exc}",
-                          RuntimeWarning, stacklevel=2)
-
-
-def _load_named(name: str) -> None:
-    """Import only the plugin module(s) whose entry point is ``name``: running one solver
-    must not pay for importing every library of the zoo (about 1 s)."""
-    for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP, name=name):
-        try:
-            ep.load()
-        except Exception as exc:
-            raise SolverError(f"solver plugin {name!r} ({ep.value}) failed to load: "
-                              f"{exc}") from exc
+    _SOLVERS.load_all()
 
 
 def available_solvers() -> dict[str, SolverInfo]:
     """Every registered solver, by name (sorted)."""
-    load_plugins()
-    return dict(sorted(_REGISTRY.items()))
+    return _SOLVERS.available()
 
 
 def get_solver(name: str) -> SolverInfo:
-    """The solver registered as ``name``, importing its plugin module only (all of them when
-    the name is unknown, for the error message)."""
-    if name not in _REGISTRY:
-        _load_named(name)
-    if name in _REGISTRY:
-        return _REGISTRY[name]
-    solvers = available_solvers()
-    if name not in solvers:
-        raise SolverError(f"unknown solver {name!r}; registered: {list(solvers)}")
-    return solvers[name]
+    """The solver registered as ``name``, importing its plugin module only: running one
+    solver must not pay for importing every library of the zoo (about 1 s); all of them when
+    the name is unknown, for the error message."""
+    return _SOLVERS.get(name)
 
 
 def library_versions(*dists: str) -> dict[str, str]:

@@ -22,7 +22,6 @@ per unit and inspection, appended as each finishes; rerunning resumes) and
 from __future__ import annotations
 
 import importlib
-import importlib.metadata
 import json
 import logging
 import math
@@ -36,6 +35,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..faults import FAULT_NAMES
+from ..plugins import PluginRegistry
 from ..seeding import run_seed, stream
 from ..traces import Traces
 
@@ -186,8 +186,8 @@ class TrackerInfo:
         return self.factory(dict(campaign_info), seed, **self.config)
 
 
-_REGISTRY: dict[str, TrackerInfo] = {}
-_loaded = False
+_TRACKERS: PluginRegistry[TrackerInfo] = PluginRegistry(ENTRY_POINT_GROUP, "tracker",
+                                                         TrackerError, lambda i: i.factory)
 
 
 def register_tracker(name: str, /, *, description: str, **config: Any
@@ -198,57 +198,25 @@ def register_tracker(name: str, /, *, description: str, **config: Any
     configured variants (``register_tracker("particle-512", ..., n_particles=512)(factory)``).
     """
     def deco(factory: Factory) -> Factory:
-        old = _REGISTRY.get(name)
-        if old is not None and (old.factory is not factory or old.config != config):
-            raise TrackerError(f"tracker name {name!r} is registered twice "
-                               f"({old.factory.__module__} and {factory.__module__})")
-        _REGISTRY[name] = TrackerInfo(name, factory, description, dict(config))
+        _TRACKERS.add(name, TrackerInfo(name, factory, description, dict(config)))
         return factory
     return deco
 
 
 def load_tracker_plugins() -> None:
     """Import every module named in the ``ema_bench.trackers`` entry-point group (once)."""
-    global _loaded
-    if _loaded:
-        return
-    _loaded = True
-    for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
-        try:
-            ep.load()
-        except Exception as exc:  # a broken plugin must not take the baselines down
-            import warnings
-            warnings.warn(f"tracker plugin {ep.name!r} ({ep.value}) failed to load: {exc}",
-                          RuntimeWarning, stacklevel=2)
-
-
-def _load_named(name: str) -> None:
-    """Import only the plugin module(s) whose entry point is ``name``."""
-    for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP, name=name):
-        try:
-            ep.load()
-        except Exception as exc:
-            raise TrackerError(f"tracker plugin {name!r} ({ep.value}) failed to load: "
-                               f"{exc}") from exc
+    _TRACKERS.load_all()
 
 
 def available_trackers() -> dict[str, TrackerInfo]:
     """Every registered tracker, by name (sorted)."""
-    load_tracker_plugins()
-    return dict(sorted(_REGISTRY.items()))
+    return _TRACKERS.available()
 
 
 def get_tracker(name: str) -> TrackerInfo:
     """The tracker registered as ``name`` (its plugin module only is imported; all of them
     when the name is unknown, for the error message, which lists the known ones)."""
-    if name not in _REGISTRY:
-        _load_named(name)
-    if name in _REGISTRY:
-        return _REGISTRY[name]
-    trackers = available_trackers()
-    if name not in trackers:
-        raise TrackerError(f"unknown tracker {name!r}; registered: {list(trackers)}")
-    return trackers[name]
+    return _TRACKERS.get(name)
 
 
 # --- records ---------------------------------------------------------------------------------
@@ -451,7 +419,7 @@ def _worker(root: str, name: str, module: str, unit: str, k: int, seed: int, pat
     from ..leaderboard.store import RunStore
     from .campaign import load_campaign
 
-    if name not in _REGISTRY:
+    if name not in _TRACKERS.entries:
         try:
             importlib.import_module(module)
         except ImportError:
