@@ -293,6 +293,20 @@ def test_score_cli_json_has_the_contract_keys(fixture_run, capsys):
     assert (out["alpha"], out["lambda"], out["alpha_lambda"]) == (0.1, 0.3, 0.0)
 
 
+
+def test_score_cli_json_is_strict_json_with_null_for_undefined_figures(tmp_path, capsys):
+    """No unit tracked: RMSE and errors are undefined (NaN); --json writes them as null, which
+    every JSON parser reads, not as NaN, which jq and JSON.parse refuse."""
+    _, run = write_fixture(tmp_path)
+    (run / "track.jsonl").write_text("")
+    assert main(["campaign", "score", str(run), "--json"]) == 0
+
+    def refuse(name):
+        raise ValueError(f"not JSON: {name}")
+    out = json.loads(capsys.readouterr().out, parse_constant=refuse)
+    assert out["rul_rmse"] is None and out["fault_error"]["Na"] is None
+    assert out["alpha_lambda"] == 0.0 and out["untracked"] == ["u000", "u001", "u002", "u003"]
+
 def test_score_cli_table_and_errors(fixture_run, tmp_path, capsys):
     _, run = fixture_run
     assert main(["campaign", "score", str(run)]) == 0

@@ -155,6 +155,28 @@ def test_npz_layout(tmp_path):
         assert json.loads(str(z["meta_json"]))["model"] == "reference"
 
 
+
+def test_npz_save_repeats_byte_for_byte_and_is_atomic(tmp_path, monkeypatch):
+    """Same traces, same bytes (campaigns are regenerated and compared byte for byte); a save
+    that fails midway leaves neither a file nor a temporary behind."""
+    tr = make_traces(n=10)
+    tr.save(tmp_path / "a.npz")
+    tr.save(tmp_path / "b.npz")
+    assert (tmp_path / "a.npz").read_bytes() == (tmp_path / "b.npz").read_bytes()
+    with zipfile.ZipFile(tmp_path / "a.npz") as z:
+        assert {i.date_time for i in z.infolist()} == {(1980, 1, 1, 0, 0, 0)}
+        assert {i.compress_type for i in z.infolist()} == {zipfile.ZIP_DEFLATED}
+    back = load_traces(tmp_path / "b.npz")
+    assert all(np.array_equal(back.data[t], tr.data[t]) for t in tr.tests)
+
+    def broken(*a, **k):
+        raise OSError("disk full")
+    monkeypatch.setattr(np.lib.format, "write_array", broken)
+    with pytest.raises(OSError, match="disk full"):
+        tr.save(tmp_path / "c.npz")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.npz", "b.npz"]
+
+
 def test_mat_round_trip_and_plain_layout(tmp_path):
     tr = make_traces()
     variables = {"units": np.array([f"{s}={UNITS[s]}" for s in SIGNALS]),

@@ -22,7 +22,7 @@ from ema_bench.cli import main
 from ema_bench.effects import N_EFFECTS
 from ema_bench.faults import FAULT_NAMES, NOMINAL
 from ema_bench.instances import twin_traces
-from ema_bench.prognostics.campaign import load_campaign, save_traces
+from ema_bench.prognostics.campaign import load_campaign
 from ema_bench.prognostics.laws import THRESHOLDS
 from ema_bench.prognostics.tracking import (
     ENTRY_POINT_GROUP,
@@ -65,9 +65,8 @@ def synthetic(tmp_path_factory) -> Path:
         items = []
         for i, f in enumerate(FLIGHTS):
             rel = f"{unit}/i{i:03d}.npz"
-            save_traces(twin_traces(truth(unit, f), np.zeros(N_EFFECTS),
-                                    child(7, 10 * int(unit[1:]) + i), STANDARD_TESTS),
-                        root / rel)
+            twin_traces(truth(unit, f), np.zeros(N_EFFECTS),
+                        child(7, 10 * int(unit[1:]) + i), STANDARD_TESTS).save(root / rel)
             items.append({"index": i, "flight": f, "file": rel, "conditions": {
                 "ambient_temp_C": 25.0, "winding_temp_C": 20.0, "flights_since_last":
                 10 if i else 0, "duty_since_last": 10.0 if i else 0.0}})

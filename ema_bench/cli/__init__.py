@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import json
 import re
 import sys
 from collections.abc import Sequence
@@ -90,11 +89,11 @@ def _message(exc: BaseException) -> str:
 
 
 def print_json(obj: object) -> None:
-    """Machine-readable output on stdout."""
-    from ..traces.container import _json_default  # numpy scalars and arrays, one place
+    """Machine-readable output on stdout: strict JSON, a non-finite number as ``null``
+    (:mod:`ema_bench.jsonio`)."""
+    from ..jsonio import dumps
 
-    json.dump(obj, sys.stdout, indent=2, sort_keys=False, default=_json_default)
-    sys.stdout.write("\n")
+    sys.stdout.write(dumps(obj, indent=2) + "\n")
 
 
 if __name__ == "__main__":  # pragma: no cover

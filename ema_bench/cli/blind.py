@@ -58,10 +58,10 @@ def default_out(seed: int, cases: int) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    import json
     from pathlib import Path
 
     from ..diagnosis.blind import run_blind
+    from ..jsonio import dumps
     from . import CLIError, print_json
     from .args import check_output
 
@@ -74,7 +74,7 @@ def run(args: argparse.Namespace) -> int:
     if args.out is None and not args.quiet:
         print(f"writing to {out}/ (rerun the same command to resume)", file=sys.stderr)
     res = run_blind(args.cases, args.seed, out, quiet=args.quiet, workers=args.workers)
-    (Path(out) / "summary.json").write_text(json.dumps(
+    (Path(out) / "summary.json").write_text(dumps(
         {"command": "ema-bench " + " ".join(sys.argv[1:]), **res["summary"]}, indent=1))
     if args.json:
         print_json(res)

@@ -116,11 +116,10 @@ def run(args: argparse.Namespace) -> int:
 def _summary(records: list[dict], method: str, stem: str, out, args: argparse.Namespace
              ) -> dict:
     """Write calibration scores (with --calibrate), the summary and the plot of one method."""
-    import json
-
     import numpy as np
 
     from ..faults import FAULT_NAMES
+    from ..jsonio import dumps
     from ..uncertainty import calibration as cal
     from ..uncertainty.coverage import recalibrated, summarise, write_calibration
 
@@ -139,7 +138,7 @@ def _summary(records: list[dict], method: str, stem: str, out, args: argparse.Na
     if out is not None:
         from ..uncertainty.plots import plot_coverage
 
-        (out / f"{stem}.json").write_text(json.dumps(summary, indent=1) + "\n")
+        (out / f"{stem}.json").write_text(dumps(summary, indent=1) + "\n")
         plot_coverage(records, out / f"{stem}.png")
         summary["files"] = [str(out / f"{stem}{s}") for s in (".jsonl", ".json", ".png")]
     return summary

@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 
+from .. import jsonio
 from ..plots import plt
 from ..traces import SIGNALS, UNITS, Traces
 from .features import ORDERS, whiten
@@ -83,7 +83,7 @@ def write_report(d: Diagnosis, measured: Traces, out: str | Path, source: str = 
     base, final = d.fits["base"], d.final
     _plot_residuals(measured, base, final, out / "residuals.png")
     _plot_spectra(measured, base, final, out / "spectra.png")
-    (out / "diagnosis.json").write_text(json.dumps(d.as_dict(), indent=1, default=float))
+    (out / "diagnosis.json").write_text(jsonio.dumps(d.as_dict(), indent=1, default=float))
     n0, n1 = nrmse(base, measured), nrmse(final, measured)
     g = d.gap
     lines = [f"# Missing-physics diagnosis{': ' + source if source else ''}", "",

@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import json
 import shlex
 import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
 
+from .. import jsonio
 from ..faults import CASES
 from ..progress import Progress, progress
 from ..suite import SUITE_ID
@@ -184,7 +184,7 @@ def write_outputs(records: list[dict], out: Path, command: str, plots: bool = Tr
     written += images
     written.append(write_page(records, out / "leaderboard.html", header, images))
     summary["files"] = [str(p) for p in written]
-    (out / "summary.json").write_text(json.dumps(
+    (out / "summary.json").write_text(jsonio.dumps(
         {"command": command, "runs": len(records), "suite": SUITE_ID,
          "model_version": MODEL_VERSION, **summary,
          "anytime": [s.row() for s in anytime_scores(records)],

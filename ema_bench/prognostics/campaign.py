@@ -25,7 +25,6 @@ import math
 import os
 import re
 import shutil
-import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -273,7 +272,7 @@ def _make_unit(root: Path, label: str, node: np.random.SeedSequence, spec: Campa
         traces = Traces(traces.data, dt=traces.dt,
                         meta={**meta, "unit": label, "inspection": i, "flight": f})
         rel = f"{label}/i{i:03d}.npz"
-        save_traces(traces, root / rel)
+        traces.save(root / rel)
         entries.append({"index": i, "flight": f, "file": rel,
                         "conditions": _conditions(h, f, flights[i - 1] if i else None)})
         faults[str(f)] = [float(v) for v in x]
@@ -305,22 +304,6 @@ def simulate_inspection(x: np.ndarray, e: np.ndarray, seed: np.random.SeedSequen
     from ..reference import simulate_reference
 
     return simulate_reference(x, e, seed=seed, tests=tests)
-
-
-def save_traces(traces: Traces, path: Path) -> None:
-    """:meth:`Traces.save` to ``.npz`` with fixed zip timestamps, so the same traces give the
-    same bytes (``numpy.savez`` stamps each member with the time of writing)."""
-    traces.save(path)
-    with zipfile.ZipFile(path) as z:
-        members = [(info, z.read(info)) for info in z.infolist()]
-    tmp = path.with_name(path.name + ".tmp")
-    with zipfile.ZipFile(tmp, "w") as z:
-        for info, data in members:
-            fixed = zipfile.ZipInfo(info.filename, date_time=(1980, 1, 1, 0, 0, 0))
-            fixed.compress_type = info.compress_type
-            fixed.external_attr = info.external_attr
-            z.writestr(fixed, data)
-    os.replace(tmp, path)
 
 
 def _write_json(path: Path, doc: dict) -> None:

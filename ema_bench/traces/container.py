@@ -4,10 +4,12 @@ the rules for test names and meta; :meth:`Traces.save` writes ``.csv`` and ``.np
 from __future__ import annotations
 
 import dataclasses
+import io
 import json
 import math
 import os
 import re
+import zipfile
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -16,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from ..jsonio import numpy_default
 from .errors import TracesError
 
 SIGNALS: tuple[str, ...] = ("theta_u", "theta_m", "omega_m", "i_eq")
@@ -33,6 +36,7 @@ DESCRIPTIONS: Mapping[str, str] = MappingProxyType(
 OUTPUT_DT = 1e-3  # s; model output period (1 kHz), each sample the mean over its window
 
 _CSV_MAGIC = "# ema-bench traces v1"
+_ZIP_EPOCH = (1980, 1, 1, 0, 0, 0)   # the earliest zip time stamp: fixed, so saves repeat
 
 # Test names become CSV cells, NPZ keys and MATLAB variable parts: keep them plain, and keep
 # them apart from the other key names so that file keys stay unambiguous.
@@ -178,9 +182,22 @@ class Traces:
         arrays["units"] = np.array(["time=s", *(f"{s}={UNITS[s]}" for s in SIGNALS)])
         arrays["dt"] = np.array(self.dt)
         arrays["meta_json"] = np.array(json.dumps(dict(self.meta)))
-        # a file object keeps numpy from appending its own suffix
-        with open(path, "wb") as fh:
-            np.savez_compressed(fh, allow_pickle=False, **arrays)
+        # numpy.savez_compressed's layout with fixed time stamps (same traces, same bytes,
+        # whatever the Python), into a temporary file renamed into place (an interrupted save
+        # leaves no broken file).
+        tmp = path.with_name(path.name + ".tmp")
+        try:
+            with zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_DEFLATED) as z:
+                for key, arr in arrays.items():
+                    buf = io.BytesIO()
+                    np.lib.format.write_array(buf, arr, allow_pickle=False)
+                    info = zipfile.ZipInfo(key + ".npy", date_time=_ZIP_EPOCH)
+                    info.compress_type = zipfile.ZIP_DEFLATED
+                    info.external_attr = 0o600 << 16   # rw for the owner, as numpy writes
+                    z.writestr(info, buf.getvalue())
+            os.replace(tmp, path)
+        finally:
+            tmp.unlink(missing_ok=True)
 
 
 def _check_test_name(name: Any) -> None:
@@ -215,20 +232,12 @@ def _frozen_block(test: str, values: Any) -> np.ndarray:
     return block
 
 
-def _json_default(obj: Any) -> Any:
-    # numpy scalars and arrays are common in meta (seeds, parameter vectors)
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    raise TypeError(f"object of type {type(obj).__name__} is not JSON serialisable")
-
-
 def _normalise_meta(meta: Any) -> dict[str, Any]:
     if not isinstance(meta, Mapping):
         raise TracesError(f"meta must be a mapping, got {type(meta).__name__}")
     try:
-        text = json.dumps(dict(meta), allow_nan=False, default=_json_default)
+        # numpy scalars and arrays are common in meta (seeds, parameter vectors)
+        text = json.dumps(dict(meta), allow_nan=False, default=numpy_default)
     except (TypeError, ValueError, RecursionError) as exc:
         raise TracesError(f"meta is not JSON-serialisable: {exc}") from exc
     return json.loads(text)
