@@ -17,6 +17,9 @@ __version__ = "0.2.0"
 
 import sys as _sys
 
+from .jit_cache import ensure_fresh as _ensure_fresh  # noqa: E402
+
+_ensure_fresh()   # before any kernel loads: numba alone would miss edits of inlined modules
 if "gymnasium" in _sys.modules:
     from . import env  # noqa: E402, F401  (registers EMAFault/Identify-v1)
 from .faults import CASES, FAULT_NAMES, FAULTS  # noqa: E402

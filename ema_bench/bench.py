@@ -10,19 +10,23 @@ Keys of the result (``--json``):
 ``monitor_evals_per_s``
     full monitor evaluations (both standard tests) per wall second, batched on all threads.
 ``monitor_evals_per_cpu_s``
-    the same per CPU second on one thread (serial kernel).
+    the same per CPU second on one thread (serial kernel, candidates in lock-step lanes:
+    :mod:`ema_bench.monitor_lanes`).
+``monitor_evals_per_cpu_s_scalar``, ``lanes_speedup``
+    the scalar kernel's rate on the same candidates, and scalar time / lanes time.
 ``single_call_ms`` / ``single_call_ms_loaded`` (and its 90th percentile)
     median wall time of a one-candidate call; the second while other processes keep every
     core busy.
 ``c_time_ratio``
-    numba time / plain-C time on the same candidates, one thread each (null without a C
-    compiler or outside a source checkout; ``c_unavailable`` says why).
+    numba time / plain-C time on the same candidates, one thread each, the scalar numba kernel
+    against its line-by-line C port (null without a C compiler or outside a source checkout;
+    ``c_unavailable`` says why); ``lanes_c_time_ratio``: the numba lanes against that C.
 ``naive_python_evals_per_s``, ``speedup_vs_naive_python``
     the same equations as a plain-Python loop (:mod:`ema_bench.naive`), one thread against one
     thread.
 ``import_s``, ``cache_load_s``, ``cold_compile_s``
-    ``import ema_bench``; loading the compiled kernel from numba's cache; compiling it from
-    scratch (an empty cache folder).
+    ``import ema_bench``; loading the compiled kernels (scalar and lanes, serial) from numba's
+    cache; compiling them from scratch (an empty cache folder).
 ``time_to_success_warm_s`` / ``time_to_success_cold_s``
     solver -> case -> median wall seconds until the first vector with every fault within 1 %
     of its range (reference track): in this process (problem set-up included, reference
@@ -100,10 +104,13 @@ def startup_figures(repeat: int = 3) -> dict[str, float]:
     first_call = ("import time, numpy as np\n"
                   "from ema_bench.monitor import simulate_monitor\n"
                   "from ema_bench.faults import NOMINAL\n"
-                  "x = NOMINAL[None, :]\n"
-                  "t = time.perf_counter(); simulate_monitor(x, parallel=False)\n"
+                  "x, X = NOMINAL[None, :], np.repeat(NOMINAL[None, :], 8, axis=0)\n"
+                  "def both():   # the scalar kernel and the lanes, as a solver meets them\n"
+                  "    simulate_monitor(x, parallel=False)\n"
+                  "    simulate_monitor(X, parallel=False)\n"
+                  "t = time.perf_counter(); both()\n"
                   "a = time.perf_counter() - t\n"
-                  "t = time.perf_counter(); simulate_monitor(x, parallel=False)\n"
+                  "t = time.perf_counter(); both()\n"
                   "print(a - (time.perf_counter() - t))")
     load = [float(_child(first_call)) for _ in range(repeat)]
     with tempfile.TemporaryDirectory() as d:
@@ -209,16 +216,20 @@ def run_bench(batch: int = 256, repeat: int = 7, serial: int = 16, naive_evals: 
     simulate_monitor(Xs[:1], parallel=False)
     if c_lib is not None:
         c_kernel.simulate_c(Xs[:1], library=c_lib)
-    batched, serial_cpu, single, ratio = [], [], [], []
+    simulate_monitor(Xs, parallel=False, lanes=False)
+    batched, serial_cpu, scalar_cpu, single, ratio, lane_ratio = [], [], [], [], [], []
     for r in range(repeat):
         say(f"interleaved round {r + 1}/{repeat}")
         wall, cpu = _timed(lambda: simulate_monitor(X, parallel=True))
         batched.append(batch / wall)
-        wall, cpu = _timed(lambda: simulate_monitor(Xs, parallel=False))
+        _, cpu = _timed(lambda: simulate_monitor(Xs, parallel=False))
         serial_cpu.append(serial / cpu)
+        _, cpu_scalar = _timed(lambda: simulate_monitor(Xs, parallel=False, lanes=False))
+        scalar_cpu.append(serial / cpu_scalar)
         if c_lib is not None:
             _, c_cpu = _timed(lambda: c_kernel.simulate_c(Xs, library=c_lib))
-            ratio.append(cpu / c_cpu)
+            ratio.append(cpu_scalar / c_cpu)
+            lane_ratio.append(cpu / c_cpu)
         single.extend(singles())
         loads.append(os.getloadavg()[0])
     say("one-candidate calls with both cores busy")
@@ -233,11 +244,13 @@ def run_bench(batch: int = 256, repeat: int = 7, serial: int = 16, naive_evals: 
     result: dict[str, object] = {
         "monitor_evals_per_s": _median(batched),
         "monitor_evals_per_cpu_s": evals_cpu,
+        "monitor_evals_per_cpu_s_scalar": _median(scalar_cpu),
+        "lanes_speedup": _median([a / b for a, b in zip(serial_cpu, scalar_cpu, strict=True)]),
         "single_call_ms": _median(single),
         "single_call_ms_loaded": _median(loaded),
         "single_call_ms_loaded_p90": float(np.percentile(loaded, 90)),
         "c_time_ratio": _median(ratio) if ratio else None,
-        "c_lane_time_ratio": None,   # no lane C kernel (see benchmarks/README.md)
+        "lanes_c_time_ratio": _median(lane_ratio) if lane_ratio else None,
         "c_unavailable": c_reason,
         "naive_python_evals_per_s": nv["evals_per_cpu_s"],
         "speedup_vs_naive_python": evals_cpu / nv["evals_per_cpu_s"],

@@ -7,7 +7,10 @@ The controller, the mechanics (backlash, friction, load) and the window outputs 
 same compiled code as in the reference (:mod:`ema_bench.physics.integrator`,
 :mod:`ema_bench.physics.mechanics`).  One call simulates a batch of candidates, all tests, in
 parallel over candidates (numba ``prange``); batches smaller than twice the thread count run on
-the calling thread, where waking the worker threads would cost more than it saves.
+the calling thread, where waking the worker threads would cost more than it saves.  Candidates
+with every effect off run in vectorised lock-step groups of eight
+(:mod:`ema_bench.monitor_lanes`, about twice the candidates per CPU-second, bit-identical
+outputs); a single candidate, and candidates with effects, run in the scalar kernel here.
 """
 
 from __future__ import annotations
@@ -122,6 +125,7 @@ def simulate_monitor(
     dt: float | None = None,
     check: bool = True,
     parallel: bool | None = None,
+    lanes: bool | None = None,
 ) -> tuple[dict[str, np.ndarray], np.ndarray]:
     """Simulate a batch of candidate fault vectors with the monitor model.
 
@@ -141,7 +145,12 @@ def simulate_monitor(
         Validate ``X`` (shape, finite, in bounds).  Callers that already did may skip it.
     parallel : bool, optional
         Run candidates on numba's threads; default: when the batch has at least twice as
-        many candidates as threads.
+        many candidates as threads (for the lanes: at least one group per thread).
+    lanes : bool, optional
+        Run the candidates with every effect off in lock-step groups of eight
+        (:mod:`ema_bench.monitor_lanes`: vectorised, bit-identical outputs); default: for
+        full groups, and for a last group of at least ``LANES_WORTH`` candidates.  False:
+        the scalar kernel for all.
 
     Returns
     -------
@@ -164,13 +173,53 @@ def simulate_monitor(
     cmd, cmd_start, n_out, out_start = test_layout(tests, params.dt_ctrl)
     out = np.empty((n, int(n_out.sum()), 4))
     ok = np.empty(n, dtype=np.bool_)
-    if parallel is None:
-        parallel = n >= 2 * numba.get_num_threads()
-    kernel = monitor_batch_parallel if parallel else monitor_batch_serial
-    kernel(params.to_array(), X, E, cmd, cmd_start, n_out, out_start, ticks_out, steps_tick, dt,
-           out, ok)
+    p = params.to_array()
+    layout = (cmd, cmd_start, n_out, out_start, ticks_out, steps_tick, dt)
+    grouped, rest = _lane_split(E, lanes)
+    if grouped.size:
+        from .monitor_lanes import lane_groups, lanes_parallel, lanes_serial
+
+        groups = lane_groups(grouped)
+        par = groups.shape[0] >= numba.get_num_threads() if parallel is None else parallel
+        (lanes_parallel if par else lanes_serial)(p, X, groups, *layout, out, ok)
+    if rest.size == n:
+        _scalar(p, X, E, layout, out, ok, parallel)
+    elif rest.size:
+        out_r = np.empty((rest.size, *out.shape[1:]))
+        ok_r = np.empty(rest.size, dtype=np.bool_)
+        _scalar(p, X[rest], E[rest], layout, out_r, ok_r, parallel)
+        out[rest] = out_r
+        ok[rest] = ok_r
     outputs = {spec.name: out[:, s:s + k] for spec, s, k in zip(tests, out_start, n_out)}
     return outputs, ok
+
+
+#: Smallest last group worth running in lanes: a group of eight costs what about four
+#: candidates cost in the scalar kernel (``ema-bench bench``: ``lanes_speedup`` about 2),
+#: whatever its number of real candidates, so from five on it wins.
+LANES_WORTH = 5
+
+
+def _lane_split(E: np.ndarray, lanes: bool | None) -> tuple[np.ndarray, np.ndarray]:
+    """Rows for the lanes (every effect off) and rows for the scalar kernel."""
+    from .monitor_lanes import LANES
+
+    n = E.shape[0]
+    if lanes is False:
+        return np.empty(0, dtype=np.int64), np.arange(n)
+    plain = ~E.any(axis=1)
+    rows = np.flatnonzero(plain)
+    keep = rows.size - rows.size % LANES
+    if rows.size - keep >= (1 if lanes else LANES_WORTH):
+        keep = rows.size
+    return rows[:keep], np.sort(np.concatenate([np.flatnonzero(~plain), rows[keep:]]))
+
+
+def _scalar(p, X, E, layout, out, ok, parallel: bool | None) -> None:
+    if parallel is None:
+        parallel = X.shape[0] >= 2 * numba.get_num_threads()
+    kernel = monitor_batch_parallel if parallel else monitor_batch_serial
+    kernel(p, X, E, *layout, out, ok)
 
 
 def monitor_traces(x: np.ndarray, effects: np.ndarray | None = None, *,

@@ -26,7 +26,6 @@ from collections.abc import Sequence
 from importlib import resources
 
 import numpy as np
-from scipy.stats import qmc
 
 from .faults import CASES, FAULT_NAMES, LOWER, UPPER, FaultError, faults_to_dict
 from .trace_cache import MODEL_VERSION
@@ -64,6 +63,9 @@ def seeded_instances() -> dict[str, np.ndarray]:
     """The suite's seeded instances ``s00`` ..: a Latin hypercube over the whole fault box
     (each fault's range cut in :data:`N_SEEDED` strata, one instance per stratum), so high
     friction, heavy coil shorts and both gain drifts are all represented."""
+    # scipy.stats is imported here, not with the module: it costs 0.5 s of every start-up
+    from scipy.stats import qmc
+
     lhs = qmc.LatinHypercube(d=len(FAULT_NAMES), rng=np.random.default_rng(SUITE_SEED))
     x = qmc.scale(lhs.random(N_SEEDED), LOWER, UPPER)
     return {f"s{i:02d}": row for i, row in enumerate(x)}

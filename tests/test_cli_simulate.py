@@ -178,12 +178,13 @@ def test_bench_json():
     doc = json.loads(proc.stdout)
     for key in ("monitor_evals_per_s", "monitor_evals_per_cpu_s", "single_call_ms",
                 "single_call_ms_loaded", "naive_python_evals_per_s", "speedup_vs_naive_python",
-                "reference_episode_s"):
+                "reference_episode_s", "monitor_evals_per_cpu_s_scalar", "lanes_speedup"):
         assert isinstance(doc[key], float) and doc[key] > 0, key
     # the compiled kernel beats its own equations run as plain Python by orders of magnitude
     assert doc["speedup_vs_naive_python"] > 20
     # C figures: a ratio when a compiler is there, else null with the reason
     assert (doc["c_time_ratio"] is None) == (doc["c_unavailable"] is not None)
+    assert (doc["lanes_c_time_ratio"] is None) == (doc["c_unavailable"] is not None)
     assert set(doc["load_avg"]) == {"before", "max", "after"}
     assert doc["batch"] == 8
 

@@ -25,6 +25,7 @@ def test_non_finite_numbers_become_null_and_numpy_values_plain():
     assert back == {"ert": None, "lo": None, "rmse": None, "x": [0.5, None], "n": 3,
                     "ok": True, "pair": [1, 0.25], "7": "a/b.json", "nested": [{"v": None}]}
     assert type(back["n"]) is int and type(back["ok"]) is bool
+    assert plain(np.array([[np.inf, 2.0]], dtype=np.float32)) == [[None, 2.0]]
 
 
 def test_finite_floats_are_written_exactly():

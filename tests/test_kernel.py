@@ -1,5 +1,6 @@
-"""The monitor kernel: its plain-C twin agrees with it, serial and parallel paths agree, it is
-unbiased on clean reference data, and a command-line solve imports only what it runs."""
+"""The monitor kernel: its plain-C twin agrees with it, serial and parallel paths agree, the
+lock-step lanes equal the scalar kernel bit for bit, it is unbiased on clean reference data,
+and a command-line solve imports only what it runs."""
 
 from __future__ import annotations
 
@@ -15,8 +16,9 @@ import pytest
 from ema_bench import c_kernel
 from ema_bench.calibrate import clean_bias
 from ema_bench.effects import EFFECTS, N_EFFECTS
-from ema_bench.faults import CASES, random_faults
-from ema_bench.monitor import simulate_monitor
+from ema_bench.faults import CASES, LOWER, UPPER, random_faults
+from ema_bench.monitor import LANES_WORTH, _lane_split, simulate_monitor
+from ema_bench.monitor_lanes import LANES, lane_groups
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -78,6 +80,62 @@ def test_serial_and_parallel_kernels_identical(n):
             assert np.array_equal(a[t], b[t])
 
 
+
+def _lane_batch(n: int, seed: int) -> np.ndarray:
+    """The paper cases, the box's corners in Na/Fst/BLK and random candidates."""
+    X = random_faults(np.random.SeedSequence(seed), heterogeneity=1.0, n=n)
+    fixed = [CASES[c].x for c in CASES] + [LOWER.copy(), UPPER.copy()]
+    mixed = UPPER.copy()
+    mixed[:2] = LOWER[:2]
+    fixed.append(mixed)
+    X[:len(fixed)] = fixed
+    return X
+
+
+@pytest.mark.parametrize("parallel", [False, True])
+def test_lanes_equal_the_scalar_kernel_bit_for_bit(parallel):
+    """Two full groups and a padded one (19 candidates), two of them with effects on (those
+    take the scalar kernel), against the scalar kernel for all."""
+    n = 2 * LANES + 3
+    X = _lane_batch(n, 21)
+    E = np.zeros((n, N_EFFECTS))
+    E[[4, 11]] = _random_effects(2, 22)
+    a, ok_a = simulate_monitor(X, E, lanes=False, parallel=parallel)
+    b, ok_b = simulate_monitor(X, E, lanes=True, parallel=parallel)
+    assert ok_a.all() and ok_b.all()
+    for t in a:
+        assert np.array_equal(a[t], b[t]), t
+
+
+def test_a_diverging_lane_fails_alone():
+    """Non-finite faults (check=False) in two lanes: those candidates fail, as in the scalar
+    kernel, and their group's other lanes are untouched."""
+    X = _lane_batch(LANES + 4, 23)
+    X[2, 1] = np.nan
+    X[LANES + 1, 0] = np.inf
+    a, ok_a = simulate_monitor(X, check=False, lanes=False)
+    b, ok_b = simulate_monitor(X, check=False, lanes=True)
+    expected = np.ones(LANES + 4, dtype=bool)
+    expected[[2, LANES + 1]] = False
+    assert np.array_equal(ok_a, expected) and np.array_equal(ok_b, expected)
+    for t in a:
+        assert np.array_equal(a[t][expected], b[t][expected])
+
+
+def test_lane_dispatch_groups_only_effect_free_candidates():
+    E = np.zeros((20, N_EFFECTS))
+    E[[0, 9]] = 0.01
+    grouped, rest = _lane_split(E, None)
+    # 18 without effects: two full groups, a last group of 2 < LANES_WORTH goes scalar
+    assert LANES == 8 and LANES_WORTH == 5
+    assert grouped.tolist() == [1, 2, 3, 4, 5, 6, 7, 8, 10, 11, 12, 13, 14, 15, 16, 17]
+    assert rest.tolist() == [0, 9, 18, 19]
+    assert _lane_split(E, True)[1].tolist() == [0, 9]              # forced: padded group
+    assert _lane_split(E, False)[0].size == 0                      # scalar for all
+    assert _lane_split(np.zeros((1, N_EFFECTS)), None)[0].size == 0   # a single candidate
+    groups = lane_groups(np.array([3, 5, 7]))
+    assert groups.tolist() == [[3, 5, 7, 7, 7, 7, 7, 7]]
+
 @pytest.mark.parametrize("case", ["small", "random"])
 def test_monitor_unbiased_on_clean_reference_data(case):
     # before the integration fix the best fit lay 1.2 % (small) and 1.0 % (random) of the Na
@@ -92,14 +150,15 @@ def test_cli_solve_imports_no_other_solver():
             "rc = main(['solve', '--case', 'nominal', '--solver', 'powell', '--budget', '20',"
             " '--json', '--no-progress'])\n"
             "mods = sorted(m for m in sys.modules if m.startswith('ema_bench_solvers.')"
-            " or m in ('cma', 'nevergrad', 'deap', 'gymnasium'))\n"
+            " or m in ('cma', 'nevergrad', 'deap', 'gymnasium', 'scipy.stats'))\n"
             "print(rc, ' '.join(mods))\n")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           timeout=120, env=os.environ.copy())
     assert proc.returncode == 0, proc.stderr
     last = proc.stdout.strip().splitlines()[-1].split()
     assert last[0] == "0"
-    # powell lives in ema_bench_solvers.scipy_local (sharing _common); nothing else
+    # powell lives in ema_bench_solvers.scipy_local (sharing _common); nothing else, and not
+    # scipy.stats either (half a second of start-up that a solve does not need)
     assert set(last[1:]) <= {"ema_bench_solvers._common", "ema_bench_solvers.scipy_local"}, last
     assert "ema_bench_solvers.scipy_local" in last
     doc = json.loads("\n".join(proc.stdout.strip().splitlines()[:-1]))

@@ -56,10 +56,13 @@ def run(args: argparse.Namespace) -> int:
         return 0
     print(f"monitor, batched ({r['numba_threads']} threads): {r['monitor_evals_per_s']:9.0f} "
           "evals/s")
-    print(f"monitor, one thread:        {r['monitor_evals_per_cpu_s']:9.0f} evals/CPU-s")
+    print(f"monitor, one thread:        {r['monitor_evals_per_cpu_s']:9.0f} evals/CPU-s "
+          f"(lanes; scalar kernel {r['monitor_evals_per_cpu_s_scalar']:.0f}, "
+          f"{r['lanes_speedup']:.2f}x)")
     print(f"one-candidate call:         {r['single_call_ms']:9.2f} ms "
           f"({r['single_call_ms_loaded']:.2f} ms with every core busy)")
-    print(f"numba / C time:             {_fmt(r['c_time_ratio'], '9.2f')}"
+    print(f"numba / C time (scalar):    {_fmt(r['c_time_ratio'], '9.2f')}"
+          f"  (numba lanes / scalar C: {_fmt(r['lanes_c_time_ratio'], '.2f')})"
           + (f"  ({r['c_unavailable']})" if r["c_unavailable"] else ""))
     print(f"plain Python, one thread:   {r['naive_python_evals_per_s']:9.2f} evals/CPU-s "
           f"(numba {r['speedup_vs_naive_python']:.0f}x faster)")

@@ -105,17 +105,23 @@ def sector_index(th_m, pole_pairs):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _ramp(cur, i_ref, back, il, v_dc, h):
+def _ramp(cur, i_ref, back, il, v_dc, h, one_division):
     """The current's voltage-limited ramp towards ``i_ref``, then hold, over one step.
 
     ``back`` (V) is the pair's back-EMF plus resistive drop, ``il`` its inverse inductance.
     Returns the end current, the share ``f`` of the step spent ramping, and the step means of
     the current and of its magnitude (A).
 
-    The ramp's direction flips at random from one step to the next, so ``f`` is picked without
-    a branch: while the bus voltage exceeds ``back`` (always, inside the bounds) the up-span is
-    positive and the down-span negative, and ``f`` is the non-negative one of ``d / up`` and
-    ``d / down``."""
+    ``f`` is the change ``d`` over the span on its side (``d > 0`` only where the up-span is
+    positive, ``d < 0`` only where the down-span is negative: the clamp sees to it), so
+    ``0 <= f <= 1``.  ``one_division`` (a constant) picks how.  The scalar kernel: while the bus
+    voltage exceeds ``back`` (always, inside the bounds), ``f`` is the larger of ``d / up`` and
+    ``d / down`` by reciprocals, both off the step's critical path and with no branch on the
+    ramp's direction, which flips at random from step to step (a select on it cost 14 %).  The
+    lanes of :mod:`ema_bench.monitor_lanes`, which compute both sides of every branch anyway,
+    select the span and divide once: the same ``f`` to the bit for ``d != 0`` (for ``d = 0``
+    only the sign of a zero ``f`` may differ, which reaches no output), and within one
+    rounding where the voltage runs out."""
     up = h * (v_dc - back) * il
     dn = h * (-v_dc - back) * il
     cur1 = i_ref
@@ -124,7 +130,9 @@ def _ramp(cur, i_ref, back, il, v_dc, h):
     elif cur1 < cur + dn:
         cur1 = cur + dn
     d = cur1 - cur
-    if up > 0.0 and dn < 0.0:
+    if one_division:
+        f = d * (1.0 / (up if d > 0.0 else dn))
+    elif up > 0.0 and dn < 0.0:
         f = max(d * (1.0 / up), d * (1.0 / dn))
     elif d > 0.0:   # no voltage headroom (not reached inside the bounds)
         f = d / up
@@ -173,23 +181,50 @@ def drive_step(cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr, i_ref, th_m, w_m, d
     path here.  The others go to :func:`drive_step_general`, which does the same arithmetic
     for them plus the commutation.
     """
-    h = dc.h
-    th_lo = dc.th_0 + dc.sector_width * m
-    th_hi = th_lo + dc.sector_width
-    th_end = th_m + h * w_m
-    if (tr_t0 + tr_len <= 0.0 and dc.zeta == 0.0 and th_lo <= th_m < th_hi
-            and th_lo <= th_end < th_hi):
-        sec = m % 6
-        if sec == 2 or sec == 5:   # the pair without phase a
-            kt, r_pair, il = dc.kt_n, dc.r_n, dc.il_n
-        else:
-            kt, r_pair, il = dc.kt_a, dc.r_a, dc.il_a
-        cur1, f, i_mean, i_eq = _ramp(cur, i_ref, kt * w_m + r_pair * cur, il, dc.v_dc, h)
-        kf = dc.ktf * kt
-        return (cur1, m, tr_t0 - h, tr_len, kt_from, kt_to, tr_cr, kf * i_mean, kf * cur,
-                kf * cur1, abs(kf) * dc.half_band, i_eq)
+    if dc.zeta == 0.0:
+        th_lo, kt, r_pair, il = sector_consts(m, dc)
+        fast, cur1, t_mean, t_start, t_end, t_rip, i_eq = drive_fast(
+            cur, tr_t0, tr_len, th_lo, kt, r_pair, il, i_ref, th_m, w_m, dc, False)
+        if fast:
+            return (cur1, m, tr_t0 - dc.h, tr_len, kt_from, kt_to, tr_cr, t_mean, t_start,
+                    t_end, t_rip, i_eq)
     return drive_step_general(cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr, i_ref, th_m, w_m,
                               dc)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def sector_consts(m, dc):
+    """Lower sector boundary (rad) and the pair's torque constant (N m/A), resistance (ohm) and
+    inverse inductance (1/H) of unwrapped sector ``m`` (no eccentricity)."""
+    th_lo = dc.th_0 + dc.sector_width * m
+    sec = m % 6
+    if sec == 2 or sec == 5:   # the pair without phase a
+        return th_lo, dc.kt_n, dc.r_n, dc.il_n
+    return th_lo, dc.kt_a, dc.r_a, dc.il_a
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def drive_fast(cur, tr_t0, tr_len, th_lo, kt, r_pair, il, i_ref, th_m, w_m, dc,
+               one_division):
+    """The short path of :func:`drive_step`: a step inside one sector (lower boundary ``th_lo``,
+    pair constants ``kt``, ``r_pair``, ``il``) with no commutation in progress and no
+    eccentricity.
+
+    Returns ``fast`` (whether the step is such a step; the other values hold only then), the
+    end current and the step's torques and equivalent current as :func:`drive_step`.  Free of
+    branches that the compiler cannot turn into selects, so the lock-step lanes of
+    :mod:`ema_bench.monitor_lanes` run it vectorised; ``dc`` supplies only fault-independent
+    constants (step, sector width, bus voltage, torque factor, hysteresis band);
+    ``one_division`` as :func:`_ramp`."""
+    h = dc.h
+    th_hi = th_lo + dc.sector_width
+    th_end = th_m + h * w_m
+    fast = ((tr_t0 + tr_len <= 0.0) & (th_lo <= th_m) & (th_m < th_hi) & (th_lo <= th_end)
+            & (th_end < th_hi))
+    cur1, f, i_mean, i_eq = _ramp(cur, i_ref, kt * w_m + r_pair * cur, il, dc.v_dc, h,
+                                  one_division)
+    kf = dc.ktf * kt
+    return fast, cur1, kf * i_mean, kf * cur, kf * cur1, abs(kf) * dc.half_band, i_eq
 
 
 @njit(cache=True, error_model="numpy")
@@ -209,7 +244,8 @@ def drive_step_general(cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr, i_ref, th_m
     kt0 = _kt_at(sec, th_m, dc)
     r_pair = dc.r_a if with_a else dc.r_n
     il = dc.il_a if with_a else dc.il_n
-    cur1, f, i_mean, i_eq = _ramp(cur, i_ref, kt0 * w_m + r_pair * cur, il, dc.v_dc, h)
+    cur1, f, i_mean, i_eq = _ramp(cur, i_ref, kt0 * w_m + r_pair * cur, il, dc.v_dc, h,
+                                  False)
     # a sector crossing inside the step starts a commutation transfer
     th_end = th_m + h * w_m
     if th_end >= th_hi or th_end < th_lo:

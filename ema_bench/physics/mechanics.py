@@ -144,12 +144,12 @@ def gear_mean(delta, d_delta, half, k, c, h):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _rhs(th_u, w_m, w_u, t_ext, sgn, mc):
+def _rhs(th_u, w_m, w_u, t_ext, sgn, fdyn, mc):
     """The motor's and the surface's right-hand sides without the reducer and motor torques
     (the motor torque enters last, one multiply-add before the end speeds: it ends the step's
     critical path)."""
     h = mc.h
-    r1 = mc.jm * w_m - h * (sgn * mc.fdyn + 0.5 * mc.cm * w_m)
+    r1 = mc.jm * w_m - h * (sgn * fdyn + 0.5 * mc.cm * w_m)
     r2 = mc.ju * w_u + h * ((-mc.ka * th_u - mc.g_h * w_u) + t_ext)
     return r1, r2
 
@@ -158,9 +158,14 @@ def _rhs(th_u, w_m, w_u, t_ext, sgn, mc):
 def _contact_solve(delta, dd, side, r1, r2, t_m, moving, mc):
     """End speeds and step-mean reducer torque for a step spent in contact on ``side``: the
     spring-damper by the trapezoidal rule, ``t_g = a + b_c dd_end``, a 2x2 solve."""
+    return _contact_at(delta, dd, mc.half if side > 0 else -mc.half, r1, r2, t_m, moving, mc)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _contact_at(delta, dd, off, r1, r2, t_m, moving, mc):
+    """:func:`_contact_solve` with the flank's offset ``off`` (rad) given."""
     h = mc.h
     tau = mc.tau
-    off = mc.half if side > 0 else -mc.half
     a = mc.k * (delta - off) + mc.b_c * dd
     b1 = r1 - h * tau * a
     b2 = r2 + h * a
@@ -204,27 +209,43 @@ def mech_step(th_m, w_m, th_u, w_u, t_m, tm0, tm1, t_rip, t_ext, mc):
     others go to :func:`mech_step_general`, which does the same arithmetic for them plus the
     events.
     """
+    fast, th_m1, wm1, th_u1, wu1, m_th_m, m_w_m, m_th_u = mech_fast(
+        th_m, w_m, th_u, w_u, t_m, t_ext, mc.half, mc.fdyn, mc)
+    if fast:
+        return th_m1, wm1, th_u1, wu1, m_th_m, m_w_m, m_th_u
+    return mech_step_general(th_m, w_m, th_u, w_u, t_m, tm0, tm1, t_rip, t_ext, mc)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def mech_fast(th_m, w_m, th_u, w_u, t_m, t_ext, half, fdyn, mc):
+    """The short path of :func:`mech_step`: a sliding shaft that keeps sliding the same way,
+    the reducer's contact state unchanged over the step, the surface inside its stops.
+
+    Returns ``fast`` (whether the step is such a step; the other values hold only then) and
+    the end state and step means as :func:`mech_step`.  ``half`` (rad, half the backlash) and
+    ``fdyn`` (N m, dynamic friction) are the fault-dependent constants, ``mc`` supplies the
+    rest; free of branches that the compiler cannot turn into selects, so the lock-step lanes
+    of :mod:`ema_bench.monitor_lanes` run it vectorised."""
     h = mc.h
     tau = mc.tau
     delta = tau * th_m - th_u
     dd = tau * w_m - w_u
-    side = contact_side(delta, mc.half)
-    if abs(w_m) >= mc.w_stick and abs(th_u) <= mc.th_stop and \
-            contact_side(delta + h * dd, mc.half) == side:
-        r1, r2 = _rhs(th_u, w_m, w_u, t_ext, 1.0 if w_m > 0.0 else -1.0, mc)
-        if side != 0:
-            wm1, wu1, t_g = _contact_solve(delta, dd, side, r1, r2, t_m, True, mc)
-            ok = t_g * side >= 0.0
-        else:
-            wm1 = r1 * mc.i_m_free + mc.i_m_free_h * t_m
-            wu1 = r2 * mc.i_u_free
-            ok = True
-        if ok and wm1 * w_m >= 0.0:
-            th_m1 = th_m + 0.5 * h * (w_m + wm1)
-            th_u1 = th_u + 0.5 * h * (w_u + wu1)
-            return (th_m1, wm1, th_u1, wu1, 0.5 * (th_m + th_m1), 0.5 * (w_m + wm1),
-                    0.5 * (th_u + th_u1))
-    return mech_step_general(th_m, w_m, th_u, w_u, t_m, tm0, tm1, t_rip, t_ext, mc)
+    side = contact_side(delta, half)
+    fast = ((abs(w_m) >= mc.w_stick) & (abs(th_u) <= mc.th_stop)
+            & (contact_side(delta + h * dd, half) == side))
+    r1, r2 = _rhs(th_u, w_m, w_u, t_ext, 1.0 if w_m > 0.0 else -1.0, fdyn, mc)
+    if side != 0:
+        wm1, wu1, t_g = _contact_at(delta, dd, half if side > 0 else -half, r1, r2, t_m,
+                                    True, mc)
+        fast &= t_g * side >= 0.0
+    else:
+        wm1 = r1 * mc.i_m_free + mc.i_m_free_h * t_m
+        wu1 = r2 * mc.i_u_free
+    fast &= wm1 * w_m >= 0.0
+    th_m1 = th_m + 0.5 * h * (w_m + wm1)
+    th_u1 = th_u + 0.5 * h * (w_u + wu1)
+    return (fast, th_m1, wm1, th_u1, wu1, 0.5 * (th_m + th_m1), 0.5 * (w_m + wm1),
+            0.5 * (th_u + th_u1))
 
 
 @njit(cache=True, error_model="numpy")
@@ -246,7 +267,7 @@ def mech_step_general(th_m, w_m, th_u, w_u, t_m, tm0, tm1, t_rip, t_ext, mc):
     sgn = 0.0
     if moving:
         sgn = 1.0 if w_m > 0.0 else -1.0
-    r1, r2 = _rhs(th_u, w_m, w_u, t_ext, sgn, mc)
+    r1, r2 = _rhs(th_u, w_m, w_u, t_ext, sgn, mc.fdyn, mc)
     side = contact_side(delta, mc.half)
     side1 = contact_side(delta + h * dd, mc.half)
     if side != 0 and side1 == side:

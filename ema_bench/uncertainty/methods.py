@@ -22,7 +22,6 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.stats import chi2
 
 from ..objective import N_FAULTS, Objective
 from ..seeding import SeedLike, as_seed_sequence
@@ -148,16 +147,24 @@ Method = Callable[[_Fit, float, int, SeedLike, int, np.ndarray],
                   tuple[np.ndarray, np.ndarray, dict]]
 
 
+def _chi2_1(level: float) -> float:
+    """Chi-square quantile, one degree of freedom (scipy.stats is imported here, not with
+    the module: it costs 0.5 s of every command's start-up)."""
+    from scipy.stats import chi2
+
+    return float(chi2.ppf(level, 1))
+
+
 def _laplace(fit: _Fit, level: float, max_evals: int, seed: SeedLike,
              n_boot: int, which: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict]:
-    z = float(np.sqrt(chi2.ppf(level, 1)))
+    z = float(np.sqrt(_chi2_1(level)))
     half = z * np.sqrt(np.diag(fit.cov))
     return fit.u - half, fit.u + half, {}
 
 
 def _profile(fit: _Fit, level: float, max_evals: int, seed: SeedLike,
              n_boot: int, which: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict]:
-    threshold = float(chi2.ppf(level, 1))
+    threshold = _chi2_1(level)
     lo, hi, _ = _laplace(fit, level, max_evals, seed, n_boot, which)
     profiles: list[dict | None] = [None] * fit.u.size
     start = fit.counter.evaluations

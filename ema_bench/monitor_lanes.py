@@ -1,0 +1,234 @@
+"""The monitor kernel in lock-step lanes: eight candidates advanced together, vectorised.
+
+The scalar kernel (:mod:`ema_bench.monitor`) runs at the speed of the same equations in plain C
+(``benchmarks/c``); what is left is SIMD.  Here the short paths of a step, the controller
+(:func:`~ema_bench.physics.ace.ace_update`), the drive inside one sector
+(:func:`~ema_bench.physics.averaged_drive.drive_fast`) and the sliding mechanics
+(:func:`~ema_bench.physics.mechanics.mech_fast`), run for ``LANES`` candidates in one loop that
+LLVM vectorises; a lane whose step leaves a short path (a sector crossing, a commutation, a
+contact change, a stuck shaft: about 5 % of steps) runs the general scalar function for that
+lane alone, after the vector loop.  The functions are the scalar kernel's own, so the two cannot
+drift apart, and the outputs are bit-identical to it: the same operations in the same order,
+IEEE vector arithmetic, no fused multiply-add (``tests/test_kernel.py``).
+
+Why one flat array: the lanes' state and their fault-dependent constants live in one float
+array at fixed offsets (``_O_*``).  With it the compiler proves the lanes independent and
+vectorises; with one array per quantity it needs a runtime alias check per pair of arrays,
+gives up beyond a handful and the loop stays scalar (``benchmarks/vectorisation_probe.py``).
+
+Only candidates with every effect off take the lanes: eccentricity, cogging, the feedback delay
+and the decoy hinge terms live in the general code (:mod:`ema_bench.monitor` routes the others
+to the scalar kernel).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from .effects import N_EFFECTS
+from .faults import F_GPROP
+from .monitor import monitor_consts
+from .physics.ace import CtrlConsts, ace_consts, ace_update
+from .physics.averaged_drive import drive_fast, drive_step_general, sector_consts, sector_index
+from .physics.mechanics import mech_fast, mech_step_general
+
+LANES = 8   # candidates per group: two AVX2 vectors of doubles, one AVX-512 vector
+
+# Offsets (in blocks of LANES) of the lanes' quantities in the flat array: state, then the
+# fault-dependent constants, then per-step values handed from the vector loops to the
+# scalar fall-backs.
+(_O_THM, _O_WM, _O_THU, _O_WU, _O_CUR, _O_TRT0, _O_TRLEN, _O_KTF, _O_KTT, _O_TRCR, _O_INTEG,
+ _O_THLO, _O_KT, _O_RP, _O_IL, _O_HALF, _O_FDYN, _O_KPOS, _O_IREF, _O_TM, _O_TM0, _O_TM1,
+ _O_TRIP, _O_IEQ, _O_DSLOW, _O_MSLOW, _O_A0, _O_A1, _O_A2, _O_A3, _N_BLOCKS) = \
+    [LANES * i for i in range(31)]
+
+
+@njit(cache=True, error_model="numpy")
+def _rest(F, M, dc, q):
+    """Lane ``q`` at rest, as the scalar kernel starts a test (``monitor_init``)."""
+    for o in (_O_THM, _O_WM, _O_THU, _O_WU, _O_CUR, _O_TRLEN, _O_KTF, _O_KTT, _O_TRCR,
+              _O_INTEG):
+        F[o + q] = 0.0
+    F[_O_TRT0 + q] = -1.0
+    m = sector_index(0.0, dc.pp)
+    M[q] = m
+    th_lo, kt, rp, il = sector_consts(m, dc)
+    F[_O_THLO + q] = th_lo
+    F[_O_KT + q] = kt
+    F[_O_RP + q] = rp
+    F[_O_IL + q] = il
+
+
+@njit(cache=True, error_model="numpy")
+def lane_group(p, X, idx, cmd, cmd_start, n_out, out_start, ticks_out, steps_tick, dt, out,
+               ok):
+    """Every test of the ``LANES`` candidates ``X[idx]`` in lock-step (effects off).
+
+    Lane ``q`` simulates ``X[idx[q]]`` and writes ``out[idx[q]]`` and ``ok[idx[q]]``; a group
+    with fewer candidates repeats one (the copies write the same values).  Arguments as
+    :func:`ema_bench.monitor.monitor_batch_serial`.
+    """
+    # Lane 0's constants serve every lane where they do not depend on the faults (drive_fast
+    # and mech_fast read only those); the fault-dependent ones are per lane.
+    e0 = np.zeros(N_EFFECTS)
+    dc0, mc0 = monitor_consts(p, X[idx[0]], e0, dt)[:2]
+    cc0 = ace_consts(p, X[idx[0], F_GPROP])
+    dcs = [dc0]
+    mcs = [mc0]
+    F = np.zeros(_N_BLOCKS)
+    M = np.zeros(LANES, dtype=np.int64)
+    alive = np.ones(LANES, dtype=np.bool_)
+    done = np.ones(LANES, dtype=np.bool_)
+    for q in range(LANES):
+        dc, mc = monitor_consts(p, X[idx[q]], e0, dt)[:2]
+        if q > 0:
+            dcs.append(dc)
+            mcs.append(mc)
+        F[_O_HALF + q] = mc.half
+        F[_O_FDYN + q] = mc.fdyn
+        F[_O_KPOS + q] = ace_consts(p, X[idx[q], F_GPROP]).k_pos
+    h = dc0.h
+    scale = 1.0 / (ticks_out * steps_tick)
+    for t in range(n_out.shape[0]):
+        for q in range(LANES):
+            _rest(F, M, dcs[q], q)
+            alive[q] = True
+        k_ctrl = cmd_start[t]
+        for k in range(n_out[t]):
+            for q in range(LANES):
+                F[_O_A0 + q] = 0.0
+                F[_O_A1 + q] = 0.0
+                F[_O_A2 + q] = 0.0
+                F[_O_A3 + q] = 0.0
+            for _ in range(ticks_out):
+                c = cmd[k_ctrl]
+                k_ctrl += 1
+                for j in range(steps_tick):
+                    _step(F, M, dc0, mc0, cc0, dcs, mcs, h, c, j == 0)
+            row = out_start[t] + k
+            for q in range(LANES):
+                a0, a1, a2, a3 = F[_O_A0 + q], F[_O_A1 + q], F[_O_A2 + q], F[_O_A3 + q]
+                o = out[idx[q], row]
+                o[0] = a0 * scale + 0.0   # + the sensor offset, 0 with effects off
+                o[1] = a1 * scale
+                o[2] = a2 * scale
+                o[3] = 1.0 * a3 * scale   # the current channel's gain, 1 with effects off
+                if alive[q] and not (math.isfinite(a0) and math.isfinite(a1)
+                                     and math.isfinite(a2) and math.isfinite(a3)):
+                    alive[q] = False   # as the scalar kernel: this test failed
+                    _rest(F, M, dcs[q], q)   # and the lane runs on harmlessly
+        for q in range(LANES):
+            done[q] &= alive[q]
+    for q in range(LANES):
+        ok[idx[q]] = done[q]
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _step(F, M, dc0, mc0, cc0, dcs, mcs, h, c, tick):
+    """One plant step of every lane, the monitor's ``monitor_step`` with effects off, after
+    the controller sample under command ``c`` (rad) if ``tick``.  (The controller shares the
+    drive's loop: on its own, its loop is short enough that the compiler unrolls it before
+    it could vectorise it.)"""
+    for q in range(LANES):   # vectorised: controller and the drive inside one sector
+        if tick:
+            cc = CtrlConsts(F[_O_KPOS + q], cc0.w_max, cc0.kpv, cc0.kiv, cc0.t_max, cc0.dtc,
+                            cc0.amps_per_nm)
+            i_ref, integ = ace_update(c, F[_O_THU + q] + 0.0, F[_O_WM + q], F[_O_INTEG + q],
+                                      cc)
+            F[_O_IREF + q] = i_ref
+            F[_O_INTEG + q] = integ
+        else:
+            i_ref = F[_O_IREF + q]
+        fast, cur1, t_mean, t_start, t_end, t_rip, i_eq = drive_fast(
+            F[_O_CUR + q], F[_O_TRT0 + q], F[_O_TRLEN + q], F[_O_THLO + q], F[_O_KT + q],
+            F[_O_RP + q], F[_O_IL + q], i_ref, F[_O_THM + q], F[_O_WM + q], dc0, True)
+        F[_O_DSLOW + q] = 0.0 if fast else 1.0
+        F[_O_CUR + q] = cur1 if fast else F[_O_CUR + q]
+        F[_O_TRT0 + q] = F[_O_TRT0 + q] - h if fast else F[_O_TRT0 + q]
+        F[_O_TM + q] = t_mean + 0.0   # + the cogging torque, 0 with effects off
+        F[_O_TM0 + q] = t_start + 0.0
+        F[_O_TM1 + q] = t_end + 0.0
+        F[_O_TRIP + q] = t_rip
+        F[_O_IEQ + q] = i_eq
+    for q in range(LANES):   # the rest of the drive, lane by lane
+        if F[_O_DSLOW + q] != 0.0:
+            dc = dcs[q]
+            (cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr, t_mean, t_start, t_end, t_rip,
+             i_eq) = drive_step_general(
+                F[_O_CUR + q], M[q], F[_O_TRT0 + q], F[_O_TRLEN + q], F[_O_KTF + q],
+                F[_O_KTT + q], F[_O_TRCR + q], F[_O_IREF + q], F[_O_THM + q], F[_O_WM + q],
+                dc)
+            F[_O_CUR + q] = cur
+            M[q] = m
+            F[_O_TRT0 + q] = tr_t0
+            F[_O_TRLEN + q] = tr_len
+            F[_O_KTF + q] = kt_from
+            F[_O_KTT + q] = kt_to
+            F[_O_TRCR + q] = tr_cr
+            F[_O_TM + q] = t_mean + 0.0
+            F[_O_TM0 + q] = t_start + 0.0
+            F[_O_TM1 + q] = t_end + 0.0
+            F[_O_TRIP + q] = t_rip
+            F[_O_IEQ + q] = i_eq
+            th_lo, kt, rp, il = sector_consts(m, dc)
+            F[_O_THLO + q] = th_lo
+            F[_O_KT + q] = kt
+            F[_O_RP + q] = rp
+            F[_O_IL + q] = il
+    for q in range(LANES):   # vectorised: the sliding mechanics
+        fast, th_m1, wm1, th_u1, wu1, m_thm, m_wm, m_thu = mech_fast(
+            F[_O_THM + q], F[_O_WM + q], F[_O_THU + q], F[_O_WU + q], F[_O_TM + q], 0.0,
+            F[_O_HALF + q], F[_O_FDYN + q], mc0)
+        F[_O_MSLOW + q] = 0.0 if fast else 1.0
+        F[_O_THM + q] = th_m1 if fast else F[_O_THM + q]
+        F[_O_WM + q] = wm1 if fast else F[_O_WM + q]
+        F[_O_THU + q] = th_u1 if fast else F[_O_THU + q]
+        F[_O_WU + q] = wu1 if fast else F[_O_WU + q]
+        # a window sum starts at +0 and so is never -0: adding 0.0 leaves it exact
+        F[_O_A0 + q] += m_thu if fast else 0.0
+        F[_O_A1 + q] += m_thm if fast else 0.0
+        F[_O_A2 + q] += m_wm if fast else 0.0
+        F[_O_A3 + q] += F[_O_IEQ + q] if fast else 0.0
+    for q in range(LANES):   # the rest of the mechanics, lane by lane
+        if F[_O_MSLOW + q] != 0.0:
+            th_m, w_m, th_u, w_u, m_thm, m_wm, m_thu = mech_step_general(
+                F[_O_THM + q], F[_O_WM + q], F[_O_THU + q], F[_O_WU + q], F[_O_TM + q],
+                F[_O_TM0 + q], F[_O_TM1 + q], F[_O_TRIP + q], 0.0, mcs[q])
+            F[_O_THM + q] = th_m
+            F[_O_WM + q] = w_m
+            F[_O_THU + q] = th_u
+            F[_O_WU + q] = w_u
+            F[_O_A0 + q] += m_thu
+            F[_O_A1 + q] += m_thm
+            F[_O_A2 + q] += m_wm
+            F[_O_A3 + q] += F[_O_IEQ + q]
+
+
+@njit(parallel=True, cache=True, error_model="numpy")
+def lanes_parallel(p, X, groups, cmd, cmd_start, n_out, out_start, ticks_out, steps_tick, dt,
+                   out, ok):
+    """:func:`lane_group` over the rows of ``groups`` (n_groups, LANES), in parallel."""
+    for g in prange(groups.shape[0]):
+        lane_group(p, X, groups[g], cmd, cmd_start, n_out, out_start, ticks_out, steps_tick,
+                   dt, out, ok)
+
+
+@njit(cache=True, error_model="numpy")
+def lanes_serial(p, X, groups, cmd, cmd_start, n_out, out_start, ticks_out, steps_tick, dt,
+                 out, ok):
+    """As :func:`lanes_parallel`, on the calling thread."""
+    for g in range(groups.shape[0]):
+        lane_group(p, X, groups[g], cmd, cmd_start, n_out, out_start, ticks_out, steps_tick,
+                   dt, out, ok)
+
+
+def lane_groups(rows: np.ndarray) -> np.ndarray:
+    """Candidate indices ``rows`` in groups of ``LANES`` (n_groups, LANES); the last group is
+    filled up by repeating its last candidate."""
+    rows = np.asarray(rows, dtype=np.int64)
+    n_groups = -(-rows.size // LANES)
+    padded = np.concatenate([rows, np.full(n_groups * LANES - rows.size, rows[-1])])
+    return padded.reshape(n_groups, LANES)
