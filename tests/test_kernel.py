@@ -133,6 +133,10 @@ def test_lane_dispatch_groups_only_effect_free_candidates():
     assert _lane_split(E, True)[1].tolist() == [0, 9]              # forced: padded group
     assert _lane_split(E, False)[0].size == 0                      # scalar for all
     assert _lane_split(np.zeros((1, N_EFFECTS)), None)[0].size == 0   # a single candidate
+    # the break-even: a last group of LANES_WORTH candidates runs in lanes, one fewer does not
+    assert _lane_split(np.zeros((LANES + LANES_WORTH, N_EFFECTS)), None)[1].size == 0
+    assert _lane_split(np.zeros((LANES + LANES_WORTH - 1, N_EFFECTS)), None)[1].size == \
+        LANES_WORTH - 1
     groups = lane_groups(np.array([3, 5, 7]))
     assert groups.tolist() == [[3, 5, 7, 7, 7, 7, 7, 7]]
 
