@@ -107,6 +107,14 @@ def test_lanes_equal_the_scalar_kernel_bit_for_bit(parallel):
         assert np.array_equal(a[t], b[t]), t
 
 
+def test_lanes_equal_the_scalar_kernel_with_several_steps_per_controller_sample():
+    """At a 25 us step the controller samples every other step (the lanes' ``tick``)."""
+    X = _lane_batch(LANES + 1, 24)
+    a, _ = simulate_monitor(X, dt=2.5e-5, lanes=False)
+    b, _ = simulate_monitor(X, dt=2.5e-5, lanes=True)
+    for t in a:
+        assert np.array_equal(a[t], b[t]), t
+
 def test_a_diverging_lane_fails_alone():
     """Non-finite faults (check=False) in two lanes: those candidates fail, as in the scalar
     kernel, and their group's other lanes are untouched."""
