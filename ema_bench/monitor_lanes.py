@@ -78,18 +78,18 @@ def lane_group(p, X, idx, cmd, cmd_start, n_out, out_start, ticks_out, steps_tic
     cc0 = ace_consts(p, X[idx[0], F_GPROP])
     dcs = [dc0]
     mcs = [mc0]
+    for q in range(1, LANES):
+        dc, mc = monitor_consts(p, X[idx[q]], e0, dt)[:2]
+        dcs.append(dc)
+        mcs.append(mc)
     F = np.zeros(_N_BLOCKS)
     M = np.zeros(LANES, dtype=np.int64)
     alive = np.ones(LANES, dtype=np.bool_)
     done = np.ones(LANES, dtype=np.bool_)
     for q in range(LANES):
-        dc, mc = monitor_consts(p, X[idx[q]], e0, dt)[:2]
-        if q > 0:
-            dcs.append(dc)
-            mcs.append(mc)
-        F[_O_HALF + q] = mc.half
-        F[_O_FDYN + q] = mc.fdyn
-        F[_O_KPOS + q] = ace_consts(p, X[idx[q], F_GPROP]).k_pos
+        F[_O_HALF + q] = mcs[q].half
+        F[_O_FDYN + q] = mcs[q].fdyn
+        F[_O_KPOS + q] = cc0.k_pos if q == 0 else ace_consts(p, X[idx[q], F_GPROP]).k_pos
     h = dc0.h
     scale = 1.0 / (ticks_out * steps_tick)
     for t in range(n_out.shape[0]):
