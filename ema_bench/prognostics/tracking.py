@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..faults import FAULT_NAMES
+from ..jsonio import plain
 from ..plugins import PluginRegistry
 from ..seeding import run_seed, stream
 from ..traces import Traces
@@ -237,17 +238,9 @@ def step_record(inspection: Inspection, step: TrackStep) -> dict:
     d["replace"] = bool(d["replace"])
     d["evaluations"] = int(d["evaluations"])
     d["flight"] = int(d["flight"])
-    d["extra"] = json.loads(json.dumps(d["extra"], default=_jsonable))
+    d["extra"] = plain(d["extra"], default=str)
     return {"key": _key(inspection.unit, inspection.index), "unit": inspection.unit,
             "index": inspection.index, **d}
-
-
-def _jsonable(o: object) -> object:
-    if isinstance(o, np.generic):
-        return o.item()
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    return str(o)
 
 
 def error_record(unit: str, index: int, flight: int, exc: BaseException) -> dict:
@@ -344,8 +337,7 @@ def _manifest(campaign: Campaign, info: TrackerInfo, seed: int, out: Path) -> di
     from ..trace_cache import MODEL_VERSION
 
     return {"format": FORMAT, "version": VERSION, "tracker": info.name,
-            "description": info.description, "config": json.loads(json.dumps(
-                info.config, default=_jsonable)),
+            "description": info.description, "config": plain(info.config, default=str),
             "seed": seed,
             # relative to the run folder: the two move together (a committed leaderboard)
             "campaign": os.path.relpath(Path(campaign.root).resolve(), Path(out).resolve()),
