@@ -421,11 +421,11 @@ def run_cases(cases: Sequence[BlindCase], seed: int, settings: Settings, workers
         for case in cases:
             yield runner(case, seed, settings)
         return
-    from ..leaderboard.executors import _worker_init
+    from ..leaderboard.executors import worker_init
 
     # "spawn": numba's threading layers and fork do not mix well
     pool = ProcessPoolExecutor(min(workers, len(cases)), mp_context=mp.get_context("spawn"),
-                               initializer=_worker_init, initargs=(os.getpid(),))
+                               initializer=worker_init, initargs=(os.getpid(),))
     try:
         futures = [pool.submit(runner, case, seed, settings) for case in cases]
         for fut in as_completed(futures):

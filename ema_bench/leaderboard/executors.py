@@ -64,9 +64,10 @@ def _exit_with_parent(parent_pid: int) -> None:
     threading.Thread(target=watch, name="ema-bench-parent-watch", daemon=True).start()
 
 
-def _worker_init(parent_pid: int | None = None) -> None:
+def worker_init(parent_pid: int | None = None) -> None:
     """Set up a worker process: one numba thread (the processes are the parallelism) and,
-    given the pid of the process that started it, exit with that process."""
+    given the pid of the process that started it, exit with that process.  The initializer of
+    every process pool in the package (leaderboard, blind suite, campaign tracking)."""
     import numba
 
     numba.set_num_threads(1)
@@ -144,7 +145,7 @@ class _Pool:
 
         # "spawn": numba's threading layers and fork do not mix well
         return ProcessPoolExecutor(max_workers=self.workers, mp_context=mp.get_context("spawn"),
-                                   initializer=_worker_init, initargs=(os.getpid(),))
+                                   initializer=worker_init, initargs=(os.getpid(),))
 
     def submit(self, runner: Runner, task: Task):
         """The future of ``task``, or ``None`` when the pool is broken."""
@@ -185,9 +186,9 @@ def _dask(tasks: Iterator[Task], workers: int, scheduler: str | None, runner: Ru
         client = Client(cluster)
     try:
         if cluster is None:
-            client.run(_worker_init)   # a shared cluster: set up its workers, leave no hook
+            client.run(worker_init)   # a shared cluster: set up its workers, leave no hook
         else:   # our cluster: every worker, also one the nanny restarts, exits with us
-            client.register_worker_callbacks(functools.partial(_worker_init, os.getpid()))
+            client.register_worker_callbacks(functools.partial(worker_init, os.getpid()))
         slots = workers if cluster is not None else max(1, sum(client.nthreads().values()))
         # a task whose worker dies is rescheduled by the scheduler (up to its
         # allowed-failures, 3 by default), then fails with KilledWorker: an error record

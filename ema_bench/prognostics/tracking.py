@@ -493,12 +493,12 @@ def _parallel(camp: Campaign, info: TrackerInfo, todo: list[tuple[int, str]], se
     import multiprocessing as mp
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
-    from ..leaderboard.executors import _worker_init
+    from ..leaderboard.executors import worker_init
     from ..leaderboard.store import RunStore
 
     # "spawn": numba's threading layers and fork do not mix well
     with ProcessPoolExecutor(max_workers=min(workers, len(todo)),
-                             mp_context=mp.get_context("spawn"), initializer=_worker_init,
+                             mp_context=mp.get_context("spawn"), initializer=worker_init,
                              initargs=(os.getpid(),)) as pool:
         futures = {pool.submit(_worker, str(camp.root), info.name, info.factory.__module__,
                                unit, k, seed, str(path)): unit for k, unit in todo}
