@@ -1,8 +1,10 @@
 """The identification problem: what every solver is scored on.
 
 A :class:`Problem` wraps an :class:`~ema_bench.objective.Objective` (the measured traces and
-the fitness) with a hard budget, a log of every evaluation and the hidden true fault vector
-(only :meth:`Problem.score` uses it).  :func:`~ema_bench.instances.make_problem` builds the
+the fitness) with a hard budget, a log of every evaluation (:class:`EvaluationLog`) and the
+hidden true fault vector (only the scoring methods use it).  Solvers never get the problem:
+``run_solver`` hands them its :class:`SolverView`, which shares the budget and the log and
+holds nothing that leads to the truth (docs/submitting-results.md, "Threat model").  :func:`~ema_bench.instances.make_problem` builds the
 benchmark's instances.
 """
 
@@ -59,12 +61,203 @@ class BudgetExhausted(RuntimeError):
     """The evaluation would exceed the problem's budget; nothing was scored."""
 
 
-class Problem:
+class EvaluationLog:
+    """The counted side of a problem: the objective, the budget and the log of every
+    evaluation.  It holds no truth: the :class:`SolverView` a solver gets wraps this and
+    nothing else, while the :class:`Problem` (the scorer's object) holds it beside the truth.
+    """
+
+    def __init__(self, objective: Objective, budget: int) -> None:
+        self.objective = objective
+        self.dim = objective.space.dim
+        self.budget = int(budget)
+        self.count = 0
+        self.failures = 0
+        # the evaluation log grows with use (a huge budget costs nothing up front)
+        self.X = np.empty((min(self.budget, _LOG_CHUNK), self.dim))
+        self.f = np.empty(self.X.shape[0])
+        self.t = np.empty(self.X.shape[0])
+        self.t0 = time.perf_counter()
+
+    @property
+    def remaining(self) -> int:
+        return self.budget - self.count
+
+    def limit(self, n: int) -> None:
+        if int(n) < 0:
+            raise ProblemError(f"limit needs n >= 0, got {n}")
+        self.budget = min(self.budget, self.count + int(n))
+
+    def fitness(self, X: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """Uncounted fitness of a checked batch (counting is :meth:`evaluate_outputs`'s)."""
+        f, outputs, failed = self.objective.evaluate(X)
+        if failed.any():
+            self.failures += int(failed.sum())
+            for x in X[failed][:3]:
+                log.warning("simulation failed at %s: scored penalty %g", faults_to_dict(x),
+                            PENALTY)
+        return f, outputs
+
+    def _record(self, X: np.ndarray, f: np.ndarray) -> None:
+        i, n = self.count, X.shape[0]
+        if i + n > self.f.size:
+            cap = min(self.budget, max(2 * self.f.size, i + n))
+            self.X = np.resize(self.X, (cap, self.dim))  # copies; the tail is overwritten
+            self.f = np.resize(self.f, cap)
+            self.t = np.resize(self.t, cap)
+        self.X[i:i + n] = X
+        self.f[i:i + n] = f
+        self.t[i:i + n] = time.perf_counter() - self.t0
+        self.count += n
+
+    def evaluate_outputs(self, X: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        X2 = self.objective.space.check(X)
+        if X2.shape[0] == 0:
+            return np.empty(0), {t.name: np.empty((0, t.n_samples(), len(SIGNALS)))
+                                 for t in self.objective.tests}
+        if X2.shape[0] > self.remaining:
+            raise BudgetExhausted(f"{X2.shape[0]} evaluation(s) requested with "
+                                  f"{self.remaining} of {self.budget} left")
+        f, outputs = self.fitness(X2)
+        self._record(X2, f)
+        return f, outputs
+
+    def history(self) -> dict[str, np.ndarray]:
+        n = self.count
+        f = self.f[:n].copy()
+        return {"index": np.arange(n), "x": self.X[:n].copy(), "fitness": f,
+                "best": np.minimum.accumulate(f) if n else f, "wall_s": self.t[:n].copy()}
+
+    def best(self, nominal: np.ndarray) -> tuple[np.ndarray, float]:
+        if self.count == 0:
+            return nominal.copy(), float("inf")
+        i = int(np.argmin(self.f[:self.count]))
+        return self.X[i].copy(), float(self.f[i])
+
+
+class _Counted:
+    """What a solver and the scorer's problem share: the search space and the counted
+    evaluation, both through an :class:`EvaluationLog` (``self._log``)."""
+
+    _log: EvaluationLog
+    space: SearchSpace
+
+    @property
+    def evaluations(self) -> int:
+        """Evaluations scored so far (the only count that matters)."""
+        return self._log.count
+
+    @property
+    def remaining(self) -> int:
+        """Evaluations left in the budget."""
+        return self._log.remaining
+
+    @property
+    def budget(self) -> int:
+        """The evaluation budget (it can shrink, never grow)."""
+        return self._log.budget
+
+    @property
+    def failures(self) -> int:
+        """Evaluations whose simulation failed and scored ``PENALTY``."""
+        return self._log.failures
+
+    @property
+    def n_residuals(self) -> int:
+        return self._log.objective.n_residuals
+
+    def to_unit(self, X: np.ndarray) -> np.ndarray:
+        """Physical vector(s) -> the normalised box [0, 1]^dim of this problem."""
+        return self.space.to_unit(X)
+
+    def from_unit(self, U: np.ndarray) -> np.ndarray:
+        """Normalised box [0, 1]^dim -> physical vector(s) of this problem."""
+        return self.space.from_unit(U)
+
+    def evaluate(self, X: np.ndarray) -> np.ndarray | float:
+        """Fitness of candidate fault vectors (lower is better).
+
+        Parameters
+        ----------
+        X : array, shape (n, dim) or (dim,)
+            Physical vectors (``names`` order, ``units``), inside ``[lower, upper]``.
+
+        Returns
+        -------
+        ndarray (n,) or float
+            Normalised (or raw) sum of mean squared output errors; ``PENALTY`` for a failed
+            simulation.
+
+        Raises
+        ------
+        BudgetExhausted
+            If the batch would exceed the budget (nothing is scored then).
+        ProblemError
+            Wrong shape, NaN, or out-of-bounds vectors.
+        """
+        arr = np.asarray(X, dtype=float)
+        single = arr.ndim == 1
+        f, _ = self.evaluate_outputs(arr[None, :] if single else arr)
+        return float(f[0]) if single else f
+
+    def evaluate_outputs(self, X: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """:meth:`evaluate` of a batch (n, dim) that also returns the monitor outputs it
+        computed (test -> (n, n_samples, 4)): one simulation, counted once."""
+        return self._log.evaluate_outputs(X)
+
+    def residuals(self, x: np.ndarray) -> np.ndarray:
+        """Weighted residual vector of one candidate: ``sum(r**2) == evaluate(x)``.
+
+        Counts one evaluation.  For least-squares methods; layout: test by test, signal by
+        signal, sample by sample (:meth:`~ema_bench.objective.Objective.residuals`)."""
+        f, outputs = self.evaluate_outputs(np.asarray(x, dtype=float)[None, :])
+        return self._log.objective.residuals(outputs, f)[0]
+
+    def history(self) -> dict[str, np.ndarray]:
+        """Every evaluation so far: ``index``, ``x`` (n, dim), ``fitness``, ``best`` (best
+        so far), ``wall_s`` (since the problem was built)."""
+        return self._log.history()
+
+    @property
+    def best(self) -> tuple[np.ndarray, float]:
+        """Best vector and fitness evaluated so far (``nominal, inf`` before any)."""
+        return self._log.best(self.space.nominal)
+
+
+class SolverView(_Counted):
+    """What a solver is given: everything it needs to search, nothing that leads to the truth.
+
+    Built by :meth:`Problem.view` (``run_solver`` passes it to the solver).  It holds the
+    search space, the observation (``measured``, whose metadata names no fault) and the
+    problem's :class:`EvaluationLog`, never the :class:`Problem`: no attribute, method or
+    object reachable from it yields the true faults, a score, a success flag or the fitness
+    at the truth.  Evaluations through it count against the same budget and land in the same
+    log as the problem's, which the scorer reads after the solver returns.
+    """
+
+    __slots__ = ("_log", "space", "names", "units", "lower", "upper", "nominal", "dim",
+                 "augment", "start", "normalise", "measured")
+
+    def __init__(self, log_: EvaluationLog, space: SearchSpace, start: np.ndarray,
+                 normalise: bool, measured: Traces) -> None:
+        self._log, self.space = log_, space
+        self.names, self.units = space.names, space.units
+        self.lower, self.upper, self.nominal = space.lower, space.upper, space.nominal
+        self.dim, self.augment = space.dim, space.augment
+        self.start, self.normalise, self.measured = start, normalise, measured
+
+    def __repr__(self) -> str:
+        return (f"SolverView(evaluations={self.evaluations}/{self.budget}, "
+                f"dim={self.dim})")
+
+
+class Problem(_Counted):
     """A fault-identification instance with a hard evaluation budget.
 
     Build it with :func:`make_problem`.  Public attributes describe the search space
     (``names``, ``units``, ``lower``, ``upper``, ``nominal``, ``dim``) and the data
-    (``measured``); the true vector is not among them.
+    (``measured``); the true vector is not among them.  A problem is the scorer's object (it
+    scores against the truth); solvers get its :meth:`view`.
 
     Parameters
     ----------
@@ -105,158 +298,33 @@ class Problem:
             self.space.nominal
         self.dim = self.space.dim
         self.augment = self.space.augment
-        self.start = self.nominal if start is None else self._check_batch(
+        self.start = self.nominal if start is None else self.space.check(
             np.asarray(start, dtype=float)[None, :])[0]
         self.start.flags.writeable = False
-        self.budget = int(budget)
         self.normalise = bool(normalise)
         self.label = label
         self.track = track
         self.measured = measured
         self.meta = dict(_meta or {})
         self.__truth = None if _truth is None else check_faults(_truth).copy()
-        self._count = 0
-        self._failures = 0
-        # the evaluation log grows with use (a huge budget costs nothing up front)
-        self._X = np.empty((min(self.budget, _LOG_CHUNK), self.dim))
-        self._f = np.empty(self._X.shape[0])
-        self._t = np.empty(self._X.shape[0])
-        self._t0 = time.perf_counter()
+        self._log = EvaluationLog(self.objective, budget)
 
     def __repr__(self) -> str:
         return (f"Problem({self.label!r}, track={self.track!r}, evaluations="
-                f"{self._count}/{self.budget}, normalise={self.normalise})")
+                f"{self.evaluations}/{self.budget}, normalise={self.normalise})")
 
-    # --- budget -------------------------------------------------------------------------
-    @property
-    def evaluations(self) -> int:
-        """Evaluations scored so far (the only count that matters)."""
-        return self._count
-
-    @property
-    def remaining(self) -> int:
-        return self.budget - self._count
-
-    @property
-    def failures(self) -> int:
-        """Evaluations whose simulation failed and scored ``PENALTY``."""
-        return self._failures
+    def view(self) -> SolverView:
+        """The solver's view of this problem: shares its budget and log, holds no truth."""
+        return SolverView(self._log, self.space, self.start, self.normalise, self.measured)
 
     def limit(self, n: int) -> None:
         """Allow at most ``n`` more evaluations (the budget can shrink, never grow)."""
-        if int(n) < 0:
-            raise ProblemError(f"limit needs n >= 0, got {n}")
-        self.budget = min(self.budget, self._count + int(n))
-
-    def _reserve(self, n: int) -> None:
-        if n > self.remaining:
-            raise BudgetExhausted(
-                f"{n} evaluation(s) requested with {self.remaining} of {self.budget} left")
-
-    # --- evaluation ---------------------------------------------------------------------
-    def _check_batch(self, X: np.ndarray) -> np.ndarray:
-        return self.space.check(X)
-
-    def to_unit(self, X: np.ndarray) -> np.ndarray:
-        """Physical vector(s) -> the normalised box [0, 1]^dim of this problem."""
-        return self.space.to_unit(X)
-
-    def from_unit(self, U: np.ndarray) -> np.ndarray:
-        """Normalised box [0, 1]^dim -> physical vector(s) of this problem."""
-        return self.space.from_unit(U)
+        self._log.limit(n)
 
     def simulate(self, X: np.ndarray) -> tuple[dict[str, np.ndarray], np.ndarray]:
         """Monitor outputs for a batch, without counting (for plots and reports, never for
-        search: solvers must go through :meth:`evaluate` or :meth:`residuals`)."""
-        return self.objective.outputs(self._check_batch(np.atleast_2d(X)))
-
-    def _fitness(self, X: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-        f, outputs, failed = self.objective.evaluate(X)
-        if failed.any():
-            self._failures += int(failed.sum())
-            for x in X[failed][:3]:
-                log.warning("simulation failed at %s: scored penalty %g", faults_to_dict(x),
-                            PENALTY)
-        return f, outputs
-
-    def _record(self, X: np.ndarray, f: np.ndarray) -> None:
-        i, n = self._count, X.shape[0]
-        if i + n > self._f.size:
-            cap = min(self.budget, max(2 * self._f.size, i + n))
-            self._X = np.resize(self._X, (cap, self.dim))  # copies; the tail is overwritten
-            self._f = np.resize(self._f, cap)
-            self._t = np.resize(self._t, cap)
-        self._X[i:i + n] = X
-        self._f[i:i + n] = f
-        self._t[i:i + n] = time.perf_counter() - self._t0
-        self._count += n
-
-    def evaluate(self, X: np.ndarray) -> np.ndarray | float:
-        """Fitness of candidate fault vectors (lower is better).
-
-        Parameters
-        ----------
-        X : array, shape (n, dim) or (dim,)
-            Physical vectors (``names`` order, ``units``), inside ``[lower, upper]``.
-
-        Returns
-        -------
-        ndarray (n,) or float
-            Normalised (or raw) sum of mean squared output errors; ``PENALTY`` for a failed
-            simulation.
-
-        Raises
-        ------
-        BudgetExhausted
-            If the batch would exceed the budget (nothing is scored then).
-        ProblemError
-            Wrong shape, NaN, or out-of-bounds vectors.
-        """
-        arr = np.asarray(X, dtype=float)
-        single = arr.ndim == 1
-        f, _ = self.evaluate_outputs(arr[None, :] if single else arr)
-        return float(f[0]) if single else f
-
-    def evaluate_outputs(self, X: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-        """:meth:`evaluate` of a batch (n, dim) that also returns the monitor outputs it
-        computed (test -> (n, n_samples, 4)): one simulation, counted once."""
-        X2 = self._check_batch(X)
-        if X2.shape[0] == 0:
-            return np.empty(0), {t.name: np.empty((0, t.n_samples(), len(SIGNALS)))
-                                 for t in self.objective.tests}
-        self._reserve(X2.shape[0])
-        f, outputs = self._fitness(X2)
-        self._record(X2, f)
-        return f, outputs
-
-    def residuals(self, x: np.ndarray) -> np.ndarray:
-        """Weighted residual vector of one candidate: ``sum(r**2) == evaluate(x)``.
-
-        Counts one evaluation.  For least-squares methods; layout: test by test, signal by
-        signal, sample by sample (:meth:`~ema_bench.objective.Objective.residuals`)."""
-        f, outputs = self.evaluate_outputs(np.asarray(x, dtype=float)[None, :])
-        return self.objective.residuals(outputs, f)[0]
-
-    @property
-    def n_residuals(self) -> int:
-        return self.objective.n_residuals
-
-    # --- log ----------------------------------------------------------------------------
-    def history(self) -> dict[str, np.ndarray]:
-        """Every evaluation so far: ``index``, ``x`` (n, 4), ``fitness``, ``best`` (best so
-        far), ``wall_s`` (since the problem was built)."""
-        n = self._count
-        f = self._f[:n].copy()
-        return {"index": np.arange(n), "x": self._X[:n].copy(), "fitness": f,
-                "best": np.minimum.accumulate(f) if n else f, "wall_s": self._t[:n].copy()}
-
-    @property
-    def best(self) -> tuple[np.ndarray, float]:
-        """Best vector and fitness evaluated so far (``nominal, inf`` before any)."""
-        if self._count == 0:
-            return self.nominal.copy(), float("inf")
-        i = int(np.argmin(self._f[:self._count]))
-        return self._X[i].copy(), float(self._f[i])
+        search: solvers get a :class:`SolverView`, which has no uncounted evaluation)."""
+        return self.objective.outputs(self.space.check(np.atleast_2d(X)))
 
     # --- scoring (not for solvers) ------------------------------------------------------
     @property
@@ -286,28 +354,28 @@ class Problem:
         within ``level`` of every fault's range of the truth, or None (scorer-only)."""
         if self.__truth is None:
             raise ProblemError("the true faults of measured data are unknown")
-        n = self._count
-        return parameter_hits(self._X[:n], self._f[:n], self.__truth, levels)
+        n = self._log.count
+        return parameter_hits(self._log.X[:n], self._log.f[:n], self.__truth, levels)
 
     def first_success_wall_s(self) -> float | None:
         """Wall seconds from building the problem to its first successful evaluation, or None
         (scorer-only, like :meth:`first_success`)."""
         first = self.first_success()
-        return None if first is None else float(self._t[first - 1])
+        return None if first is None else float(self._log.t[first - 1])
 
     def first_success_clock(self) -> float | None:
         """``time.perf_counter()`` reading at the first successful evaluation, or None.  On
         Linux that clock is system-wide, so another process can subtract its own launch time
         (``ema-bench bench`` does, for the cold time to success)."""
         wall = self.first_success_wall_s()
-        return None if wall is None else self._t0 + wall
+        return None if wall is None else self._log.t0 + wall
 
     def fitness_at_truth(self) -> float:
         """Fitness of the true vector (not counted; for reports of the model-form bias)."""
         if self.__truth is None:
             raise ProblemError("the true faults of measured data are unknown")
         x = np.r_[self.__truth, np.zeros(self.dim - len(self.__truth))]
-        f, _ = self._fitness(x[None, :])
+        f, _ = self._log.fitness(x[None, :])
         return float(f[0])
 
 

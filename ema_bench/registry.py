@@ -134,7 +134,8 @@ def run_solver(name: str, problem: Problem, budget: int | None = None,
     try:
         # the solver's own stream of the run node: disjoint from the streams that drew the
         # instance and the noise, for every solver, plugins included
-        res = info.func(problem, budget, stream(as_seed_sequence(seed), "solver"),
+        # the solver gets the view (budget, log, space, data), never the problem and its truth
+        res = info.func(problem.view(), budget, stream(as_seed_sequence(seed), "solver"),
                         **info.config)
         stop, extra, lib = res.stop_reason, res.extra, res.library
     except BudgetExhausted:

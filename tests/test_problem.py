@@ -464,7 +464,7 @@ class _StubObjective:
 
 def test_the_log_grows_past_its_first_chunk_and_keeps_every_evaluation():
     p = make_problem("small", track="twin", seed=0, budget=20_000)
-    p.objective = _StubObjective(p.objective.tests)
+    p.objective = p._log.objective = _StubObjective(p.objective.tests)  # the counted side
     rng = np.random.default_rng(0)
     X = LOWER + rng.random((15_000, 4)) * (UPPER - LOWER)
     p.evaluate(X[:9000])        # more than twice the first 4096 rows: grows to 9000
