@@ -67,9 +67,9 @@ class EvaluationLog:
     nothing else, while the :class:`Problem` (the scorer's object) holds it beside the truth.
     """
 
-    def __init__(self, objective: Objective, budget: int) -> None:
-        self.objective = objective
-        self.dim = objective.space.dim
+    def __init__(self, objective: Objective, space: SearchSpace, budget: int) -> None:
+        self.objective, self.space = objective, space
+        self.dim = space.dim
         self.budget = int(budget)
         self.count = 0
         self.failures = 0
@@ -111,7 +111,7 @@ class EvaluationLog:
         self.count += n
 
     def evaluate_outputs(self, X: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-        X2 = self.objective.space.check(X)
+        X2 = self.space.check(X)
         if X2.shape[0] == 0:
             return np.empty(0), {t.name: np.empty((0, t.n_samples(), len(SIGNALS)))
                                  for t in self.objective.tests}
@@ -307,7 +307,7 @@ class Problem(_Counted):
         self.measured = measured
         self.meta = dict(_meta or {})
         self.__truth = None if _truth is None else check_faults(_truth).copy()
-        self._log = EvaluationLog(self.objective, budget)
+        self._log = EvaluationLog(self.objective, self.space, budget)
 
     def __repr__(self) -> str:
         return (f"Problem({self.label!r}, track={self.track!r}, evaluations="
