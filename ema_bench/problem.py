@@ -4,8 +4,8 @@ A :class:`Problem` wraps an :class:`~ema_bench.objective.Objective` (the measure
 the fitness) with a hard budget, a log of every evaluation (:class:`EvaluationLog`) and the
 hidden true fault vector (only the scoring methods use it).  Solvers never get the problem:
 ``run_solver`` hands them its :class:`SolverView`, which shares the budget and the log and
-holds nothing that leads to the truth (docs/submitting-results.md, "Threat model").  :func:`~ema_bench.instances.make_problem` builds the
-benchmark's instances.
+holds nothing that leads to the truth (docs/submitting-results.md, "Threat model").
+:func:`~ema_bench.instances.make_problem` builds the benchmark's instances.
 """
 
 from __future__ import annotations

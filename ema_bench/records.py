@@ -12,6 +12,16 @@ suite instance it carries the anytime view the scores are built from: ``targets`
 evaluation at which each fixed target was first reached: fitness targets from the suite's
 best-known ``f*``, parameter targets judged at the best-so-far point) and ``best_at`` (the
 best-so-far fitness at fixed budgets).
+
+Those figures are claims; the evidence they are re-derived from (record schema 2,
+``"schema": 2``) is the ``trajectory``: every improvement of the best-so-far fitness as
+``[evaluation, fitness, vector]``, thinned to at most :data:`MAX_TRAJECTORY_POINTS` points
+plus the points no thinning may drop (each target's first hit, the last improvement at or
+before each ``best_at`` checkpoint, the first and the last improvement).  ``ema-bench
+validate`` re-evaluates every trajectory vector and recomputes every figure from it and the
+instance's truth (:mod:`~ema_bench.leaderboard.derive`); scores are computed from that
+re-derivation, never from the claims.  Records without ``schema`` are *legacy* (schema 1):
+no vectors but the final one.
 """
 
 from __future__ import annotations
@@ -22,7 +32,7 @@ import numpy as np
 
 from .faults import N_FAULTS, faults_to_dict
 from .manifest import manifest
-from .scoring import first_hits
+from .scoring import first_hits, improvements, range_error
 from .suite import (
     BUDGET_CHECKPOINTS,
     FITNESS_PRECISIONS,
@@ -38,21 +48,50 @@ if TYPE_CHECKING:
     from .problem import Problem
     from .registry import SolveResult
 
-# best-so-far checkpoints kept per run: every improvement, thinned to at most this many
+#: Best-so-far points a legacy record's ``trace`` kept: every improvement, thinned to at most
+#: this many (a legacy trace that long may have lost a target's first hit).
 MAX_TRACE_POINTS = 200
+#: The record schema: 2 adds ``trajectory`` (absent: a legacy record, schema 1).
+RECORD_SCHEMA = 2
+#: Trajectory points kept by thinning (the points that carry a target's first hit or a
+#: ``best_at`` value come on top: at most 4 + 3 + 13 + 2 more).
+MAX_TRAJECTORY_POINTS = 64
 
 
-def thin_trace(best: np.ndarray) -> list[list[float]]:
-    """``[evaluation, best-so-far]`` at each improvement (and the last evaluation)."""
-    if best.size == 0:
-        return []
-    idx = np.flatnonzero(np.r_[True, best[1:] < best[:-1]])
-    if idx.size > MAX_TRACE_POINTS:
-        keep = np.unique(np.geomspace(1, idx.size, MAX_TRACE_POINTS).astype(int) - 1)
-        idx = idx[keep]
-    if idx[-1] != best.size - 1:
-        idx = np.r_[idx, best.size - 1]
-    return [[int(i) + 1, float(best[i])] for i in idx]
+def schema(record: dict) -> int:
+    """The record's schema version: 1 for legacy records (written before versions)."""
+    return int(record.get("schema", 1))
+
+
+def trajectory_indices(X: np.ndarray, f: np.ndarray, truth: np.ndarray | None,
+                       f_levels: list[float]) -> np.ndarray:
+    """0-based evaluations kept in the trajectory: the improvements, thinned geometrically to
+    :data:`MAX_TRAJECTORY_POINTS`, plus every improvement no thinning may drop (the first hit
+    of each fitness level in ``f_levels`` and of each parameter target against ``truth``, the
+    last improvement at or before each ``best_at`` checkpoint, the first and the last)."""
+    idx = improvements(f)
+    if idx.size <= MAX_TRAJECTORY_POINTS:
+        return idx
+    pos = set(np.unique(np.geomspace(1, idx.size, MAX_TRAJECTORY_POINTS).astype(int) - 1))
+    pos |= {0, idx.size - 1}
+    fi = f[idx]
+    for level in f_levels:
+        hit = np.flatnonzero(fi <= level)
+        pos |= set(hit[:1].tolist())
+    if truth is not None:
+        err = np.max(range_error(X[idx, :len(truth)], truth), axis=-1)
+        for level in PARAMETER_TARGETS:
+            pos |= set(np.flatnonzero(err <= level)[:1].tolist())
+    for b in BUDGET_CHECKPOINTS:
+        before = np.flatnonzero(idx < b)
+        if before.size:
+            pos.add(int(before[-1]))
+    return idx[sorted(pos)]
+
+
+def trajectory(X: np.ndarray, f: np.ndarray, keep: np.ndarray) -> list[list]:
+    """``[evaluation (1-based), fitness, vector]`` at the kept evaluations."""
+    return [[int(i) + 1, float(f[i]), [float(v) for v in X[i]]] for i in keep]
 
 
 def run_record(problem: Problem, result: SolveResult, *, case: str, track: str, seed: int,
@@ -71,7 +110,7 @@ def run_record(problem: Problem, result: SolveResult, *, case: str, track: str, 
         "evaluations": result.evaluations,
         "stop_reason": result.stop_reason,
         "failures": problem.failures,
-        "trace": thin_trace(problem.history()["best"]),
+        "schema": RECORD_SCHEMA,
         "wall_s": wall_s,
         "solver_wall_s": result.wall_s,
         "library": result.library,
@@ -80,7 +119,19 @@ def run_record(problem: Problem, result: SolveResult, *, case: str, track: str, 
     if problem.dim > N_FAULTS:
         rec["fitted_effects"] = dict(zip(problem.names[N_FAULTS:],
                                          map(float, result.x[N_FAULTS:])))
-    best = problem.history()["best"]
+    hist = problem.history()
+    best = hist["best"]
+    known = best_known(case, track, seed, root_seed)
+    truth = problem.score(problem.nominal).truth if problem.has_truth else None
+    keep = trajectory_indices(hist["x"], hist["fitness"],
+                              None if truth is None else np.array(list(truth.values())),
+                              [] if known is None else
+                              fitness_targets(known["f_star"], known["f_nominal"]))
+    rec["trajectory"] = trajectory(hist["x"], hist["fitness"], keep)
+    # the trace is the trajectory without vectors, and the last evaluation
+    rec["trace"] = [[p[0], p[1]] for p in rec["trajectory"]]
+    if best.size and rec["trace"][-1][0] != best.size:
+        rec["trace"].append([int(best.size), float(best[-1])])
     rec["best_at"] = [[b, float(best[b - 1])] for b in BUDGET_CHECKPOINTS if b <= best.size]
     if problem.has_truth:
         score = problem.score(result.x)
@@ -89,8 +140,7 @@ def run_record(problem: Problem, result: SolveResult, *, case: str, track: str, 
                    success=score.success,
                    evals_to_success=problem.first_success() if score.success else None,
                    accuracy=score.accuracy, range_error=score.range_error,
-                   targets=anytime_targets(best, hits, best_known(case, track, seed,
-                                                                  root_seed)))
+                   targets=anytime_targets(best, hits, known))
     return rec
 
 

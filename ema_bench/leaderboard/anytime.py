@@ -17,6 +17,10 @@ holds the evaluation at which each was first reached.
 - **Fixed budget**: quantiles over runs of the best-so-far precision
   ``(f - f*) / (f_nominal - f*)`` at budget checkpoints.
 
+Every hit, ``f*`` and best-so-far value comes from the record's re-derivation
+(:func:`.derive.derived`), never from its ``targets`` or ``best_at`` claims (legacy records:
+the latest hit their evidence allows, see :mod:`.derive`).
+
 The sanity case (``nominal``: does the solver stay at a healthy actuator?) is scored apart and
 left out of every aggregate.  A run that failed with an error reached no target (it counts,
 at its budget).
@@ -24,6 +28,7 @@ at its budget).
 
 from __future__ import annotations
 
+import hashlib
 import math
 from collections import defaultdict
 from collections.abc import Sequence
@@ -39,6 +44,7 @@ from ..suite import (
     SANITY_CASES,
     precision_key,
 )
+from .derive import derived, precision
 from .store import is_error
 
 CONFIDENCE = 0.95
@@ -51,16 +57,14 @@ PARAMETER_TARGET_KEYS = tuple(f"p{precision_key(p)}" for p in PARAMETER_TARGETS)
 def hits(record: dict) -> dict[str, int | None]:
     """Target name (``f1e-2``, ``p0.01``) -> evaluation of the first hit (None: missed), over
     the targets defined for the record's instance (no fitness targets without an ``f*``); a
-    run that failed with an error missed every target."""
+    run that failed with an error missed every target.  Re-derived, never the claims."""
     if is_error(record):
         return dict.fromkeys(FITNESS_TARGETS + PARAMETER_TARGET_KEYS)
-    t = record.get("targets") or {}
+    d = derived(record)
     out: dict[str, int | None] = {}
-    if t.get("fitness") is not None:
-        out.update({f"f{precision_key(p)}": t["fitness"].get(precision_key(p))
-                    for p in FITNESS_PRECISIONS})
-    par = t.get("parameters") or {}
-    out.update({f"p{precision_key(p)}": par.get(precision_key(p)) for p in PARAMETER_TARGETS})
+    if d.fitness_hits is not None:
+        out.update({f"f{k}": v for k, v in d.fitness_hits.items()})
+    out.update({f"p{k}": v for k, v in d.parameter_hits.items()})
     return out
 
 
@@ -81,9 +85,17 @@ def run_area(record: dict, kinds: str = "fp") -> float:
     return float(np.mean([credit(v, record["budget"]) for v in h.values()]))
 
 
+def group_seed(*identity: object) -> int:
+    """The bootstrap seed of a group (track, solver, cases, target): fixed by what the group
+    is, not by where its records sit in ``runs.jsonl`` nor by which other groups exist."""
+    digest = hashlib.sha256("|".join(map(str, identity)).encode()).digest()
+    return BOOTSTRAP_SEED ^ int.from_bytes(digest[:8], "little")
+
+
 def mean_ci(values: Sequence[float], seed: int = BOOTSTRAP_SEED) -> tuple[float, float, float]:
-    """Mean and its bootstrap 95 % interval (nan bounds for fewer than two values)."""
-    v = np.asarray([x for x in values if not math.isnan(x)], dtype=float)
+    """Mean and its bootstrap 95 % interval (nan bounds for fewer than two values); the
+    values are sorted first, so the interval does not depend on their order."""
+    v = np.sort(np.asarray([x for x in values if not math.isnan(x)], dtype=float))
     if v.size == 0:
         return math.nan, math.nan, math.nan
     m = float(v.mean())
@@ -104,10 +116,14 @@ def ert(hit_list: Sequence[int | None], budgets: Sequence[int]) -> float:
 def ert_ci(hit_list: Sequence[int | None], budgets: Sequence[int],
            seed: int = BOOTSTRAP_SEED) -> tuple[float, float, float]:
     """ERT and a 95 % interval: the bootstrap interval (over runs) of the hit rate per
-    evaluation ``hits / cost``, inverted (an upper bound of inf: the data allow no hit)."""
+    evaluation ``hits / cost``, inverted (an upper bound of inf: the data allow no hit).  The
+    runs are resampled as (hit, cost) pairs, sorted first (the interval does not depend on
+    their order)."""
     e = ert(hit_list, budgets)
-    succ = np.array([h is not None for h in hit_list], dtype=float)
-    cost = np.array([h if h is not None else b for h, b in zip(hit_list, budgets)], float)
+    pairs = sorted((float(h is not None), float(h if h is not None else b))
+                   for h, b in zip(hit_list, budgets))
+    succ = np.array([p[0] for p in pairs], dtype=float)
+    cost = np.array([p[1] for p in pairs], dtype=float)
     if succ.size < 2 or np.all(succ == succ[0]) and np.all(cost == cost[0]):
         return e, (e if succ.size > 1 else math.nan), (e if succ.size > 1 else math.nan)
     res = stats.bootstrap((succ, cost), lambda s, c, axis=-1: s.sum(axis) / c.sum(axis),
@@ -115,25 +131,18 @@ def ert_ci(hit_list: Sequence[int | None], budgets: Sequence[int],
                           confidence_level=CONFIDENCE, method="percentile",
                           rng=np.random.default_rng(seed))
     lo, hi = res.confidence_interval.low, res.confidence_interval.high
-    return e, (1.0 / hi if hi > 0 else math.inf), (1.0 / lo if lo > 0 else math.inf)
+    return e, (float(1.0 / hi) if hi > 0 else math.inf), (float(1.0 / lo) if lo > 0
+                                                          else math.inf)
 
 
 def precision_at(record: dict, budget: int) -> float:
     """Best-so-far precision ``(f - f*) / (f_nominal - f*)`` after ``budget`` evaluations:
-    from the record's ``best_at`` checkpoints (the last one at or before ``budget``), or its
+    from the re-derived ``best_at`` checkpoints (the last one at or before ``budget``), or the
     final fitness once the run has stopped; nan without ``f*``, for an error record, before
     the first checkpoint or beyond the run's budget.  Below 0: the run beat ``f*``."""
-    t = record.get("targets") or {}
-    if is_error(record) or "f_star" not in t or budget > record["budget"]:
+    if is_error(record) or budget > record["budget"]:
         return math.nan
-    if budget >= record.get("evaluations", math.inf):
-        f = record["fitness"]
-    else:
-        pts = [f for b, f in record.get("best_at", []) if b <= budget]
-        if not pts:
-            return math.nan
-        f = pts[-1]
-    return (f - t["f_star"]) / (t["f_nominal"] - t["f_star"])
+    return precision(derived(record), budget, record.get("evaluations", math.inf))
 
 
 @dataclass(frozen=True)
@@ -185,7 +194,7 @@ def anytime_score(track: str, solver: str, cases: str, records: list[dict]) -> A
     for k in keys:
         hk = [x.get(k) for x in h if k in x]
         bk = [b for x, b in zip(h, budgets) if k in x]
-        ert_d[k] = ert_ci(hk, bk)
+        ert_d[k] = ert_ci(hk, bk, group_seed(track, solver, cases, k))
         rate[k] = sum(v is not None for v in hk) / len(hk)
     prec = {}
     for b in budget_points(min(budgets)):
@@ -197,7 +206,7 @@ def anytime_score(track: str, solver: str, cases: str, records: list[dict]) -> A
     return AnytimeScore(
         track=track, solver=solver, cases=cases, runs=len(records),
         errors=sum(map(is_error, records)),
-        area=mean_ci([run_area(r) for r in records]),
+        area=mean_ci([run_area(r) for r in records], group_seed(track, solver, cases)),
         fitness_area=float(np.mean(fit)) if fit else math.nan,
         parameter_area=float(np.mean([run_area(r, "p") for r in records])),
         ert=ert_d, hit_rate=rate, precision=prec)
@@ -235,8 +244,8 @@ def sanity_scores(records: list[dict]) -> list[SanityScore]:
             groups[(r["track"], r["solver"])].append(r)
     out = []
     for (track, solver), rs in sorted(groups.items()):
-        err = [max(r["range_error"].values()) for r in rs if not is_error(r)]
-        out.append(SanityScore(track, solver, len(rs), sum(bool(r["success"]) for r in rs),
+        err = [max(derived(r).range_error.values()) for r in rs if not is_error(r)]
+        out.append(SanityScore(track, solver, len(rs), sum(derived(r).success for r in rs),
                                float(np.median(err)) if err else math.nan))
     return out
 

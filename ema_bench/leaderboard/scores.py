@@ -9,6 +9,10 @@ A run that failed with an error (``status: "error"``: the solver raised, or its 
 is an unsuccessful run at its budget: it counts in runs, success rate and ERT (a solver that
 crashes is worse, not absent), and is left out of the medians of what finished runs measure
 (fitness, accuracy, wall time); ``errors`` counts such runs.
+
+Every figure comes from the record's re-derivation (:func:`.derive.derived`: success,
+evaluations to success, accuracy and range errors from the evidence and the instance's
+truth), never from what the record claims: a record scores here as ``validate`` derives it.
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ import numpy as np
 
 from ..faults import FAULT_NAMES
 from .anytime import ert as hit_ert
+from .derive import derived
 from .store import is_error
 
 ALL = "all"
@@ -52,15 +57,17 @@ class SolverScore:
 
 
 def run_cost(rec: dict) -> int:
-    """Evaluations a run counts for ERT: until first success, or its whole budget."""
-    if rec["success"] and rec.get("evals_to_success"):
-        return int(rec["evals_to_success"])
+    """Evaluations a run counts for ERT: until first success, or its whole budget
+    (re-derived: :func:`.derive.derived`)."""
+    d = derived(rec)
+    if d.success and d.evals_to_success:
+        return int(d.evals_to_success)
     return int(rec["budget"])
 
 
 def ert(records: list[dict]) -> float:
     """ERT of the success target (the one formula: :func:`.anytime.ert`)."""
-    return hit_ert([run_cost(r) if r["success"] else None for r in records],
+    return hit_ert([run_cost(r) if derived(r).success else None for r in records],
                    [r["budget"] for r in records])
 
 
@@ -70,16 +77,17 @@ def _median(values) -> float:
 
 
 def score_group(track: str, case: str, solver: str, records: list[dict]) -> SolverScore:
-    ok = [r for r in records if r["success"]]
+    ok = [r for r in records if derived(r).success]
     finished = [r for r in records if not is_error(r)]
     return SolverScore(
         track=track, case=case, solver=solver, runs=len(records), successes=len(ok),
         success_rate=len(ok) / len(records), ert=ert(records),
         median_evals_to_success=_median([run_cost(r) for r in ok]),
-        median_fitness=_median([r["fitness"] for r in finished]),
+        median_fitness=_median([derived(r).fitness for r in finished]),
         median_wall_s=_median([r["wall_s"] for r in finished]),
-        accuracy={n: _median([r["accuracy"][n] for r in finished]) for n in FAULT_NAMES},
-        range_error={n: _median([r["range_error"][n] for r in finished])
+        accuracy={n: _median([derived(r).accuracy[n] for r in finished])
+                  for n in FAULT_NAMES},
+        range_error={n: _median([derived(r).range_error[n] for r in finished])
                      for n in FAULT_NAMES},
         errors=len(records) - len(finished),
     )

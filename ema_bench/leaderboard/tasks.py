@@ -72,14 +72,14 @@ def run_task(task: Task) -> dict:
 
 
 def error_record(task: Task, exc: BaseException, wall_s: float = 0.0) -> dict[str, Any]:
-    """The record of a run that raised ``exc`` (or whose worker died): its identity, the
-    error, and ``success: False`` with no evaluations to success, so scores count it as an
-    unsuccessful run at its budget."""
+    """The record of a run that raised ``exc`` (or whose worker died): its identity and the
+    error, and no score (scores count it as an unsuccessful run at its budget; a score a
+    record carries is not read)."""
     return {"key": task.key, **{f: getattr(task, f) for f in IDENTITY_FIELDS},
             "model_version": MODEL_VERSION, "suite": SUITE_ID, "status": "error",
             "error_type": type(exc).__name__, "error": str(exc) or repr(exc),
             "traceback": "".join(traceback.format_exception(exc))[-4000:],
-            "success": False, "evals_to_success": None, "wall_s": wall_s}
+            "wall_s": wall_s}
 
 
 def run_guarded(runner: Callable[[Task], dict], task: Task) -> dict:

@@ -1,0 +1,207 @@
+"""Every derived figure of a run record, recomputed from its evidence and the instance's truth.
+
+The one re-derivation behind ``ema-bench validate`` (:mod:`.validate`), the success table
+(:mod:`.scores`) and the anytime scores (:mod:`.anytime`): a record's own claims (``success``,
+``evals_to_success``, ``accuracy``, ``range_error``, ``targets``, ``best_at``) are never read
+here, so a record scores the same everywhere, and a record whose claims disagree with this is
+refused by ``validate``.  The truth comes from the suite (:func:`truth_of`), ``f*`` from the
+shipped targets, never from the record.
+
+Evidence by schema (:func:`~ema_bench.records.schema`):
+
+- **schema 2**: the ``trajectory`` (every kept improvement with its vector; thinning never
+  drops a target's first hit nor a ``best_at`` point), so every figure is exact.  That the
+  trajectory's vectors have the fitness it states is :mod:`.validate`'s re-evaluation.
+- **legacy** (schema 1, no trajectory): the ``trace`` (best-so-far fitness at each
+  improvement, thinned geometrically to :data:`~ema_bench.records.MAX_TRACE_POINTS` points) and
+  the final vector ``x``.  Fitness-target hits and ``best_at`` come from the trace (exact
+  unless it was thinned; then the first trace point that reaches a target, the latest the hit
+  can be).  Parameter-target hits cannot be re-derived without the vectors: they are credited
+  conservatively, at the evaluation where the final vector was found (the last improvement)
+  when the final vector lies within the target, else as missed; ``evals_to_success`` likewise.
+  A legacy run is therefore never credited earlier than its evidence shows; replay
+  (``validate --replay``) is what verifies a legacy record's claimed parameter hits.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from ..faults import FAULT_NAMES, N_FAULTS
+from ..records import MAX_TRACE_POINTS, schema
+from ..scoring import SUCCESS_RANGE_ERROR, paper_accuracy, range_error
+from ..suite import (
+    BUDGET_CHECKPOINTS,
+    FITNESS_PRECISIONS,
+    PARAMETER_TARGETS,
+    best_known,
+    fitness_targets,
+    instance_faults,
+    is_instance,
+    precision_key,
+)
+from .store import is_error
+
+
+class DerivationError(ValueError):
+    """The record lacks the evidence a figure is derived from (a one-line reason)."""
+
+
+@dataclass(frozen=True)
+class Derived:
+    """The figures of one record, re-derived from its evidence.
+
+    ``fitness_hits`` / ``parameter_hits``: target key (``1e-2``, ``0.01``) -> evaluation of the
+    first hit (None: missed); ``fitness_hits`` is None where the suite has no ``f*``.
+    ``exact``: the figures are the run's own (schema 2, or a legacy trace never thinned);
+    otherwise (legacy) hits are the latest the evidence allows."""
+
+    schema: int
+    error: bool
+    success: bool
+    evals_to_success: int | None
+    accuracy: dict[str, float | None] | None
+    range_error: dict[str, float] | None
+    fitness_hits: dict[str, int | None] | None
+    parameter_hits: dict[str, int | None]
+    best_at: list[list[float]]
+    f_star: float | None
+    f_nominal: float | None
+    fitness: float | None           # the final best-so-far fitness of the evidence
+    last_improvement: int | None    # evaluation where the final vector was first evaluated
+    trace_thinned: bool             # legacy: the trace may have lost improvements
+
+
+_NO_HITS = dict.fromkeys(map(precision_key, PARAMETER_TARGETS))
+
+
+def truth_of(record: dict) -> np.ndarray:
+    """The true faults of the record's instance, from the suite (or, for a case drawn from the
+    seed, the rebuilt instance), never from the record."""
+    case = record["case"]
+    if is_instance(case):
+        return instance_faults(case)
+    return _rebuilt_truth(case, record["track"], int(record["seed"]),
+                          int(record.get("root_seed", 0)))
+
+
+@lru_cache(maxsize=256)
+def _rebuilt_truth(case: str, track: str, seed: int, root_seed: int) -> np.ndarray:
+    from ..instances import make_problem
+    from ..seeding import run_seed
+
+    p = make_problem(case, track=track, seed=run_seed(root_seed, seed), budget=1)
+    return np.array([p.score(p.nominal).truth[n] for n in FAULT_NAMES])
+
+
+def _points(record: dict) -> tuple[list[int], list[float], list[np.ndarray] | None]:
+    """Evaluations, fitness and (schema 2) vectors of the record's evidence."""
+    if schema(record) >= 2:
+        tr = record.get("trajectory")
+        if not isinstance(tr, list) or not tr:
+            raise DerivationError("schema-2 record without a trajectory")
+        try:
+            return ([int(p[0]) for p in tr], [float(p[1]) for p in tr],
+                    [np.asarray(p[2], dtype=float) for p in tr])
+        except (TypeError, ValueError, IndexError) as exc:
+            raise DerivationError(f"malformed trajectory ({exc})") from None
+    tr = record.get("trace")
+    if not isinstance(tr, list) or not tr:
+        raise DerivationError("legacy record without a trace")
+    try:
+        return [int(p[0]) for p in tr], [float(p[1]) for p in tr], None
+    except (TypeError, ValueError, IndexError) as exc:
+        raise DerivationError(f"malformed trace ({exc})") from None
+
+
+def _first(values: list[bool], ev: list[int]) -> int | None:
+    return next((e for e, ok in zip(ev, values) if ok), None)
+
+
+def derive(record: dict) -> Derived:
+    """The record's figures from its evidence (:class:`Derived`); DerivationError if the
+    evidence is missing or malformed.  An error record reached nothing."""
+    s = schema(record)
+    if is_error(record):
+        return Derived(s, True, False, None, None, None, None, dict(_NO_HITS), [], None,
+                       None, None, None, False)
+    ev, fit, vecs = _points(record)
+    truth = truth_of(record)
+    if vecs is not None:
+        final = vecs[-1][:N_FAULTS]
+    else:
+        try:
+            final = np.array([float(record["x"][n]) for n in FAULT_NAMES])
+        except (KeyError, TypeError, ValueError) as exc:
+            raise DerivationError(f"final vector x unreadable ({exc})") from None
+    err = range_error(final, truth)
+    known = best_known(record["case"], record["track"], int(record["seed"]),
+                       int(record.get("root_seed", 0)))
+    # improvements only: a legacy trace ends with the last evaluation, which may repeat
+    imp = [i for i in range(len(fit)) if i == 0 or fit[i] < fit[i - 1]]
+    last = ev[imp[-1]]
+    thinned = vecs is None and len(imp) >= MAX_TRACE_POINTS
+    f_hits = None
+    if known is not None:
+        levels = fitness_targets(known["f_star"], known["f_nominal"])
+        f_hits = {precision_key(p): _first([f <= lv for f in fit], ev)
+                  for p, lv in zip(FITNESS_PRECISIONS, levels)}
+    if vecs is not None:
+        worst = [float(np.max(range_error(v[:N_FAULTS], truth))) for v in vecs]
+        p_hits = {precision_key(p): _first([w <= p for w in worst], ev)
+                  for p in PARAMETER_TARGETS}
+    else:   # legacy: the final vector, from where it was found (the latest it can be)
+        p_hits = {precision_key(p): (last if float(np.max(err)) <= p else None)
+                  for p in PARAMETER_TARGETS}
+    success = bool(np.all(err <= SUCCESS_RANGE_ERROR))
+    n_eval = int(record.get("evaluations", ev[-1]))
+    best_at = [[b, next(f for e, f in zip(reversed(ev), reversed(fit)) if e <= b)]
+               for b in BUDGET_CHECKPOINTS if ev[0] <= b <= n_eval]
+    return Derived(
+        schema=s, error=False, success=success,
+        evals_to_success=p_hits[precision_key(SUCCESS_RANGE_ERROR)] if success else None,
+        accuracy=dict(zip(FAULT_NAMES, paper_accuracy(final, truth))),
+        range_error=dict(zip(FAULT_NAMES, map(float, err))),
+        fitness_hits=f_hits, parameter_hits=p_hits, best_at=best_at,
+        f_star=None if known is None else known["f_star"],
+        f_nominal=None if known is None else known["f_nominal"],
+        fitness=fit[imp[-1]], last_improvement=last, trace_thinned=thinned)
+
+
+# A board is scored several times over (tables, page, summary): derive each record once.
+_MEMO: dict[int, tuple[dict, Derived]] = {}
+_MEMO_MAX = 200_000
+
+
+def derived(record: dict) -> Derived:
+    """:func:`derive`, memoised per record object (records are not modified after reading;
+    the memo keeps the record alive so its id is not reused)."""
+    hit = _MEMO.get(id(record))
+    if hit is not None and hit[0] is record:
+        return hit[1]
+    d = derive(record)
+    if len(_MEMO) >= _MEMO_MAX:
+        _MEMO.clear()
+    _MEMO[id(record)] = (record, d)
+    return d
+
+
+def precision(d: Derived, budget: int, evaluations: int) -> float:
+    """Best-so-far precision ``(f - f*) / (f_nominal - f*)`` after ``budget`` evaluations, from
+    the derived ``best_at`` (the last checkpoint at or before ``budget``) or the final fitness
+    once the run has stopped; nan without ``f*``, for an error record or before the first
+    checkpoint."""
+    if d.error or d.f_star is None:
+        return math.nan
+    if budget >= evaluations:
+        f = d.fitness
+    else:
+        pts = [f for b, f in d.best_at if b <= budget]
+        if not pts:
+            return math.nan
+        f = pts[-1]
+    return (f - d.f_star) / (d.f_nominal - d.f_star)
