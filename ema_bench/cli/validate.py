@@ -32,13 +32,21 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="do not require every instance of the suite (a shard, a quick run)")
     p.add_argument("--no-reevaluate", action="store_true",
                    help="skip re-evaluating each reported vector (fast, weaker)")
+    p.add_argument("--replay", metavar="K", default=None,
+                   help="also re-run K records (a seeded sample; 'all': every one) with the "
+                        "registered solver at the record's identity and compare the trace, "
+                        "best_at, final vector and trajectory (catches a solver that reads "
+                        "what it was not given, and hits moved earlier)")
+    p.add_argument("--replay-seed", type=int, default=None, metavar="S",
+                   help="seed of the replay sample (default 29)")
     add_json(p, "the findings")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..leaderboard.store import unique
-    from ..leaderboard.validate import validate
+    from ..leaderboard.store import is_error, unique
+    from ..leaderboard.validate import LEGACY_UNVERIFIABLE, Finding, validate
+    from ..records import schema
     from ..suite import SUITE_ID
     from . import CLIError, print_json
     from .args import read_run_files
@@ -47,13 +55,41 @@ def run(args: argparse.Namespace) -> int:
     if not records:
         raise CLIError(f"no run records in {', '.join(args.runs)}")
     found = validate(records, reevaluate=not args.no_reevaluate, complete=not args.partial)
+    legacy = sum(schema(r) < 2 and not is_error(r) for r in records)
+    replayed = _replay(records, args.replay, args.replay_seed)
+    found += [Finding(r.key, f"replay: {r.finding}") for r in replayed if r.finding]
     if args.json:
         print_json({"suite": SUITE_ID, "records": len(records), "accepted": not found,
+                    "legacy_records": legacy,
+                    "replayed": len(replayed),
+                    "reproduced": sum(r.finding is None for r in replayed),
+                    "replay_wall_s": sum(r.wall_s for r in replayed),
                     "findings": [{"key": f.key, "problem": f.problem} for f in found]})
-    elif found:
+        return 1 if found else 0
+    if legacy:
+        print(f"{legacy} legacy record(s) (schema 1, no trajectory vectors): their "
+              f"{'; '.join(LEGACY_UNVERIFIABLE)} are checked against bounds only and "
+              "verified by --replay")
+    if replayed:
+        ok = sum(r.finding is None for r in replayed)
+        print(f"replay: {ok}/{len(replayed)} records reproduced "
+              f"({sum(r.wall_s for r in replayed):.0f} s)")
+    if found:
         print(f"REFUSED: {len(found)} finding(s) in {len(records)} records (suite {SUITE_ID}):")
         for f in found:
             print(f"  {f}")
     else:
         print(f"accepted: {len(records)} records of suite {SUITE_ID}")
     return 1 if found else 0
+
+
+def _replay(records: list[dict], k: str | None, seed: int | None) -> list:
+    from ..leaderboard.replay import REPLAY_SEED, replay
+    from . import CLIError
+
+    if k is None:
+        return []
+    if k != "all" and not (k.isdigit() and int(k) > 0):
+        raise CLIError(f"--replay takes a positive number of records or 'all', got {k!r}")
+    return replay(records, None if k == "all" else int(k),
+                  REPLAY_SEED if seed is None else seed)

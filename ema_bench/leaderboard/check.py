@@ -62,24 +62,9 @@ class Regression:
 
 def truncate(records: list[dict], budget: int, seeds: int) -> list[dict]:
     """Committed records as if they had been run with ``budget`` on the first ``seeds``:
-    success and every target reached after ``budget`` are dropped."""
-    out = []
-    for r in records:
-        if r["seed"] >= seeds:
-            continue
-        r = dict(r)
-        ok = r["success"] and r.get("evals_to_success") and r["evals_to_success"] <= budget
-        r["success"] = bool(ok)
-        r["budget"] = min(budget, r["budget"])
-        if r.get("targets"):
-            t = dict(r["targets"])
-            for kind in ("fitness", "parameters"):
-                if t.get(kind) is not None:
-                    t[kind] = {k: (v if v is not None and v <= budget else None)
-                               for k, v in t[kind].items()}
-            r["targets"] = t
-        out.append(r)
-    return out
+    their ``budget`` is lowered, and the scores re-derive them from their evidence up to it
+    (:func:`~.derive.derive`: every target reached after ``budget`` is dropped)."""
+    return [{**r, "budget": min(budget, r["budget"])} for r in records if r["seed"] < seeds]
 
 
 def run_id(r: dict) -> tuple:

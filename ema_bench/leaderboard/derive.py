@@ -21,6 +21,11 @@ Evidence by schema (:func:`~ema_bench.records.schema`):
   when the final vector lies within the target, else as missed; ``evals_to_success`` likewise.
   A legacy run is therefore never credited earlier than its evidence shows; replay
   (``validate --replay``) is what verifies a legacy record's claimed parameter hits.
+
+A record whose ``budget`` is below its ``evaluations`` (``--check`` re-scores committed runs at
+a smaller budget that way, :func:`~.check.truncate`) is derived from its evidence up to the
+budget: exact for schema 2; a legacy run cut before its final vector was found has no known
+vector there, so it is scored as unsuccessful with no parameter hit.
 """
 
 from __future__ import annotations
@@ -130,6 +135,12 @@ def derive(record: dict) -> Derived:
         return Derived(s, True, False, None, None, None, None, dict(_NO_HITS), [], None,
                        None, None, None, False)
     ev, fit, vecs = _points(record)
+    n_eval = int(record.get("evaluations", ev[-1]))
+    # a record re-scored at a smaller budget (``--check``'s truncation): its evidence up to it
+    cut = min(int(record.get("budget", n_eval)), n_eval)
+    keep = [i for i, e in enumerate(ev) if e <= cut] or [0]
+    ev, fit = [ev[i] for i in keep], [fit[i] for i in keep]
+    vecs = None if vecs is None else [vecs[i] for i in keep]
     truth = truth_of(record)
     if vecs is not None:
         final = vecs[-1][:N_FAULTS]
@@ -144,6 +155,12 @@ def derive(record: dict) -> Derived:
     # improvements only: a legacy trace ends with the last evaluation, which may repeat
     imp = [i for i in range(len(fit)) if i == 0 or fit[i] < fit[i - 1]]
     last = ev[imp[-1]]
+    # legacy, cut before the final vector was found: the vector at the cut is unknown
+    known_final = True
+    if vecs is None:
+        full_imp = [p[0] for i, p in enumerate(record["trace"])
+                    if i == 0 or p[1] < record["trace"][i - 1][1]]
+        known_final = full_imp[-1] <= cut
     thinned = vecs is None and len(imp) >= MAX_TRACE_POINTS
     f_hits = None
     if known is not None:
@@ -155,12 +172,11 @@ def derive(record: dict) -> Derived:
         p_hits = {precision_key(p): _first([w <= p for w in worst], ev)
                   for p in PARAMETER_TARGETS}
     else:   # legacy: the final vector, from where it was found (the latest it can be)
-        p_hits = {precision_key(p): (last if float(np.max(err)) <= p else None)
-                  for p in PARAMETER_TARGETS}
-    success = bool(np.all(err <= SUCCESS_RANGE_ERROR))
-    n_eval = int(record.get("evaluations", ev[-1]))
+        p_hits = {precision_key(p): (last if known_final and float(np.max(err)) <= p
+                                     else None) for p in PARAMETER_TARGETS}
+    success = bool(np.all(err <= SUCCESS_RANGE_ERROR)) and known_final
     best_at = [[b, next(f for e, f in zip(reversed(ev), reversed(fit)) if e <= b)]
-               for b in BUDGET_CHECKPOINTS if ev[0] <= b <= n_eval]
+               for b in BUDGET_CHECKPOINTS if ev[0] <= b <= cut]
     return Derived(
         schema=s, error=False, success=success,
         evals_to_success=p_hits[precision_key(SUCCESS_RANGE_ERROR)] if success else None,
