@@ -15,6 +15,8 @@ import warnings
 from collections.abc import Callable
 from typing import Generic, TypeVar
 
+from .escape import check_name
+
 Info = TypeVar("Info")
 
 
@@ -33,7 +35,13 @@ class PluginRegistry(Generic[Info]):
 
     def add(self, name: str, info: Info) -> None:
         """Register ``info`` as ``name``; the same callable and config again is a no-op (a
-        module imported twice), anything else under a taken name is an error."""
+        module imported twice), anything else under a taken name is an error, and so is an
+        unsafe name (:func:`~ema_bench.escape.check_name`: names reach tables, files and
+        spreadsheets)."""
+        try:
+            check_name(name, self.kind)
+        except ValueError as exc:
+            raise self.error(str(exc)) from None
         old = self.entries.get(name)
         new = self.target(info)
         if old is not None and (self.target(old) is not new

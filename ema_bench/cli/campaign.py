@@ -248,11 +248,13 @@ def score_table(results: list[dict]) -> list[str]:
     """The Markdown table of scored runs: one row per run."""
     import math
 
+    from ..escape import markdown
+
     head = ["tracker", "track"] + [h for _, h, _ in _COLUMNS] + [
         f"{n} err / cover" for n in ("Na", "Fst", "BLK")]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in results:
-        cells = [r["tracker"], r["track"]]
+        cells = [markdown(r["tracker"]), markdown(r["track"])]   # plugin names: escaped
         for key, _, fmt in _COLUMNS:
             v = r.get(key, math.nan)
             cells.append("-" if v != v else fmt.format(v))

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..escape import csv_value, markdown
 from ..faults import CASES, FAULT_NAMES, FAULT_UNITS
 from ..suite import instance_names
 from .anytime import AnytimeScore, SanityScore, anytime_scores, sanity_scores
@@ -58,14 +59,21 @@ def ranking_rows(scores: list[AnytimeScore], track: str) -> list[dict[str, objec
 
 
 def _cell(v: object) -> str:
-    return v[0] if isinstance(v, tuple) else _fmt(v) if isinstance(v, float) else str(v)
+    """A table cell: our formatted numbers as they are, any text (names) escaped."""
+    if isinstance(v, tuple):
+        return v[0]
+    if isinstance(v, float):
+        return _fmt(v)
+    return markdown(v)
 
 
 def markdown_table(rows: list[dict[str, object]]) -> list[str]:
+    """Rows as a Markdown table; headers and text cells escaped (:func:`~ema_bench.escape.
+    markdown`): names come from plugins and records."""
     if not rows:
         return ["(no runs)"]
     cols = list(rows[0])
-    return (["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
+    return (["| " + " | ".join(markdown(c) for c in cols) + " |", "|" + "---|" * len(cols)]
             + ["| " + " | ".join(_cell(r[c]) for c in cols) + " |" for r in rows])
 
 
@@ -102,7 +110,7 @@ def write_leaderboards(records: list[dict], out: Path, header: str) -> list[Path
             w = csv.DictWriter(fh, fieldnames=fields)
             w.writeheader()
             for r in flat:
-                w.writerow({k: (repr(v) if isinstance(v, float) else v) for k, v in r.items()})
+                w.writerow({k: csv_value(v) for k, v in r.items()})
         md = [f"# Leaderboard, {track} track", "", header, "", _track_note(track), "",
               "## Ranking: ECDF area over every (instance, target) pair", "",
               "Instances: every one but the sanity case. Targets: fitness within "
@@ -154,7 +162,7 @@ def write_paper_tables(records: list[dict], scores: list[SolverScore], out: Path
         head = "| parameter | unit | true | paper estimate | paper acc % |"
         sep = "|---|---|---:|---:|---:|"
         for s in solvers:
-            head += f" {s} estimate | {s} acc % | {s} range err % |"
+            head += f" {markdown(s)} estimate | {markdown(s)} acc % | {markdown(s)} range err % |"
             sep += "---:|---:|---:|"
         lines += [head, sep]
         for j, n in enumerate(FAULT_NAMES):
