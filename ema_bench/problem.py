@@ -313,6 +313,17 @@ class Problem(_Counted):
         return (f"Problem({self.label!r}, track={self.track!r}, evaluations="
                 f"{self.evaluations}/{self.budget}, normalise={self.normalise})")
 
+    def without_truth(self) -> Problem:
+        """This problem without its truth: the same data, search space and budget, a fresh
+        log, no score.  Replay runs a solver on it after the truthful problem is gone, so a
+        solver that reads memory it was not given finds no truth there."""
+        blind = object.__new__(Problem)
+        blind.__dict__.update(self.__dict__)
+        blind.__truth = None
+        blind.meta = dict(self.meta)
+        blind._log = EvaluationLog(self.objective, self.space, self.budget)
+        return blind
+
     def view(self) -> SolverView:
         """The solver's view of this problem: shares its budget and log, holds no truth."""
         return SolverView(self._log, self.space, self.start, self.normalise, self.measured)

@@ -5,7 +5,9 @@ A record's evidence shows that its vectors have the fitness it states, not *when
 found: a solver that peeks at memory it was not given (the problem behind its view, the
 caller's frame), or a submitter who moves a hit earlier, produces a record whose trajectory
 the registered solver does not reproduce at that identity (root seed, seed, budget).  Replay
-builds the instance as the leaderboard did, runs the solver through ``run_solver`` (so it
+builds the instance as the leaderboard did, drops its truth (:meth:`~ema_bench.problem.
+Problem.without_truth`: a solver that found the truth in memory during the leaderboard run
+finds none now, so its trajectory changes), runs the solver through ``run_solver`` (so it
 gets the :class:`~ema_bench.problem.SolverView` only) and compares: the evaluation count, the
 trace (every point, evaluation index exactly, fitness to :data:`REPLAY_RTOL`), the ``best_at``
 values, the final vector and, for schema-2 records, every trajectory vector.
@@ -82,8 +84,10 @@ def replay(records: list[dict], k: int | None = None, seed: int = REPLAY_SEED
         task = Task(r["solver"], r["case"], r["track"], int(r["seed"]), int(r["budget"]),
                     int(r.get("root_seed", 0)))
         try:
+            # the truthful problem is freed at once: while the solver runs, no truth of a
+            # non-public instance is in memory to be read
             problem = make_problem(task.case, track=task.track, seed=task.node(),
-                                   budget=task.budget)
+                                   budget=task.budget).without_truth()
             res = run_solver(task.solver, problem, task.budget, seed=task.node())
             finding = compare(r, problem.history(), res.x)
         except Exception as exc:   # a solver that cannot be replayed is a finding, not a crash

@@ -1,0 +1,78 @@
+"""Hand-built schema-2 run records for the scoring tests: a trajectory of points (evaluation,
+fitness, vector) chosen by hand, on a real suite instance (its truth and shipped ``f*``).
+
+The claims of a record (``success``, ``targets``, ``best_at``, ...) are filled in from the
+re-derivation so that the record is self-consistent; the tests assert hand-computed values
+of the scores, which never read those claims.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ema_bench.faults import LOWER, UPPER, faults_to_dict
+from ema_bench.leaderboard.derive import derive
+from ema_bench.manifest import manifest
+from ema_bench.records import RECORD_SCHEMA
+from ema_bench.suite import SUITE_ID, best_known, instance_faults
+from ema_bench.trace_cache import MODEL_VERSION
+
+F_KEYS = ("0.1", "0.01", "0.001", "0.0001")
+P_KEYS = ("0.1", "0.03", "0.01")
+
+
+def vector(case: str, err: float) -> list[float]:
+    """A vector whose largest range error to ``case``'s truth is ``err`` (on Na)."""
+    x = instance_faults(case).astype(float).copy()
+    step = err * (UPPER[0] - LOWER[0])
+    x[0] = x[0] + step if x[0] + step <= UPPER[0] else x[0] - step
+    return [float(v) for v in x]
+
+
+def level(case: str, track: str, seed: int, p: float) -> float:
+    """The fitness at precision ``p`` of the instance's f*-to-nominal gap."""
+    k = best_known(case, track, seed)
+    return k["f_star"] + p * (k["f_nominal"] - k["f_star"])
+
+
+def record(points, solver: str = "a", case: str = "small", track: str = "twin",
+           seed: int = 0, budget: int = 100, evaluations: int | None = None,
+           status: str | None = None) -> dict:
+    """A schema-2 record of ``points`` ``[(evaluation, fitness, vector)]`` (an error record
+    with ``status``)."""
+    base = {"key": f"{solver}|{case}|{track}|{seed}", "solver": solver, "case": case,
+            "track": track, "seed": seed, "budget": budget, "root_seed": 0,
+            "model_version": MODEL_VERSION, "suite": SUITE_ID}
+    if status:
+        return {**base, "status": status, "error_type": "RuntimeError", "error": "boom",
+                "wall_s": 0.0}
+    pts = [[int(e), float(f), [float(v) for v in x]] for e, f, x in points]
+    r = {**base, "schema": RECORD_SCHEMA, "manifest": manifest([]),
+         "evaluations": evaluations or budget, "trajectory": pts,
+         "trace": [[p[0], p[1]] for p in pts], "fitness": pts[-1][1],
+         "x": faults_to_dict(np.array(pts[-1][2])), "wall_s": 1.0, "stop_reason": "budget"}
+    if r["trace"][-1][0] != r["evaluations"]:
+        r["trace"].append([r["evaluations"], pts[-1][1]])
+    d = derive(r)
+    r.update(success=d.success, evals_to_success=d.evals_to_success, accuracy=d.accuracy,
+             range_error=d.range_error, best_at=d.best_at,
+             truth=faults_to_dict(instance_faults(case)),
+             targets={"fitness": d.fitness_hits, "parameters": d.parameter_hits,
+                      **({"f_star": d.f_star, "f_nominal": d.f_nominal}
+                         if d.f_star is not None else {})})
+    return r
+
+
+def from_hits(f_hits=(None,) * 4, p_hits=(None,) * 3, budget: int = 100, **kw) -> dict:
+    """A record whose fitness targets (1e-1 .. 1e-4) and parameter targets (10, 3, 1 %) are
+    first reached at the given evaluations (None: never)."""
+    case, track, seed = kw.get("case", "small"), kw.get("track", "twin"), kw.get("seed", 0)
+    events = sorted({1, *(h for h in (*f_hits, *p_hits) if h is not None)})
+    pts = []
+    for k, e in enumerate(events):
+        f_done = [p for p, h in zip((1e-1, 1e-2, 1e-3, 1e-4), f_hits) if h is not None and h <= e]
+        p_done = [p for p, h in zip((0.1, 0.03, 0.01), p_hits) if h is not None and h <= e]
+        q = 0.5 * min(f_done) if f_done else 0.5
+        fit = level(case, track, seed, q * (1 - 1e-6 * k))   # strictly decreasing
+        pts.append((e, fit, vector(case, 0.5 * min(p_done) if p_done else 0.3)))
+    return record(pts, budget=budget, **kw)
