@@ -173,30 +173,33 @@ def _capture(problem, budget, seed):
 
 def _walk(root: object, limit: int = 300_000):
     """Every object reachable from ``root`` through attributes, slots, container items,
-    closures, ``__self__``, ``__func__``, ``__wrapped__`` and ``__globals__`` (module
-    objects themselves are not entered; the ema_bench classes and functions found are)."""
-    seen, stack = set(), [root]
+    closures, ``__self__``, ``__func__``, ``__wrapped__`` and the ``__globals__`` of ema_bench's
+    functions (module objects themselves are not entered; the ema_bench classes found are)."""
+    seen, stack = {}, [root]     # id -> object: kept alive, so no id is reused meanwhile
     while stack and len(seen) < limit:
         obj = stack.pop()
-        if id(obj) in seen or isinstance(obj, types.ModuleType | str | bytes | int | float):
+        if id(obj) in seen or isinstance(obj, types.ModuleType | str | bytes):
             continue
-        seen.add(id(obj))
+        seen[id(obj)] = obj
         yield obj
+        if isinstance(obj, int | float):
+            continue
         if isinstance(obj, type):
             if obj.__module__.startswith("ema_bench"):
                 stack += list(vars(obj).values())
             continue
         if isinstance(obj, np.ndarray):
             continue
+        if isinstance(obj, types.CellType) and _filled(obj):
+            stack.append(obj.cell_contents)
         if isinstance(obj, dict):
             stack += list(obj.keys()) + list(obj.values())
         elif isinstance(obj, list | tuple | set | frozenset):
             stack += list(obj)
         if isinstance(obj, types.FunctionType):
-            if not (obj.__module__ or "").startswith("ema_bench"):
-                continue
             stack += [c.cell_contents for c in obj.__closure__ or () if _filled(c)]
-            stack += list(obj.__globals__.values())
+            if (obj.__module__ or "").startswith("ema_bench"):   # not the whole universe
+                stack += list(obj.__globals__.values())
         for name in ("__self__", "__func__", "__wrapped__"):
             stack.append(getattr(obj, name, None))
         attrs = getattr(obj, "__dict__", None)
@@ -244,6 +247,28 @@ def test_the_solver_view_reaches_no_truth_no_score_and_no_problem():
             assert "truth" not in obj or not isinstance(obj["truth"], dict)
         assert not (isinstance(obj, float) and obj == f_truth)
     assert n > 1000    # the walk went through the package, not just the view
+
+
+def test_the_walk_finds_a_truth_planted_anywhere_it_goes():
+    """The walk above is not vacuous: a problem hidden in a closure, a bound method or a
+    cell, or the truth hidden in an ema_bench module's globals, is found."""
+    problem = make_problem("seeded", track="twin", seed=run_seed(0, 6), budget=5)
+    view = problem.view()
+
+    def closure(q):
+        return lambda: q
+
+    for plant in (closure(problem), problem.score, closure(problem.score).__closure__):
+        view._log.plant = plant
+        assert any(isinstance(o, Problem) for o in _walk(view)), plant
+    del view._log.plant
+    import ema_bench.objective as module
+    module._PLANTED = {"truth": problem.score(problem.nominal).truth}
+    try:
+        assert any(isinstance(o, dict) and isinstance(o.get("truth"), dict)
+                   for o in _walk(view))
+    finally:
+        del module._PLANTED
 
 
 @register_solver("test-truth-peeker", description="reads the truth from memory",
