@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ema_bench.faults import LOWER, UPPER, faults_to_dict
+from ema_bench.faults import FAULT_NAMES, LOWER, UPPER, faults_to_dict
 from ema_bench.leaderboard.derive import derive
 from ema_bench.manifest import manifest
 from ema_bench.records import RECORD_SCHEMA
@@ -21,11 +21,12 @@ F_KEYS = ("0.1", "0.01", "0.001", "0.0001")
 P_KEYS = ("0.1", "0.03", "0.01")
 
 
-def vector(case: str, err: float) -> list[float]:
-    """A vector whose largest range error to ``case``'s truth is ``err`` (on Na)."""
+def vector(case: str, err: float, fault: str = "Na") -> list[float]:
+    """A vector whose largest range error to ``case``'s truth is ``err`` (on ``fault``)."""
     x = instance_faults(case).astype(float).copy()
-    step = err * (UPPER[0] - LOWER[0])
-    x[0] = x[0] + step if x[0] + step <= UPPER[0] else x[0] - step
+    i = FAULT_NAMES.index(fault)
+    step = err * (UPPER[i] - LOWER[i])
+    x[i] = x[i] + step if x[i] + step <= UPPER[i] else x[i] - step
     return [float(v) for v in x]
 
 
@@ -37,11 +38,11 @@ def level(case: str, track: str, seed: int, p: float) -> float:
 
 def record(points, solver: str = "a", case: str = "small", track: str = "twin",
            seed: int = 0, budget: int = 100, evaluations: int | None = None,
-           status: str | None = None) -> dict:
+           status: str | None = None, root_seed: int = 0) -> dict:
     """A schema-2 record of ``points`` ``[(evaluation, fitness, vector)]`` (an error record
     with ``status``)."""
     base = {"key": f"{solver}|{case}|{track}|{seed}", "solver": solver, "case": case,
-            "track": track, "seed": seed, "budget": budget, "root_seed": 0,
+            "track": track, "seed": seed, "budget": budget, "root_seed": root_seed,
             "model_version": MODEL_VERSION, "suite": SUITE_ID}
     if status:
         return {**base, "status": status, "error_type": "RuntimeError", "error": "boom",
@@ -65,14 +66,17 @@ def record(points, solver: str = "a", case: str = "small", track: str = "twin",
 
 def from_hits(f_hits=(None,) * 4, p_hits=(None,) * 3, budget: int = 100, **kw) -> dict:
     """A record whose fitness targets (1e-1 .. 1e-4) and parameter targets (10, 3, 1 %) are
-    first reached at the given evaluations (None: never)."""
+    first reached at the given evaluations (None: never); ``f_hits`` are ignored on an
+    instance without ``f*`` (the sanity case)."""
     case, track, seed = kw.get("case", "small"), kw.get("track", "twin"), kw.get("seed", 0)
+    if best_known(case, track, seed) is None:
+        f_hits = (None,) * 4
     events = sorted({1, *(h for h in (*f_hits, *p_hits) if h is not None)})
     pts = []
     for k, e in enumerate(events):
         f_done = [p for p, h in zip((1e-1, 1e-2, 1e-3, 1e-4), f_hits) if h is not None and h <= e]
         p_done = [p for p, h in zip((0.1, 0.03, 0.01), p_hits) if h is not None and h <= e]
-        q = 0.5 * min(f_done) if f_done else 0.5
-        fit = level(case, track, seed, q * (1 - 1e-6 * k))   # strictly decreasing
+        q = (0.5 * min(f_done) if f_done else 0.5) * (1 - 1e-6 * k)   # strictly decreasing
+        fit = level(case, track, seed, q) if best_known(case, track, seed) else 1.0 + q
         pts.append((e, fit, vector(case, 0.5 * min(p_done) if p_done else 0.3)))
     return record(pts, budget=budget, **kw)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 
+import evidence
 import numpy as np
 import pytest
 
@@ -24,26 +25,17 @@ from ema_bench.leaderboard.anytime import (
     run_area,
     sanity_scores,
 )
-from ema_bench.suite import SUITE_ID
-
-F_KEYS = ("0.1", "0.01", "0.001", "0.0001")
-P_KEYS = ("0.1", "0.03", "0.01")
 
 
 def rec(solver="a", case="small", seed=0, f_hits=(None,) * 4, p_hits=(None,) * 3,
-        budget=100, best_at=(), f_star=1.0, f_nominal=11.0, status=None, success=False):
-    r = {"solver": solver, "case": case, "track": "twin", "seed": seed, "root_seed": 0,
-         "budget": budget, "evaluations": budget, "suite": SUITE_ID, "success": success,
-         "range_error": dict.fromkeys(("Na", "Fst", "BLK", "Gprop"), 0.002),
-         "best_at": [list(p) for p in best_at],
-         "fitness": best_at[-1][1] if best_at else f_nominal,
-         "targets": {"fitness": dict(zip(F_KEYS, f_hits)),
-                     "parameters": dict(zip(P_KEYS, p_hits)),
-                     "f_star": f_star, "f_nominal": f_nominal}}
+        budget=100, status=None):
+    """A real-instance record (``small``, twin track: its shipped f*) whose targets are first
+    reached at the given evaluations (:func:`evidence.from_hits`)."""
     if status:
-        r = {k: r[k] for k in ("solver", "case", "track", "seed", "root_seed", "budget")}
-        r.update(status=status, success=False)
-    return r
+        return evidence.record([], solver=solver, case=case, seed=seed, budget=budget,
+                               status=status)
+    return evidence.from_hits(f_hits, p_hits, budget=budget, solver=solver, case=case,
+                              seed=seed)
 
 
 def test_credit_and_run_area_by_hand():
@@ -92,28 +84,38 @@ def test_aggregate_excludes_the_sanity_case_and_counts_errors_as_misses():
     assert s.ert["f0.1"][0] == pytest.approx((10 + 100 + 100) / 1)
     per = {x.cases: x.area[0] for x in anytime_scores(records, per_case=True)}
     assert per["nominal"] == 1.0 and per["small"] == pytest.approx(0.5 / 3)
-    (san,) = sanity_scores(records)
-    assert (san.runs, san.stayed) == (1, 0)
+    (san,) = sanity_scores(records)   # its final vector is 0.5 % of range off: it stayed
+    assert (san.runs, san.stayed) == (1, 1)
 
 
 def test_sanity_row_counts_runs_that_stayed_at_nominal():
-    recs = [rec(case="nominal", success=True), rec(case="nominal", seed=1, success=False)]
-    recs[1]["range_error"] = {**recs[1]["range_error"], "Na": 0.3}
+    # final vectors 0.5 % (p0.01 reached) and 30 % (nothing reached) of Na's range off
+    recs = [rec(case="nominal", p_hits=(1, 1, 1)), rec(case="nominal", seed=1)]
     (s,) = sanity_scores(recs)
     assert (s.runs, s.stayed) == (2, 1)
-    assert s.median_max_range_error == pytest.approx((0.002 + 0.3) / 2)
+    assert s.median_max_range_error == pytest.approx((0.005 + 0.3) / 2)
+
+
+def _at(p, seed=0):
+    """The fitness at precision p of small/twin/seed's f*-to-nominal gap."""
+    return evidence.level("small", "twin", seed, p)
 
 
 def test_fixed_budget_precision_by_hand():
-    r = rec(best_at=[(10, 6.0), (20, 2.0), (50, 1.5), (100, 1.1)], f_star=1.0, f_nominal=11.0)
-    assert precision_at(r, 10) == pytest.approx(0.5)    # (6 - 1) / (11 - 1)
+    x = evidence.vector("small", 0.3)
+    r = evidence.record([(1, _at(0.5), x), (20, _at(0.1), x), (50, _at(0.05), x),
+                         (100, _at(0.01), x)])
+    assert precision_at(r, 10) == pytest.approx(0.5)
     assert precision_at(r, 30) == pytest.approx(0.1)    # the best at 20 still holds at 30
     assert precision_at(r, 100) == pytest.approx(0.01)
     assert math.isnan(precision_at(r, 5))              # before the first checkpoint
     assert math.isnan(precision_at(r, 200))            # beyond the run's budget
-    stopped = {**r, "evaluations": 60, "fitness": 1.2}  # a run that stopped early: its
-    assert precision_at(stopped, 100) == pytest.approx(0.02)   # final best holds
-    (s,) = anytime_scores([r, rec(seed=1, best_at=[(10, 11.0), (100, 3.0)])])
+    # a run that stopped early at 60 evaluations: its final best holds at 100
+    stopped = evidence.record([(1, _at(0.5), x), (50, _at(0.02), x)], evaluations=60)
+    assert precision_at(stopped, 100) == pytest.approx(0.02)
+    assert precision_at(stopped, 50) == pytest.approx(0.02)
+    r2 = evidence.record([(1, _at(1.0, 1), x), (100, _at(0.2, 1), x)], seed=1)
+    (s,) = anytime_scores([r, r2])
     assert sorted(s.precision) == [10, 100]            # a tenth of the budget, the budget
     assert s.precision[100][1] == pytest.approx((0.01 + 0.2) / 2)
     assert s.precision[10][1] == pytest.approx((0.5 + 1.0) / 2)

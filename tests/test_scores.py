@@ -11,26 +11,37 @@ from __future__ import annotations
 
 import math
 
+import evidence
 import pytest
 
 from ema_bench.leaderboard.check import compare
+from ema_bench.leaderboard.derive import derived
 from ema_bench.leaderboard.scores import ALL, ert, run_cost, score_records
 from ema_bench.suite import SUITE_ID
-from ema_bench.trace_cache import MODEL_VERSION
 
 FAULTS = ("Na", "Fst", "BLK", "Gprop")
 
 
 def rec(solver: str, seed: int, first: int | None, budget: int = 1000, case: str = "small",
-        track: str = "twin", fitness: float = 1e-4) -> dict:
-    """A hand-written run record: success iff ``first`` (evaluations to success) is given."""
-    return {"solver": solver, "case": case, "track": track, "seed": seed, "budget": budget,
-            "root_seed": 0, "model_version": MODEL_VERSION, "suite": SUITE_ID,
-            "success": first is not None,
-            "targets": {"fitness": None, "parameters": dict.fromkeys(("0.1", "0.03", "0.01"),
-                                                                     first)},
-            "evals_to_success": first, "fitness": fitness, "wall_s": 1.0,
-            "accuracy": dict.fromkeys(FAULTS, 99.0), "range_error": dict.fromkeys(FAULTS, 0.001)}
+        track: str = "twin", fitness: float = 1e-4, root_seed: int = 1) -> dict:
+    """A hand-written run record: its best-so-far point is 30 % of Na's range off the truth
+    from evaluation 1, and 0.5 % off (a success) from ``first`` on (never for None).  Root
+    seed 1: the suite has no f* there, so only the three parameter targets count."""
+    pts = [(1, 10 * fitness, evidence.vector(case, 0.3))]
+    if first is not None:
+        pts = [(1, 10 * fitness, evidence.vector(case, 0.3))] if first > 1 else []
+        pts.append((first, fitness, evidence.vector(case, 0.005)))
+    else:
+        pts.append((2, fitness, evidence.vector(case, 0.3)))
+    return evidence.record(pts, solver=solver, case=case, track=track, seed=seed,
+                           budget=budget, root_seed=root_seed)
+
+
+#: Accuracy and range error of the successful runs' final vector (Na 0.5 % of its range off),
+#: by hand: Na's range is 1.0 - 0.8, small's Na is 0.95.
+RANGE_ERROR_OK = {"Na": 0.005, "Fst": 0.0, "BLK": 0.0, "Gprop": 0.0}
+ACCURACY_OK = {"Na": 100 * (1 - 0.005 * 0.2 / 0.95), "Fst": 100.0, "BLK": 100.0,
+               "Gprop": 100.0}
 
 
 MIXED = [rec("a", 0, 100), rec("a", 1, None), rec("a", 2, 300)]
@@ -129,8 +140,13 @@ def test_check_refuses_another_suite_version_naming_both():
 
 
 def test_run_cost_of_a_run_that_lost_its_success():
-    # a run that hit the target once but ended outside it is a failure: it costs its budget
-    lost = {**rec("a", 0, None), "evals_to_success": 50}
+    # a run whose best-so-far point was within 1 % at 50, then moved 2 % off (a lower
+    # fitness elsewhere): it ends outside the target, a failure that costs its budget
+    lost = evidence.record([(1, 1.0, evidence.vector("small", 0.3)),
+                            (50, 0.5, evidence.vector("small", 0.005)),
+                            (200, 0.1, evidence.vector("small", 0.02))],
+                           budget=1000, root_seed=1)
+    assert derived(lost).parameter_hits["0.01"] == 50 and not derived(lost).success
     assert ert([lost, rec("a", 1, 100)]) == pytest.approx((1000 + 100) / 1)
 
 
@@ -138,13 +154,16 @@ def test_group_score_reports_every_field():
     recs = [{**rec("a", 0, 100, fitness=1e-4), "wall_s": 1.0},
             {**rec("a", 1, None, fitness=3e-4), "wall_s": 3.0},
             {**rec("a", 2, 300, fitness=2e-4), "wall_s": 2.0}]
-    recs[1]["accuracy"] = dict.fromkeys(FAULTS, 90.0)
-    recs[1]["range_error"] = dict.fromkeys(FAULTS, 0.02)
     (s,) = [x for x in score_records(recs) if x.case == "small"]
     assert (s.track, s.case, s.solver) == ("twin", "small", "a")
     assert s.median_fitness == pytest.approx(2e-4) and s.median_wall_s == pytest.approx(2.0)
-    assert s.accuracy == dict.fromkeys(FAULTS, 99.0)
-    assert s.range_error == dict.fromkeys(FAULTS, 0.001)
+    # medians of two runs 0.5 % off and one 30 % off: the 0.5 % figures
+    assert s.accuracy == pytest.approx(ACCURACY_OK)
+    assert s.range_error == pytest.approx(RANGE_ERROR_OK)
+    # the claims are not read: a record claiming a perfect fit scores the same
+    forged = [{**r, "accuracy": dict.fromkeys(FAULTS, 100.0),
+               "range_error": dict.fromkeys(FAULTS, 0.0), "fitness": 0.0} for r in recs]
+    assert [x for x in score_records(forged) if x.case == "small"] == [s]
 
 
 def test_baseline_truncation_edges():
@@ -155,16 +174,19 @@ def test_baseline_truncation_edges():
                rec("a", 1, 401, budget=5000),      # one evaluation too late
                rec("a", 2, 10, budget=5000)]       # seed == seeds: beyond the check
     base, used = baseline(records, 400, 2)
-    got = {r["seed"]: (r["budget"], r["success"]) for r in base}
+    got = {r["seed"]: (r["budget"], derived(r).success) for r in base}
     assert got == {0: (400, True), 1: (400, False)}
     # targets reached after the truncated budget are dropped too, fitness and parameters
-    hits = {r["seed"]: r["targets"]["parameters"]["0.01"] for r in base}
+    hits = {r["seed"]: derived(r).parameter_hits["0.01"] for r in base}
     assert hits == {0: 400, 1: None}
-    fit = [{**r, "targets": {**r["targets"], "fitness": {"0.1": 300, "0.01": 450}}}
-           for r in records]
-    base, _ = baseline(fit, 400, 2)
-    assert [r["targets"]["fitness"] for r in base] == [{"0.1": 300, "0.01": None}] * 2
     assert used["re_scored"] == 2
+    x = evidence.vector("small", 0.3)
+    fit = evidence.record([(1, evidence.level("small", "twin", 0, 0.5), x),
+                           (300, evidence.level("small", "twin", 0, 0.05), x),
+                           (450, evidence.level("small", "twin", 0, 0.005), x)], budget=5000)
+    (cut,), _ = baseline([fit], 400, 1)
+    assert derived(cut).fitness_hits == {"0.1": 300, "0.01": None, "0.001": None,
+                                         "0.0001": None}
 
 
 def test_ranking_puts_the_pooled_rows_first_and_breaks_ert_ties_by_success():
@@ -175,12 +197,18 @@ def test_ranking_puts_the_pooled_rows_first_and_breaks_ert_ties_by_success():
 
 
 def test_medians_skip_undefined_accuracies():
-    # the paper's accuracy is undefined (None) where the truth is 0 and the estimate is not
-    recs = [rec("a", 0, 100), rec("a", 1, 100), rec("a", 2, 100)]
-    recs[0]["accuracy"] = {**recs[0]["accuracy"], "BLK": None}
-    recs[1]["accuracy"] = {**recs[1]["accuracy"], "BLK": 97.0}
-    (s,) = [x for x in score_records(recs) if x.case == "small"]
-    assert s.accuracy["BLK"] == pytest.approx(98.0)   # median of 97 and 99, None skipped
+    # the paper's accuracy is undefined (None) where the truth is 0 and the estimate is not:
+    # the nominal case's BLK is 0; one run ends 0.5 % of BLK's range off, two exactly on it
+    off = evidence.vector("nominal", 0.005, "BLK")
+    recs = [evidence.record([(1, 1.0, off)], case="nominal", seed=0),
+            evidence.record([(1, 1.0, evidence.vector("nominal", 0.002))], case="nominal",
+                            seed=1),
+            evidence.record([(1, 1.0, evidence.vector("nominal", 0.004))], case="nominal",
+                            seed=2)]
+    assert derived(recs[0]).accuracy["BLK"] is None
+    (s,) = [x for x in score_records(recs) if x.case == "nominal"]
+    assert s.accuracy["BLK"] == 100.0                   # None skipped, not counted as 0
+    assert s.accuracy["Na"] == pytest.approx(100 * (1 - 0.002 * 0.2 / 1.0))   # of 3 runs
 
 
 def test_baseline_identity_and_staleness_edges():
@@ -193,10 +221,12 @@ def test_baseline_identity_and_staleness_edges():
     base, used = baseline(records, 400, 2)
     assert used["other_model_version"] == 2                 # both stale records counted
     got = {(r["seed"], r["root_seed"]): r["budget"] for r in base}
-    assert got == {(0, 0): 400, (1, 7): 400}                # the stale ones did not stop it
+    assert got == {(0, 1): 400, (1, 7): 400}                # the stale ones did not stop it
     # keys select runs: root seed is part of a run's identity
     base, _ = baseline(records, 400, 2, keys={("a", "small", "twin", 1, 7)})
     assert [(r["seed"], r["root_seed"]) for r in base] == [(1, 7)]
+    assert [r["seed"] for r in baseline(records, 400, 2, keys={("a", "small", "twin", 0, 1)})[0]
+            ] == [0]
     # a committed run under another root seed is another run: not compared
     assert compare([rec("a", 1, None)], [{**rec("a", 1, 10), "root_seed": 7}]) == []
 
@@ -206,7 +236,8 @@ def test_table_row_flattens_the_per_fault_figures():
     row = s.row()
     assert "accuracy" not in row and "range_error" not in row
     for n in FAULTS:
-        assert row[f"accuracy_{n}"] == 99.0 and row[f"range_error_{n}"] == 0.001
+        assert row[f"accuracy_{n}"] == pytest.approx(ACCURACY_OK[n])
+        assert row[f"range_error_{n}"] == pytest.approx(RANGE_ERROR_OK[n])
     assert (row["solver"], row["runs"], row["successes"]) == ("a", 3, 2)
     assert row["ert"] == pytest.approx(700.0)
 
@@ -229,7 +260,7 @@ def test_committed_run_files_are_found_and_read(tmp_path):
     base, used = load_baseline(tmp_path, 400, 1)
     assert sorted(r["solver"] for r in base) == ["a", "b"]
     assert used == {"same_budget": 2, "re_scored": 0, "other_model_version": 0}
-    base, _ = load_baseline(tmp_path, 400, 1, keys={("b", "small", "twin", 0, 0)})
+    base, _ = load_baseline(tmp_path, 400, 1, keys={("b", "small", "twin", 0, 1)})
     assert [r["solver"] for r in base] == ["b"]                # the keys select
     assert committed_files(tmp_path / "empty") == []
 
@@ -237,9 +268,8 @@ def test_committed_run_files_are_found_and_read(tmp_path):
 def test_a_failed_run_is_unsuccessful_at_its_budget_and_left_out_of_medians():
     """A run recorded as an error (the solver raised, its worker died) has no fitness: it is
     an unsuccessful run at its budget in runs, success rate and ERT, and no median sees it."""
-    failed = {k: v for k, v in rec("a", 2, None).items()
-              if k not in ("fitness", "accuracy", "range_error")}
-    failed.update(status="error", error="boom", error_type="RuntimeError", wall_s=50.0)
+    failed = {**evidence.record([], seed=2, budget=1000, status="error", root_seed=1),
+              "wall_s": 50.0}
     runs = [rec("a", 0, 100, fitness=1e-4), rec("a", 1, None, fitness=3e-4), failed]
     (s,) = [x for x in score_records(runs) if x.case == "small"]
     assert (s.runs, s.successes, s.errors) == (3, 1, 1)
@@ -247,16 +277,17 @@ def test_a_failed_run_is_unsuccessful_at_its_budget_and_left_out_of_medians():
     assert s.ert == pytest.approx(100 + 1000 + 1000)       # the failed run at its budget
     assert s.median_fitness == pytest.approx(2e-4)          # of the two finished runs
     assert s.median_wall_s == pytest.approx(1.0)
-    assert s.accuracy["Na"] == pytest.approx(99.0)
+    assert s.accuracy["Na"] == pytest.approx((ACCURACY_OK["Na"] + 100 * (1 - 0.3 * 0.2 / 0.95))
+                                             / 2)
     (plain,) = [x for x in score_records(MIXED) if x.case == "small"]
     assert plain.errors == 0
 
 
-def test_a_success_without_its_evaluation_count_costs_the_whole_budget():
-    # a successful record that does not say when it succeeded (none, or 0) is charged its
-    # budget, never nothing: ERT (700 + 1000) / 1 success
+def test_the_evaluation_count_a_record_claims_is_not_read():
+    # the cost of a success is where its evidence shows it: a claim of none, 0 or 1 changes
+    # nothing (formerly a success without a count was charged its budget)
     counted = rec("a", 0, 120, budget=700)
-    blank = {**counted, "evals_to_success": None}
-    assert run_cost(counted) == 120 and run_cost(blank) == 700
-    assert run_cost({**counted, "evals_to_success": 0}) == 700
-    assert ert([blank, rec("a", 1, None)]) == pytest.approx(1700.0)
+    assert run_cost(counted) == 120
+    for claim in (None, 0, 1):
+        assert run_cost({**counted, "evals_to_success": claim}) == 120
+    assert ert([counted, rec("a", 1, None)]) == pytest.approx((120 + 1000) / 1)
