@@ -98,6 +98,7 @@ def _static() -> dict[str, object]:
         "machine": platform.machine(),
         "cpu": cpu_model(),
         "cpu_count": os.cpu_count(),
+        "blas": blas_kernel(),
         "git_commit": commit,
         "git_dirty": dirty,
     }
@@ -109,6 +110,23 @@ def _threads() -> dict[str, object]:
     threads: dict[str, object] = {"numba": numba.get_num_threads()}
     threads.update({v: os.environ[v] for v in THREAD_VARIABLES if v in os.environ})
     return threads
+
+
+def blas_kernel() -> str | None:
+    """NumPy's BLAS and the kernel it dispatched to for this CPU (``"openblas SkylakeX"``),
+    or None where threadpoolctl is not installed.  Finite-difference solvers (lbfgsb,
+    least-squares) amplify the last-bit differences between kernels, so a record replays
+    bit-for-bit only under the kernel it was made with (``OPENBLAS_CORETYPE`` picks one)."""
+    try:
+        from threadpoolctl import threadpool_info
+    except ImportError:
+        return None
+    import numpy  # noqa: F401  (loads its BLAS, which threadpoolctl then finds)
+
+    for lib in threadpool_info():
+        if lib.get("user_api") == "blas":
+            return f"{lib.get('internal_api')} {lib.get('architecture')}"
+    return None
 
 
 def cpu_model() -> str | None:

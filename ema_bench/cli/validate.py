@@ -39,6 +39,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "what it was not given, and hits moved earlier)")
     p.add_argument("--replay-seed", type=int, default=None, metavar="S",
                    help="seed of the replay sample (default 29)")
+    p.add_argument("--replay-key", action="append", default=None, metavar="KEY",
+                   help="replay the record with this key (solver|case|track|seed; "
+                        "repeatable) instead of a sample")
     add_json(p, "the findings")
     p.set_defaults(func=run)
 
@@ -56,7 +59,8 @@ def run(args: argparse.Namespace) -> int:
         raise CLIError(f"no run records in {', '.join(args.runs)}")
     found = validate(records, reevaluate=not args.no_reevaluate, complete=not args.partial)
     legacy = sum(schema(r) < 2 and not is_error(r) for r in records)
-    replayed = _replay(records, args.replay, args.replay_seed)
+    replayed = _replay(records, "all" if args.replay_key and not args.replay else args.replay,
+                       args.replay_seed, set(args.replay_key or ()) or None)
     found += [Finding(r.key, f"replay: {r.finding}") for r in replayed if r.finding]
     if args.json:
         print_json({"suite": SUITE_ID, "records": len(records), "accepted": not found,
@@ -83,7 +87,8 @@ def run(args: argparse.Namespace) -> int:
     return 1 if found else 0
 
 
-def _replay(records: list[dict], k: str | None, seed: int | None) -> list:
+def _replay(records: list[dict], k: str | None, seed: int | None,
+            keys: set[str] | None) -> list:
     from ..leaderboard.replay import REPLAY_SEED, replay
     from . import CLIError
 
@@ -92,4 +97,4 @@ def _replay(records: list[dict], k: str | None, seed: int | None) -> list:
     if k != "all" and not (k.isdigit() and int(k) > 0):
         raise CLIError(f"--replay takes a positive number of records or 'all', got {k!r}")
     return replay(records, None if k == "all" else int(k),
-                  REPLAY_SEED if seed is None else seed)
+                  REPLAY_SEED if seed is None else seed, keys)

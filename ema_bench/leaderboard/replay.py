@@ -11,6 +11,12 @@ finds none now, so its trajectory changes), runs the solver through ``run_solver
 gets the :class:`~ema_bench.problem.SolverView` only) and compares: the evaluation count, the
 trace (every point, evaluation index exactly, fitness to :data:`REPLAY_RTOL`), the ``best_at``
 values, the final vector and, for schema-2 records, every trajectory vector.
+
+Bit-for-bit replay needs the BLAS kernel the record was made with: OpenBLAS dispatches on the
+CPU (SkylakeX kernels with AVX-512, Haswell ones without), and the finite-difference solvers
+(lbfgsb, least-squares) amplify the last-bit differences into another path.  The manifest
+records the kernel (``blas``); replay under another one names both in its finding, and
+``OPENBLAS_CORETYPE=Haswell`` (or ``Zen``, ``SkylakeX``) replays under the record's.
 """
 
 from __future__ import annotations
@@ -23,6 +29,7 @@ import numpy as np
 
 from ..faults import FAULT_NAMES
 from ..instances import make_problem
+from ..manifest import blas_kernel
 from ..registry import run_solver
 from .store import is_error
 from .tasks import Task
@@ -41,10 +48,12 @@ class ReplayResult:
     wall_s: float
 
 
-def sample(records: list[dict], k: int | None, seed: int = REPLAY_SEED) -> list[dict]:
+def sample(records: list[dict], k: int | None, seed: int = REPLAY_SEED,
+           keys: set[str] | None = None) -> list[dict]:
     """``k`` records drawn without replacement with ``seed`` (all of them for None), in
-    file order; error records are left out (there is nothing to reproduce)."""
-    pool = [r for r in records if not is_error(r)]
+    file order, or (``keys``) the records so named; error records are left out (there is
+    nothing to reproduce)."""
+    pool = [r for r in records if not is_error(r) and (keys is None or r.get("key") in keys)]
     if k is None or k >= len(pool):
         return pool
     pick = np.random.default_rng(seed).choice(len(pool), size=k, replace=False)
@@ -75,11 +84,12 @@ def compare(record: dict, history: dict[str, np.ndarray], x: np.ndarray) -> str 
     return None
 
 
-def replay(records: list[dict], k: int | None = None, seed: int = REPLAY_SEED
-           ) -> list[ReplayResult]:
-    """Replay ``k`` sampled records (all for None); one result each."""
+def replay(records: list[dict], k: int | None = None, seed: int = REPLAY_SEED,
+           keys: set[str] | None = None) -> list[ReplayResult]:
+    """Replay ``k`` sampled records (all for None; only those named ``keys``); one result
+    each."""
     out = []
-    for r in sample(records, k, seed):
+    for r in sample(records, k, seed, keys):
         t0 = time.perf_counter()
         task = Task(r["solver"], r["case"], r["track"], int(r["seed"]), int(r["budget"]),
                     int(r.get("root_seed", 0)))
@@ -92,5 +102,9 @@ def replay(records: list[dict], k: int | None = None, seed: int = REPLAY_SEED
             finding = compare(r, problem.history(), res.x)
         except Exception as exc:   # a solver that cannot be replayed is a finding, not a crash
             finding = f"replay failed: {type(exc).__name__}: {exc}"
+        made = (r.get("manifest") or {}).get("blas")
+        if finding and made != blas_kernel():
+            finding += (f" (made under BLAS kernel {made or 'unrecorded'}, replayed under "
+                        f"{blas_kernel()}: OPENBLAS_CORETYPE picks the kernel)")
         out.append(ReplayResult(r.get("key", "?"), finding, time.perf_counter() - t0))
     return out
