@@ -1,5 +1,6 @@
 """``ema-bench validate``: third-party records are accepted only when they are what they claim
-(suite, manifest, budget, and a best vector whose re-evaluated fitness is the reported one)."""
+(suite, manifest, budget, every trajectory vector re-evaluated, every figure re-derived).
+tests/test_integrity.py holds the forgeries."""
 
 from __future__ import annotations
 
@@ -40,14 +41,21 @@ def test_real_records_are_accepted(records):
 def test_a_fitness_that_its_vector_does_not_have_is_refused(records):
     r = dict(records[0])
     # a plausible lie: a slightly better fitness, the trace doctored to agree with it
-    r["fitness"] = records[0]["fitness"] * 0.999
-    r["trace"] = [*records[0]["trace"][:-1], [records[0]["trace"][-1][0], r["fitness"]]]
+    f = records[0]["fitness"] * 0.999
+    tj = [list(p) for p in records[0]["trajectory"]]
+    tj[-1] = [tj[-1][0], f, tj[-1][2]]
+    r.update(fitness=f, trajectory=tj, trace=[[p[0], p[1]] for p in tj])
+    if records[0]["trace"][-1][0] != tj[-1][0]:
+        r["trace"].append([records[0]["trace"][-1][0], f])
+    for b in r["best_at"]:
+        if b[0] >= tj[-1][0]:
+            b[1] = f
     (msg,) = check_record(r)
-    assert "does not match its vector" in msg and "re-evaluated" in msg
-    assert check_record(r, reevaluate=False) == []   # only re-evaluation can tell
-    # a vector moved, fitness kept: also caught
+    assert msg.startswith(f"fitness at evaluation {tj[-1][0]}: claimed {f!r}, re-derived ")
+    assert msg.endswith("(re-evaluated from its vector)")
+    # a vector moved, its fitness kept: also caught (x must be the trajectory's last vector)
     r2 = {**records[1], "x": {**records[1]["x"], "Fst": records[1]["x"]["Fst"] * 1.01}}
-    assert any("does not match" in m for m in check_record(r2))
+    assert any(m.startswith("x: claimed ") for m in check_record(r2))
 
 
 def test_wrong_versions_missing_manifest_and_overspent_budget_are_refused(records):
@@ -63,10 +71,10 @@ def test_wrong_versions_missing_manifest_and_overspent_budget_are_refused(record
     over = {**r, "evaluations": r["budget"] + 1}
     assert any("with a budget of" in m for m in check_record(over, reevaluate=False))
     lie = {**r, "truth": {**r["truth"], "Fst": 0.5}}
-    assert any("is not instance s01's" in m for m in check_record(lie, reevaluate=False))
+    assert any(m.startswith("truth: claimed {") for m in check_record(lie, reevaluate=False))
     late = {**r, "targets": {**r["targets"], "parameters": {"0.1": r["budget"] + 5,
                                                             "0.03": None, "0.01": None}}}
-    assert any("outside the run's evaluations" in m
+    assert any(m.startswith("targets.parameters: claimed {'0.1': 65")
                for m in check_record(late, reevaluate=False))
     unknown = {**r, "case": "s42"}
     assert any("not an instance of suite" in m for m in check_record(unknown))
@@ -77,7 +85,8 @@ def test_fitness_targets_reached_out_of_order_are_refused(records):
     fit = dict(r["targets"]["fitness"])
     fit["0.0001"], fit["0.1"] = 5, None      # the finest reached, the coarsest not
     bad = {**r, "targets": {**r["targets"], "fitness": fit}}
-    assert any("out of order" in m for m in check_record(bad, reevaluate=False))
+    (msg,) = check_record(bad, reevaluate=False)
+    assert msg == f"targets.fitness: claimed {fit!r}, re-derived {r['targets']['fitness']!r}"
 
 
 def test_error_records_pass_and_a_submission_must_cover_the_suite(records):
