@@ -13,8 +13,11 @@ import sys
 import time
 from pathlib import Path
 
+import evidence
 import pytest
 
+from ema_bench.faults import FAULT_NAMES
+from ema_bench.leaderboard.derive import derived
 from ema_bench.leaderboard.store import read_records
 
 CLI = [sys.executable, "-m", "ema_bench.cli", "leaderboard"]
@@ -158,16 +161,15 @@ def test_check_passes_on_committed_and_fails_on_doctored(quick, tmp_path):
     ok = run(QUICK + ["--executor", "serial", "--no-plots", "--check", str(committed)])
     assert ok.returncode == 0, ok.stdout + ok.stderr
     assert "no regression" in ok.stdout
-    # doctor the committed results: every target reached at the first evaluation, so
-    # today's runs look worse (one solver and track: one comparison at the 5 % level; 4
-    # runs against 4 completely separated give p = 0.011)
+    # doctor the committed results' evidence (the claims are not read): the truth found at
+    # the first evaluation, with f*, so today's runs look worse (one solver and track: one
+    # comparison at the 5 % level; 4 runs against 4 completely separated give p = 0.011)
     doctored = tmp_path / "doctored"
     doctored.mkdir()
     with open(doctored / "runs.jsonl", "w") as fh:
         for r in read_records(quick / "runs.jsonl"):
-            t = r["targets"]
-            r["targets"] = {**t, "fitness": dict.fromkeys(t["fitness"], 1),
-                            "parameters": dict.fromkeys(t["parameters"], 1)}
+            f, x = r["targets"]["f_star"], [r["truth"][n] for n in FAULT_NAMES]
+            r.update(trajectory=[[1, f, x]], trace=[[1, f]], x=r["truth"], fitness=f)
             fh.write(json.dumps(r) + "\n")
     bad = run(QUICK + ["--solvers", "cmaes", "--tracks", "twin", "--executor", "serial",
                        "--no-plots", "--check", str(doctored)])
@@ -201,8 +203,11 @@ def test_check_baseline_prefers_the_same_budget_and_re_scores_larger_ones():
     from ema_bench.trace_cache import MODEL_VERSION
 
     def rec(solver, budget, seed, first, version=MODEL_VERSION):
-        return {"solver": solver, "case": "small", "track": "twin", "seed": seed,
-                "budget": budget, "success": first is not None, "evals_to_success": first,
+        # 30 % of Na's range off until ``first``, then 0.5 % off: a success from there on
+        pts = [(1, 1.0, evidence.vector("small", 0.3))]
+        if first is not None:
+            pts = pts[:first - 1] + [(first, 0.5, evidence.vector("small", 0.005))]
+        return {**evidence.record(pts, solver=solver, seed=seed, budget=budget),
                 "model_version": version}
 
     records = [rec("a", 400, 0, None), rec("a", 5000, 0, 100),   # same budget wins
@@ -211,7 +216,7 @@ def test_check_baseline_prefers_the_same_budget_and_re_scores_larger_ones():
                rec("a", 400, 5, 10),                             # seed beyond the check
                rec("c", 400, 0, 10, version="1")]                # another model: stale
     base, used = baseline(records, 400, 2)
-    got = {(r["solver"], r["seed"]): (r["budget"], r["success"]) for r in base}
+    got = {(r["solver"], r["seed"]): (r["budget"], derived(r).success) for r in base}
     assert got == {("a", 0): (400, False), ("b", 0): (400, True), ("b", 1): (400, False)}
     assert used == {"same_budget": 1, "re_scored": 2, "other_model_version": 1}
     # records from before model versions existed are version 1: stale too
