@@ -9,6 +9,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import evidence
 import pytest
 
 from ema_bench.leaderboard.tasks import Task, error_record, run_task
@@ -111,3 +112,15 @@ def test_cli_exit_codes(records, tmp_path):
     assert res.returncode == 1 and "lacks" in res.stdout
     res = cli("validate", str(tmp_path / "missing.jsonl"))
     assert res.returncode == 2 and "no such file" in res.stderr
+
+
+def test_a_fitness_below_the_best_known_is_refused_beyond_its_tolerance():
+    # f* - 2e-4 of the gap: refused; f* - 0.5e-4 of the gap: within the 1e-4 tolerance
+    x = evidence.vector("small", 0.3)
+    below = evidence.record([(1, evidence.level("small", "twin", 0, 0.5), x),
+                             (5, evidence.level("small", "twin", 0, -2e-4), x)])
+    (msg,) = check_record(below, reevaluate=False)
+    assert msg.startswith("fitness ") and "beats the suite's best known" in msg
+    near = evidence.record([(1, evidence.level("small", "twin", 0, 0.5), x),
+                            (5, evidence.level("small", "twin", 0, -0.5e-4), x)])
+    assert check_record(near, reevaluate=False) == []
