@@ -92,13 +92,18 @@ def group_seed(*identity: object) -> int:
     return BOOTSTRAP_SEED ^ int.from_bytes(digest[:8], "little")
 
 
+def _mean(values: Sequence[float]) -> float:
+    """The mean, exactly rounded (``math.fsum``): the same for the values in any order."""
+    return math.fsum(values) / len(values) if len(values) else math.nan
+
+
 def mean_ci(values: Sequence[float], seed: int = BOOTSTRAP_SEED) -> tuple[float, float, float]:
     """Mean and its bootstrap 95 % interval (nan bounds for fewer than two values); the
     values are sorted first, so the interval does not depend on their order."""
     v = np.sort(np.asarray([x for x in values if not math.isnan(x)], dtype=float))
     if v.size == 0:
         return math.nan, math.nan, math.nan
-    m = float(v.mean())
+    m = _mean(v.tolist())
     if v.size < 2 or np.all(v == v[0]):
         return m, (m if v.size > 1 else math.nan), (m if v.size > 1 else math.nan)
     res = stats.bootstrap((v,), np.mean, n_resamples=N_RESAMPLES, confidence_level=CONFIDENCE,
@@ -207,8 +212,8 @@ def anytime_score(track: str, solver: str, cases: str, records: list[dict]) -> A
         track=track, solver=solver, cases=cases, runs=len(records),
         errors=sum(map(is_error, records)),
         area=mean_ci([run_area(r) for r in records], group_seed(track, solver, cases)),
-        fitness_area=float(np.mean(fit)) if fit else math.nan,
-        parameter_area=float(np.mean([run_area(r, "p") for r in records])),
+        fitness_area=_mean(fit),
+        parameter_area=_mean([run_area(r, "p") for r in records]),
         ert=ert_d, hit_rate=rate, precision=prec)
 
 
