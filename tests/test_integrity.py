@@ -365,3 +365,10 @@ def test_validate_accepts_every_record_the_leaderboard_writes(solver, case, trac
     rec = run_task(Task(solver, case, track, seed, budget))
     assert check_record(json.loads(json.dumps(rec))) == []
     assert rec["x"] == faults_to_dict(np.array(rec["trajectory"][-1][2][:4]))
+
+
+def test_a_claimed_fitness_at_the_truth_is_re_evaluated(fresh):
+    r = {**copy.deepcopy(fresh), "fitness_at_truth": fresh["fitness_at_truth"] * 0.5}
+    (msg,) = check_record(r)
+    assert msg == (f"fitness_at_truth: claimed {r['fitness_at_truth']!r}, re-derived "
+                   f"{fresh['fitness_at_truth']!r}")

@@ -16,6 +16,7 @@ from ..escape import csv_value, markdown
 from ..faults import CASES, FAULT_NAMES, FAULT_UNITS
 from ..suite import instance_names
 from .anytime import AnytimeScore, SanityScore, anytime_scores, sanity_scores
+from .derive import derived
 from .scores import ALL, SolverScore
 
 
@@ -175,8 +176,9 @@ def write_paper_tables(records: list[dict], scores: list[SolverScore], out: Path
                     row += " - | - | - |"
                     continue
                 est = float(np.median([r["x"][n] for r in recs]))
-                acc = [r["accuracy"][n] for r in recs if r["accuracy"][n] is not None]
-                rerr = float(np.median([r["range_error"][n] for r in recs]))
+                # re-derived from the final vector and the truth, never the claims
+                acc = [a for a in (derived(r).accuracy[n] for r in recs) if a is not None]
+                rerr = float(np.median([derived(r).range_error[n] for r in recs]))
                 row += (f" {est:.6g} | {_fmt(float(np.median(acc)), 4) if acc else '-'} | "
                         f"{100 * rerr:.3g} |")
             lines.append(row)
