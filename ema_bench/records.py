@@ -55,7 +55,7 @@ MAX_TRACE_POINTS = 200
 RECORD_SCHEMA = 2
 #: Trajectory points kept by thinning (the points that carry a target's first hit or a
 #: ``best_at`` value come on top: at most 4 + 3 + 13 + 2 more).
-MAX_TRAJECTORY_POINTS = 64
+MAX_TRAJECTORY_POINTS = 48
 
 
 def schema(record: dict) -> int:
