@@ -37,7 +37,7 @@ from functools import lru_cache
 import numpy as np
 
 from ..faults import FAULT_NAMES, N_FAULTS
-from ..records import MAX_TRACE_POINTS, schema
+from ..records import schema
 from ..scoring import SUCCESS_RANGE_ERROR, paper_accuracy, range_error
 from ..suite import (
     BUDGET_CHECKPOINTS,
@@ -78,7 +78,6 @@ class Derived:
     f_nominal: float | None
     fitness: float | None           # the final best-so-far fitness of the evidence
     last_improvement: int | None    # evaluation where the final vector was first evaluated
-    trace_thinned: bool             # legacy: the trace may have lost improvements
 
 
 _NO_HITS = dict.fromkeys(map(precision_key, PARAMETER_TARGETS))
@@ -133,7 +132,7 @@ def derive(record: dict) -> Derived:
     s = schema(record)
     if is_error(record):
         return Derived(s, True, False, None, None, None, None, dict(_NO_HITS), [], None,
-                       None, None, None, False)
+                       None, None, None)
     ev, fit, vecs = _points(record)
     n_eval = int(record.get("evaluations", ev[-1]))
     # a record re-scored at a smaller budget (``--check``'s truncation): its evidence up to it
@@ -161,7 +160,6 @@ def derive(record: dict) -> Derived:
         full_imp = [p[0] for i, p in enumerate(record["trace"])
                     if i == 0 or p[1] < record["trace"][i - 1][1]]
         known_final = full_imp[-1] <= cut
-    thinned = vecs is None and len(imp) >= MAX_TRACE_POINTS
     f_hits = None
     if known is not None:
         levels = fitness_targets(known["f_star"], known["f_nominal"])
@@ -185,7 +183,7 @@ def derive(record: dict) -> Derived:
         fitness_hits=f_hits, parameter_hits=p_hits, best_at=best_at,
         f_star=None if known is None else known["f_star"],
         f_nominal=None if known is None else known["f_nominal"],
-        fitness=fit[imp[-1]], last_improvement=last, trace_thinned=thinned)
+        fitness=fit[imp[-1]], last_improvement=last)
 
 
 # A board is scored several times over (tables, page, summary): derive each record once.
