@@ -44,14 +44,16 @@ def relabel(records: list[dict], seeds: list[int]) -> list[dict]:
 
 
 def slow_down(record: dict, factor: float) -> dict:
-    """A doctored worse run: every target reached ``factor`` times later (missed when that
-    is beyond the budget)."""
-    t = dict(record.get("targets") or {})
-    for kind in ("fitness", "parameters"):
-        if t.get(kind):
-            t[kind] = {k: (None if v is None or v * factor > record["budget"]
-                           else int(v * factor)) for k, v in t[kind].items()}
-    return {**record, "targets": t}
+    """A doctored worse run: every improvement found ``factor`` times later (its evidence,
+    the trace and trajectory, moved: the scores re-derive the targets from it and never read
+    the claims; what falls beyond the budget is cut, so those targets are missed)."""
+    def later(points: list) -> list:
+        return [[1 if p[0] == 1 else int(p[0] * factor), *p[1:]] for p in points]
+
+    out = {**record, "evaluations": record["budget"], "trace": later(record["trace"])}
+    if record.get("trajectory"):
+        out["trajectory"] = later(record["trajectory"])
+    return out
 
 
 def interval(k: int, n: int) -> tuple[float, float]:
