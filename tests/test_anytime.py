@@ -159,3 +159,29 @@ def test_intervals_do_not_depend_on_the_order_of_the_records():
     (b,) = anytime_scores(recs[::-1])
     assert a.area == b.area and a.ert == b.ert
     assert a.area[1] < a.area[0] < a.area[2]      # a real interval, not a degenerate one
+
+
+def test_the_csv_row_of_a_score_names_every_figure():
+    recs = [rec(seed=k, f_hits=(k + 1, None, None, None), p_hits=(3 * k + 1, None, None))
+            for k in range(3)]
+    (s,) = anytime_scores(recs)
+    row = s.row()
+    assert (row["track"], row["solver"], row["cases"], row["runs"], row["errors"]) == \
+        ("twin", "a", "all", 3, 0)
+    assert (row["ecdf_area"], row["ecdf_area_lo"], row["ecdf_area_hi"]) == s.area
+    assert row["ecdf_area_lo"] < row["ecdf_area"] < row["ecdf_area_hi"]
+    assert (row["fitness_area"], row["parameter_area"]) == (s.fitness_area, s.parameter_area)
+    assert row["hits_f0.1"] == 1.0 and row["hits_p0.1"] == 1.0 and row["hits_p0.01"] == 0.0
+    assert (row["ert_f0.1"], row["ert_f0.1_lo"], row["ert_f0.1_hi"]) == s.ert["f0.1"]
+    assert row["ert_f0.1"] == pytest.approx((1 + 2 + 3) / 3)
+    b = sorted(s.precision)
+    assert row[f"precision_median_at_{b[-1]}"] == s.precision[b[-1]][1]
+    assert (row[f"precision_q10_at_{b[0]}"], row[f"precision_q90_at_{b[0]}"]) == \
+        (s.precision[b[0]][0], s.precision[b[0]][2])
+
+
+def test_sanity_rows_name_their_track_and_solver_and_an_empty_ecdf_is_undefined():
+    (s,) = sanity_scores([rec("z", case="nominal", p_hits=(1, 1, 1))])
+    assert (s.track, s.solver) == ("twin", "z")
+    assert np.isnan(ecdf_curve([], np.array([1, 10]))).all()
+    assert np.isnan(ecdf_curve([rec(case="nominal")], np.array([1]))).all()   # sanity only

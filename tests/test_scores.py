@@ -147,6 +147,7 @@ def test_run_cost_of_a_run_that_lost_its_success():
                             (200, 0.1, evidence.vector("small", 0.02))],
                            budget=1000, root_seed=1)
     assert derived(lost).parameter_hits["0.01"] == 50 and not derived(lost).success
+    assert run_cost(lost) == 1000 and run_cost(rec("a", 1, 100)) == 100
     assert ert([lost, rec("a", 1, 100)]) == pytest.approx((1000 + 100) / 1)
 
 

@@ -60,9 +60,7 @@ def run_cost(rec: dict) -> int:
     """Evaluations a run counts for ERT: until first success, or its whole budget
     (re-derived: :func:`.derive.derived`)."""
     d = derived(rec)
-    if d.success and d.evals_to_success:
-        return int(d.evals_to_success)
-    return int(rec["budget"])
+    return int(d.evals_to_success) if d.success else int(rec["budget"])
 
 
 def ert(records: list[dict]) -> float:
