@@ -124,3 +124,131 @@ def test_a_fitness_below_the_best_known_is_refused_beyond_its_tolerance():
     near = evidence.record([(1, evidence.level("small", "twin", 0, 0.5), x),
                             (5, evidence.level("small", "twin", 0, -0.5e-4), x)])
     assert check_record(near, reevaluate=False) == []
+
+
+# --- legacy records: claims against the bounds of their trace and final vector ---------------
+@pytest.fixture(scope="module")
+def quick_legacy() -> dict[str, dict]:
+    """The committed quick board's records of seed 0, twin track (legacy, schema 1)."""
+    with open(ROOT / "leaderboards" / "quick" / "runs.jsonl") as fh:
+        recs = [json.loads(line) for line in fh]
+    return {r["key"]: r for r in recs if r["track"] == "twin" and r["seed"] == 0}
+
+
+def _legacy(quick_legacy, key: str, **change) -> dict:
+    r = json.loads(json.dumps(quick_legacy[key]))
+    for path, value in change.items():
+        kind, _, level = path.partition("__")
+        if level:
+            r["targets"][kind][level.replace("_", ".")] = value
+        else:
+            r[kind] = value
+    return r
+
+
+def test_legacy_fitness_claims_must_lie_within_the_trace_bounds(quick_legacy):
+    r = quick_legacy["cmaes|small|twin|0"]
+    assert check_record(r, reevaluate=False) == []
+    t = r["targets"]
+    for p, key in ((0.1, "0.1"), (0.01, "0.01"), (1e-3, "0.001"), (1e-4, "0.0001")):
+        level = t["f_star"] + p * (t["f_nominal"] - t["f_star"])
+        lo = max((e for e, f in r["trace"] if f > level), default=0) + 1
+        hi = next(e for e, f in r["trace"] if f <= level)
+        want = hi if lo == hi else f"{lo}..{hi}"
+        for h in (lo, hi):
+            fit = {**t["fitness"], key: h}
+            assert check_record({**r, "targets": {**t, "fitness": fit}},
+                                reevaluate=False) == [], (key, h)
+        for h in (lo - 1, hi + 1, None):
+            fit = {**t["fitness"], key: h}
+            assert check_record({**r, "targets": {**t, "fitness": fit}}, reevaluate=False) \
+                == [f"targets.fitness.{key}: claimed {h!r}, re-derived {want!r} (from the "
+                    "trace)"], (key, h)
+
+
+def test_legacy_fitness_claims_where_the_suite_has_no_f_star(quick_legacy):
+    r = quick_legacy["cmaes|nominal|twin|0"]
+    bad = {**r, "targets": {**r["targets"], "fitness": {"0.1": 1}}}
+    assert check_record(bad, reevaluate=False) == [
+        "targets.fitness: claimed {'0.1': 1}, re-derived None (no f* here)"]
+
+
+def test_legacy_parameter_claims_against_the_final_vector(quick_legacy):
+    key = "nelder-mead|small|twin|0"     # final vector within 1 %, found at evaluation 206
+    assert quick_legacy[key]["trace"][-2][0] == 206
+    ok = check_record(_legacy(quick_legacy, key, parameters__0_01=206, evals_to_success=206),
+                      reevaluate=False)
+    assert ok == []
+    for h in (0, 401):
+        assert check_record(_legacy(quick_legacy, key, parameters__0_1=h), reevaluate=False) \
+            == [f"targets.parameters.0.1: claimed {h}, re-derived '1..400'"]
+    for h in (None, 207):
+        found = check_record(_legacy(quick_legacy, key, parameters__0_01=h,
+                                     evals_to_success=h), reevaluate=False)
+        assert found[0] == (f"targets.parameters.0.01: claimed {h!r}, re-derived '1..206' "
+                            "(the final vector is within the target)")
+    # a finer target reached before a coarser one
+    assert check_record(_legacy(quick_legacy, key, parameters__0_03=50), reevaluate=False) \
+        == ["targets.parameters.0.03: claimed 50, re-derived '>= 89' (a finer target than 0.1)"]
+    assert check_record(_legacy(quick_legacy, key, evals_to_success=96), reevaluate=False) \
+        == ["evals_to_success: claimed 96, re-derived 'targets.parameters.0.01'"]
+
+
+def test_legacy_parameter_claims_when_the_final_vector_is_not_within(quick_legacy):
+    key = "de|small|twin|0"              # 23.5 % of range off at the end, found at 169
+    assert check_record(_legacy(quick_legacy, key, parameters__0_1=168),
+                        reevaluate=False) == []     # possible: it passed, then moved on
+    assert check_record(_legacy(quick_legacy, key, parameters__0_1=169), reevaluate=False) \
+        == ["targets.parameters.0.1: claimed 169, re-derived 'None or 1..168' (the final "
+            "vector, found at evaluation 169, is not within the target)"]
+    assert check_record(_legacy(quick_legacy, key, parameters__0_03=5), reevaluate=False) \
+        == ["targets.parameters.0.03: claimed 5, re-derived '>= None' (a finer target than "
+            "0.1)"]
+    assert check_record(_legacy(quick_legacy, key, evals_to_success=5), reevaluate=False) \
+        == ["evals_to_success: claimed 5, re-derived None"]
+
+
+def test_legacy_best_at_claims_against_the_trace(quick_legacy):
+    r = quick_legacy["cmaes|nominal|twin|0"]   # trace points 1, 322, ...: 200 lies between
+    f1, f322 = r["trace"][0][1], r["trace"][1][1]
+    assert r["trace"][1][0] == 322
+    for f in (f322, f1):
+        ba = [p if p[0] != 200 else [200, f] for p in r["best_at"]]
+        assert check_record({**r, "best_at": ba}, reevaluate=False) == []
+    low = f322 * (1 - 1e-9)
+    ba = [p if p[0] != 200 else [200, low] for p in r["best_at"]]
+    assert check_record({**r, "best_at": ba}, reevaluate=False) == [
+        f"best_at.200: claimed {low!r}, re-derived '{f322}..{f1}' (from the trace)"]
+    ba = [p if p[0] != 10 else [10, f1 * 0.5] for p in r["best_at"]]   # exact at trace point 1..
+    assert check_record({**r, "best_at": ba}, reevaluate=False)[0].startswith(
+        f"best_at.10: claimed {f1 * 0.5!r}, re-derived ")
+    assert check_record({**r, "best_at": r["best_at"][:-1]}, reevaluate=False) == [
+        f"best_at checkpoints: claimed {r['best_at'][:-1]!r}, re-derived [10, 20, 50, 100, 200]"]
+    assert check_record({**r, "best_at": [[*p] for p in r["best_at"]][:4] + [[]]},
+                        reevaluate=False)[0].startswith("best_at checkpoints: claimed ")
+
+
+def test_the_exact_claims_of_a_schema_2_record_are_compared_one_by_one():
+    x = evidence.vector("small", 0.3)
+    r = evidence.record([(1, evidence.level("small", "twin", 0, 0.5), x)])
+    assert check_record({**r, "evals_to_success": 5}, reevaluate=False) == [
+        "evals_to_success: claimed 5, re-derived None"]
+
+
+def test_validate_names_each_record_and_passes_its_switches_on(records):
+    r = {k: v for k, v in records[0].items() if k != "key"}
+    forged = {**r, "success": not r["success"]}
+    (f,) = validate([forged], complete=False)
+    assert (f.key, f.problem) == ("record 0", f"success: claimed {forged['success']!r}, "
+                                              f"re-derived {r['success']!r}")
+    assert str(f) == f"record 0: {f.problem}"
+    assert validate(records, reevaluate=False, complete=False) == []
+    assert validate(records, complete=True)[0].key == "*"
+    assert [x for x in validate(records + [{"key": "no solver"}], complete=True)
+            if x.key == "*"] == validate(records, complete=True)
+
+
+def test_a_submission_lacking_instances_names_five_of_them(records):
+    (finding,) = [f for f in check_complete(records) if "reference" in f.problem]
+    lacking = finding.problem.split("(e.g. ")[1].rstrip(")").split(", ")
+    assert len(lacking) == 5 and lacking[0] == "full/0"
