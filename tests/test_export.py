@@ -14,6 +14,8 @@ from ema_bench.cli import main
 from ema_bench.leaderboard.ioh import export_ioh, read_ioh
 
 REPO = Path(__file__).resolve().parents[1]
+# the suite's shipped optima, read here from the file rather than through the package
+SHIPPED = json.loads((REPO / "ema_bench" / "suite_targets.json").read_text())["entries"]
 QUICK_RUNS = REPO / "leaderboards" / "quick" / "runs.jsonl"
 CLI = [sys.executable, "-m", "ema_bench.cli"]
 
@@ -81,7 +83,9 @@ def test_round_trip_keeps_every_run_exactly(tmp_path, caplog, monkeypatch):
         assert run["maximization"] is False
         assert run["suite"] == ("emafdi-v1" if rec["solver"] == "beta" else "ema-bench")
         assert run["algorithm_info"] == "lib 1.2.3"
-        assert run["attributes"] == {"seed": rec["seed"], "root_seed": 0, "budget": 20}
+        opt = SHIPPED[f"{rec['case']}|{rec['track']}|{rec['seed']}"]
+        assert run["attributes"] == {"seed": rec["seed"], "root_seed": 0, "budget": 20,
+                                     "f_star": opt["f_star"], "f_nominal": opt["f_nominal"]}
 
 
 def test_meta_files_follow_the_ioh_layout_and_types(tmp_path):
@@ -122,14 +126,59 @@ def test_meta_files_follow_the_ioh_layout_and_types(tmp_path):
 
 def test_instances_function_ids_and_file_names(tmp_path):
     recs = synthetic()[:2]
-    recs[1] = {**recs[1], "root_seed": 3, "solver": "a/b c"}
+    recs[1] = {**recs[1], "solver": "a/b c", "seed": 65535}
     export_ioh(recs, tmp_path, function_ids={"small@reference": 7})
     runs = {r["algorithm"]: r for r in read_ioh(tmp_path)}
     assert runs["alpha"]["instance"] == 0
-    assert runs["a/b c"]["instance"] == 3 * 1000 + 1
-    assert runs["a/b c"]["attributes"]["root_seed"] == 3
+    assert runs["a/b c"]["instance"] == 65535   # the largest 16-bit id
     assert {r["function_id"] for r in runs.values()} == {7}
     assert (tmp_path / "a_b_c" / "IOHprofiler_f7_small@reference.json").is_file()
+
+
+def test_a_large_root_seed_keeps_instances_small_and_is_an_attribute(tmp_path):
+    recs = [{**r, "root_seed": 20261126} for r in synthetic()[:4]]
+    export_ioh(recs, tmp_path)
+    runs = read_ioh(tmp_path)
+    assert sorted(r["instance"] for r in runs) == [0, 0, 1, 1]
+    assert {r["attributes"]["root_seed"] for r in runs} == {20261126}
+    # no f* is shipped for that root seed: no optimum attributes, and no precision export
+    assert all("f_star" not in r["attributes"] for r in runs)
+    with pytest.raises(ValueError, match="no known f"):
+        export_ioh(recs, tmp_path / "p", value="precision")
+
+
+def test_mixed_root_seeds_are_refused(tmp_path):
+    a, b = synthetic()[:2]
+    with pytest.raises(ValueError, match="several root seeds"):
+        export_ioh([a, {**b, "root_seed": 3}], tmp_path)
+
+
+def test_precision_values_targets_and_the_sanity_case(tmp_path):
+    recs = synthetic()[:2]
+    nominal = {**recs[0], "case": "nominal", "key": "alpha|nominal|reference|0"}
+    export_ioh([*recs, nominal], tmp_path, value="precision")
+    runs = read_ioh(tmp_path)
+    assert {r["function_name"] for r in runs} == {"small@reference"}   # nominal left out
+    for rec, run in zip(recs, sorted(runs, key=lambda r: r["instance"])):
+        opt = SHIPPED[f"small|reference|{rec['seed']}"]
+        fs, fn = opt["f_star"], opt["f_nominal"]
+        assert run["raw_y"] == pytest.approx(
+            [max(0.0, (y - fs) / (fn - fs)) for _, y in rec["trace"]], rel=1e-12)
+    meta = json.loads(next((tmp_path / "alpha").glob("*.json")).read_text())
+    assert {"value": "precision"} in meta["experiment_attributes"]
+    assert meta["scenarios"][0]["runs"][0]["fitness_targets"] == [0.1, 0.01, 0.001, 0.0001]
+    assert meta["targets"]["parameter_targets"] == [0.1, 0.03, 0.01]
+    # raw values: the targets are f* + p (f_nominal - f*)
+    export_ioh(recs[:1], tmp_path / "raw")
+    meta = json.loads(next((tmp_path / "raw" / "alpha").glob("*.json")).read_text())
+    opt = SHIPPED["small|reference|0"]
+    assert meta["scenarios"][0]["runs"][0]["fitness_targets"] == pytest.approx(
+        [opt["f_star"] + p * (opt["f_nominal"] - opt["f_star"]) for p in (.1, .01, 1e-3, 1e-4)])
+    # asked for, the sanity case is exported and marked
+    export_ioh([nominal], tmp_path / "sane", include_sanity=True)
+    meta = json.loads(next((tmp_path / "sane" / "alpha").glob("*.json")).read_text())
+    assert meta["function_name"] == "nominal@reference"
+    assert {"sanity": "True"} in meta["experiment_attributes"]
 
 
 @pytest.mark.parametrize("change, needle", [
@@ -137,7 +186,7 @@ def test_instances_function_ids_and_file_names(tmp_path):
     ({"trace": [[1, 1.0], [1, 0.5]]}, "increase from 1"),
     ({"trace": [[1, "x"]]}, "trace"),
     ({"x": {"Na": 1.0}}, "'x'"),
-    ({"seed": 1000, "root_seed": 1}, "instance"),
+    ({"seed": 65536}, "16-bit"),
 ])
 def test_malformed_records_are_refused(tmp_path, change, needle):
     with pytest.raises(ValueError, match=needle):
@@ -178,7 +227,8 @@ def _committed_runs() -> list[dict]:
         ident = (r["solver"], r["case"], r["track"], r["seed"], r["budget"], r["root_seed"],
                  r.get("model_version", "1"))
         seen.setdefault(ident, r)
-    return [r for r in seen.values() if r.get("status") != "error"]
+    # the sanity case is left out by default (it is outside every ranking)
+    return [r for r in seen.values() if r.get("status") != "error" and r["case"] != "nominal"]
 
 
 def test_cli_exports_the_committed_quick_leaderboard(tmp_path):
