@@ -10,6 +10,7 @@ Chromium is installed (``apt-get install chromium``; .ci/run installs it).
 
 from __future__ import annotations
 
+import fcntl
 import json
 import os
 import shutil
@@ -36,16 +37,24 @@ class DevTools:
     def __init__(self, profile: Path) -> None:
         to_chrome_r, self._to_chrome = os.pipe()
         self._from_chrome, from_chrome_w = os.pipe()
-        # the child reads commands on fd 3 and writes replies on fd 4
+        # the child's ends above 4, so that putting them on 3 and 4 cannot clobber each other
+        ends = []
+        for fd in (to_chrome_r, from_chrome_w):
+            ends.append(fcntl.fcntl(fd, fcntl.F_DUPFD, 10))
+            os.close(fd)
+        to_chrome_r, from_chrome_w = ends
+        # the child reads commands on fd 3 and writes replies on fd 4 (bash puts the
+        # pipe ends there)
         self.proc = subprocess.Popen(
-            [CHROMIUM, "--headless=new", "--no-sandbox", "--disable-gpu",
-             "--remote-debugging-pipe", f"--user-data-dir={profile}", "--no-first-run",
+            ["bash", "-c", f'exec "$0" "$@" 3<&{to_chrome_r} 4>&{from_chrome_w}', CHROMIUM,
+             "--headless=new", "--no-sandbox", "--disable-gpu", "--remote-debugging-pipe",
+             f"--user-data-dir={profile}", "--no-first-run",
              f"--window-size={WIDTH},{HEIGHT}", "about:blank"],
             pass_fds=(to_chrome_r, from_chrome_w), stdout=subprocess.DEVNULL,
-            stderr=subprocess.DEVNULL,
-            preexec_fn=lambda: (os.dup2(to_chrome_r, 3), os.dup2(from_chrome_w, 4)))
+            stderr=open(profile.parent / "chromium.log", "w"))   # noqa: SIM115
         os.close(to_chrome_r)
         os.close(from_chrome_w)
+        self.profile = profile
         self._buf = b""
         self._id = 0
         self.events: list[dict] = []
@@ -84,7 +93,8 @@ class DevTools:
                 raise TimeoutError("no reply from Chromium")
             chunk = os.read(self._from_chrome, 1 << 16)
             if not chunk:
-                raise RuntimeError("Chromium closed the pipe")
+                log = (self.profile.parent / "chromium.log").read_text()[-1500:]
+                raise RuntimeError(f"Chromium closed the pipe:\n{log}")
             self._buf += chunk
         msg, self._buf = self._buf.split(b"\0", 1)
         return json.loads(msg)
