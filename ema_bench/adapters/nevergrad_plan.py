@@ -24,7 +24,10 @@ from ema_bench.adapters.nevergrad import plan
 def _experiments(name: str, seed: int | None) -> Iterator[Experiment]:
     seedg = create_seed_generator(seed)
     for func, optimizer, budget in plan(name):
-        yield Experiment(func, optimizer, budget=budget, num_workers=1, seed=next(seedg))
+        # the generator yields numpy.uint32, which random.seed refuses (nevergrad 1.0.12)
+        seed_k = next(seedg)
+        yield Experiment(func, optimizer, budget=budget, num_workers=1,
+                         seed=None if seed_k is None else int(seed_k))
 
 
 def ema_bench(seed: int | None = None) -> Iterator[Experiment]:
