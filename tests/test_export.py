@@ -317,3 +317,27 @@ def test_cli_merges_files_and_counts_skipped_runs(tmp_path, capsys):
     assert f"{len(recs)} runs of 2 solvers on 4 functions" in text
     assert "skipped 1 runs: 1 failed with an error" in text
     assert len(read_ioh(tmp_path / "o")) == len(recs)
+
+
+def test_cli_precision_values_and_the_sanity_flag(tmp_path, capsys):
+    recs = _committed_runs()
+    nominal = [r for r in _all_committed() if r["case"] == "nominal"]
+    assert main(["export", "--format", "ioh", str(QUICK_RUNS), "--value", "precision",
+                 "--out", str(tmp_path / "p"), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["runs"] == len(recs) and summary["sanity_left_out"] == len(nominal) > 0
+    runs = read_ioh(tmp_path / "p")
+    assert all(0.0 <= y for r in runs for y in r["raw_y"])
+    assert max(y for r in runs for y in r["raw_y"]) == pytest.approx(1.0)  # the nominal start
+    assert main(["export", "--format", "ioh", str(QUICK_RUNS), "--include-sanity",
+                 "--out", str(tmp_path / "s"), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["runs"] == len(recs) + len(nominal) and summary["sanity_left_out"] == 0
+
+
+def _all_committed() -> list[dict]:
+    seen = {}
+    for line in QUICK_RUNS.read_text().splitlines():
+        r = json.loads(line)
+        seen.setdefault((r["solver"], r["case"], r["track"], r["seed"], r["budget"]), r)
+    return [r for r in seen.values() if r.get("status") != "error"]

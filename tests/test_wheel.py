@@ -39,7 +39,8 @@ def alone(tmp_path_factory) -> tuple[Path, Path]:
     (wheel,) = (tmp / "dist").glob("ema_bench-*.whl")
     venv.create(tmp / "venv", with_pip=True)
     bin_ = tmp / "venv" / "bin"
-    _run([str(bin_ / "python"), "-m", "pip", "install", "-q", str(wheel)], tmp)
+    # --no-compile: no .pyc for numba, scipy and matplotlib up front (a minute on CI)
+    _run([str(bin_ / "python"), "-m", "pip", "install", "-q", "--no-compile", str(wheel)], tmp)
     work = tmp / "work"
     work.mkdir()
     return bin_, work
