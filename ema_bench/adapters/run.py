@@ -63,10 +63,15 @@ class AdapterRun:
         self.problem = make_problem(self.case, track=self.track, seed=self._task.node(),
                                     budget=self.budget)
 
+    def node(self) -> np.random.SeedSequence:
+        """The run node (``run_seed(root_seed, seed)``): what ``run_solver`` takes as the
+        seed of a registered solver run on this problem."""
+        return self._task.node()
+
     def solver_seed(self) -> int:
         """A 32-bit seed for the library's own generator: the run node's ``solver`` stream,
         as every registered solver gets (disjoint from the instance and noise streams)."""
-        return int(stream(self._task.node(), "solver").generate_state(1)[0])
+        return int(stream(self.node(), "solver").generate_state(1)[0])
 
     def record(self, stop_reason: str = "budget", **extra: Any) -> dict[str, Any]:
         """The run's record: the problem's best vector and count, never the library's."""
