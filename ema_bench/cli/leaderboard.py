@@ -23,6 +23,7 @@ Examples::
     ema-bench leaderboard --seeds 10 --budget 5000 --out leaderboards   # the full suite
     ema-bench leaderboard --executor dask --scheduler tcp://10.0.0.5:8786 --shard 0/4 --out lb
     ema-bench leaderboard --quick --check leaderboards/      # exit 1 on a regression
+    ema-bench leaderboard --quick --check     # no checkout: the baseline installed with the wheel
 """
 
 from __future__ import annotations
