@@ -14,6 +14,8 @@ from ema_bench.cli import main
 from ema_bench.leaderboard.ioh import export_ioh, read_ioh
 
 REPO = Path(__file__).resolve().parents[1]
+# the suite's shipped optima, read here from the file rather than through the package
+SHIPPED = json.loads((REPO / "ema_bench" / "suite_targets.json").read_text())["entries"]
 QUICK_RUNS = REPO / "leaderboards" / "quick" / "runs.jsonl"
 CLI = [sys.executable, "-m", "ema_bench.cli"]
 
@@ -81,7 +83,9 @@ def test_round_trip_keeps_every_run_exactly(tmp_path, caplog, monkeypatch):
         assert run["maximization"] is False
         assert run["suite"] == ("emafdi-v1" if rec["solver"] == "beta" else "ema-bench")
         assert run["algorithm_info"] == "lib 1.2.3"
-        assert run["attributes"] == {"seed": rec["seed"], "root_seed": 0, "budget": 20}
+        opt = SHIPPED[f"{rec['case']}|{rec['track']}|{rec['seed']}"]
+        assert run["attributes"] == {"seed": rec["seed"], "root_seed": 0, "budget": 20,
+                                     "f_star": opt["f_star"], "f_nominal": opt["f_nominal"]}
 
 
 def test_meta_files_follow_the_ioh_layout_and_types(tmp_path):
@@ -122,14 +126,59 @@ def test_meta_files_follow_the_ioh_layout_and_types(tmp_path):
 
 def test_instances_function_ids_and_file_names(tmp_path):
     recs = synthetic()[:2]
-    recs[1] = {**recs[1], "root_seed": 3, "solver": "a/b c"}
+    recs[1] = {**recs[1], "solver": "a/b c", "seed": 65535}
     export_ioh(recs, tmp_path, function_ids={"small@reference": 7})
     runs = {r["algorithm"]: r for r in read_ioh(tmp_path)}
     assert runs["alpha"]["instance"] == 0
-    assert runs["a/b c"]["instance"] == 3 * 1000 + 1
-    assert runs["a/b c"]["attributes"]["root_seed"] == 3
+    assert runs["a/b c"]["instance"] == 65535   # the largest 16-bit id
     assert {r["function_id"] for r in runs.values()} == {7}
     assert (tmp_path / "a_b_c" / "IOHprofiler_f7_small@reference.json").is_file()
+
+
+def test_a_large_root_seed_keeps_instances_small_and_is_an_attribute(tmp_path):
+    recs = [{**r, "root_seed": 20261126} for r in synthetic()[:4]]
+    export_ioh(recs, tmp_path)
+    runs = read_ioh(tmp_path)
+    assert sorted(r["instance"] for r in runs) == [0, 0, 1, 1]
+    assert {r["attributes"]["root_seed"] for r in runs} == {20261126}
+    # no f* is shipped for that root seed: no optimum attributes, and no precision export
+    assert all("f_star" not in r["attributes"] for r in runs)
+    with pytest.raises(ValueError, match="no known f"):
+        export_ioh(recs, tmp_path / "p", value="precision")
+
+
+def test_mixed_root_seeds_are_refused(tmp_path):
+    a, b = synthetic()[:2]
+    with pytest.raises(ValueError, match="several root seeds"):
+        export_ioh([a, {**b, "root_seed": 3}], tmp_path)
+
+
+def test_precision_values_targets_and_the_sanity_case(tmp_path):
+    recs = synthetic()[:2]
+    nominal = {**recs[0], "case": "nominal", "key": "alpha|nominal|reference|0"}
+    export_ioh([*recs, nominal], tmp_path, value="precision")
+    runs = read_ioh(tmp_path)
+    assert {r["function_name"] for r in runs} == {"small@reference"}   # nominal left out
+    for rec, run in zip(recs, sorted(runs, key=lambda r: r["instance"])):
+        opt = SHIPPED[f"small|reference|{rec['seed']}"]
+        fs, fn = opt["f_star"], opt["f_nominal"]
+        assert run["raw_y"] == pytest.approx(
+            [max(0.0, (y - fs) / (fn - fs)) for _, y in rec["trace"]], rel=1e-12)
+    meta = json.loads(next((tmp_path / "alpha").glob("*.json")).read_text())
+    assert {"value": "precision"} in meta["experiment_attributes"]
+    assert meta["scenarios"][0]["runs"][0]["fitness_targets"] == [0.1, 0.01, 0.001, 0.0001]
+    assert meta["targets"]["parameter_targets"] == [0.1, 0.03, 0.01]
+    # raw values: the targets are f* + p (f_nominal - f*)
+    export_ioh(recs[:1], tmp_path / "raw")
+    meta = json.loads(next((tmp_path / "raw" / "alpha").glob("*.json")).read_text())
+    opt = SHIPPED["small|reference|0"]
+    assert meta["scenarios"][0]["runs"][0]["fitness_targets"] == pytest.approx(
+        [opt["f_star"] + p * (opt["f_nominal"] - opt["f_star"]) for p in (.1, .01, 1e-3, 1e-4)])
+    # asked for, the sanity case is exported and marked
+    export_ioh([nominal], tmp_path / "sane", include_sanity=True)
+    meta = json.loads(next((tmp_path / "sane" / "alpha").glob("*.json")).read_text())
+    assert meta["function_name"] == "nominal@reference"
+    assert {"sanity": "True"} in meta["experiment_attributes"]
 
 
 @pytest.mark.parametrize("change, needle", [
@@ -137,7 +186,7 @@ def test_instances_function_ids_and_file_names(tmp_path):
     ({"trace": [[1, 1.0], [1, 0.5]]}, "increase from 1"),
     ({"trace": [[1, "x"]]}, "trace"),
     ({"x": {"Na": 1.0}}, "'x'"),
-    ({"seed": 1000, "root_seed": 1}, "instance"),
+    ({"seed": 65536}, "16-bit"),
 ])
 def test_malformed_records_are_refused(tmp_path, change, needle):
     with pytest.raises(ValueError, match=needle):
@@ -178,7 +227,8 @@ def _committed_runs() -> list[dict]:
         ident = (r["solver"], r["case"], r["track"], r["seed"], r["budget"], r["root_seed"],
                  r.get("model_version", "1"))
         seen.setdefault(ident, r)
-    return [r for r in seen.values() if r.get("status") != "error"]
+    # the sanity case is left out by default (it is outside every ranking)
+    return [r for r in seen.values() if r.get("status") != "error" and r["case"] != "nominal"]
 
 
 def test_cli_exports_the_committed_quick_leaderboard(tmp_path):
@@ -267,3 +317,27 @@ def test_cli_merges_files_and_counts_skipped_runs(tmp_path, capsys):
     assert f"{len(recs)} runs of 2 solvers on 4 functions" in text
     assert "skipped 1 runs: 1 failed with an error" in text
     assert len(read_ioh(tmp_path / "o")) == len(recs)
+
+
+def test_cli_precision_values_and_the_sanity_flag(tmp_path, capsys):
+    recs = _committed_runs()
+    nominal = [r for r in _all_committed() if r["case"] == "nominal"]
+    assert main(["export", "--format", "ioh", str(QUICK_RUNS), "--value", "precision",
+                 "--out", str(tmp_path / "p"), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["runs"] == len(recs) and summary["sanity_left_out"] == len(nominal) > 0
+    runs = read_ioh(tmp_path / "p")
+    assert all(0.0 <= y for r in runs for y in r["raw_y"])
+    assert max(y for r in runs for y in r["raw_y"]) == pytest.approx(1.0)  # the nominal start
+    assert main(["export", "--format", "ioh", str(QUICK_RUNS), "--include-sanity",
+                 "--out", str(tmp_path / "s"), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["runs"] == len(recs) + len(nominal) and summary["sanity_left_out"] == 0
+
+
+def _all_committed() -> list[dict]:
+    seen = {}
+    for line in QUICK_RUNS.read_text().splitlines():
+        r = json.loads(line)
+        seen.setdefault((r["solver"], r["case"], r["track"], r["seed"], r["budget"]), r)
+    return [r for r in seen.values() if r.get("status") != "error"]

@@ -18,3 +18,14 @@ def test_readme_commands_are_run_by_ci():
     assert "pytest" in run_tests and ".[test]" in run_tests
     assert install_and_run in ci, "README command 1 differs from .ci/run"
     assert run_tests in ci, "README command 2 differs from .ci/run"
+
+
+def test_readme_links_are_absolute():
+    """The README is also PyPI's project page, where a relative link leads nowhere."""
+    readme = (ROOT / "README.md").read_text()
+    relative = [m for m in re.findall(r"\]\(([^)\s]+)\)", readme)
+                if not m.startswith(("https://", "http://", "#", "mailto:"))]
+    assert relative == []
+    for link in re.findall(r"\]\(https://github.com/ema-bench/ema-bench/blob/main/([^)#]+)",
+                           readme):
+        assert (ROOT / link).exists(), link   # and each names a file of the repository

@@ -1,26 +1,31 @@
 """``ema-bench export``: convert run records (runs.jsonl) for other analysis tools.
 
 --format ioh writes IOHprofiler data, which IOHanalyzer and iohinspector load: one folder per
-solver, one function per case@track, one run per record (instance = seed, plus 1000 x root
-seed when that is not 0).  Runs that failed with an error are skipped and counted.  Records
-of several files are merged; a run found in two files is exported once.
+solver, one function per case@track, one run per record (instance = seed, 0..65535; seed,
+root seed, budget, f* and f_nominal are run attributes; one root seed per export).  With
+--value precision the values are (f - f*) / (f_nominal - f*), so IOH's fixed targets are the
+board's fitness targets (1e-1 .. 1e-4; needs the suite's f*: root seed 0).  The sanity case
+(nominal) is left out unless --include-sanity (then marked).  Runs that failed with an error
+are skipped and counted.  Records of several files are merged; a run found in two files is
+exported once.
 
 Examples::
 
     ema-bench export --format ioh leaderboards/runs.jsonl --out ioh-data
+    ema-bench export --format ioh leaderboards/runs.jsonl --value precision --out ioh-prec
     ema-bench export --format ioh lb1/runs.jsonl lb2/runs.jsonl --out ioh-data --json
 """
 
 from __future__ import annotations
 
 import argparse
-from collections.abc import Callable, Iterable
+from collections.abc import Callable
 from pathlib import Path
 
 from ..leaderboard.ioh import export_ioh
 
-#: format name -> exporter ``(records, out folder) -> files written``
-FORMATS: dict[str, Callable[[Iterable[dict], Path], list[Path]]] = {"ioh": export_ioh}
+#: format name -> exporter ``(records, out folder, **options) -> files written``
+FORMATS: dict[str, Callable[..., list[Path]]] = {"ioh": export_ioh}
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -34,6 +39,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--format", choices=FORMATS, required=True,
                    help="output format: ioh (IOHprofiler JSON + .dat)")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    p.add_argument("--value", choices=("raw", "precision"), default="raw",
+                   help="raw fitness (default) or precision (f - f*) / (f_nominal - f*)")
+    p.add_argument("--include-sanity", action="store_true",
+                   help="export the sanity case (nominal) too, marked; left out by default")
     add_json(p, "a summary")
     p.set_defaults(func=run)
 
@@ -41,6 +50,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from ..leaderboard.ioh import split_runs
     from ..leaderboard.store import is_error, unique
+    from ..suite import SANITY_CASES
     from . import print_json
     from .args import check_output, read_run_files
 
@@ -53,11 +63,14 @@ def run(args: argparse.Namespace) -> int:
         why = (f"all {len(records)} records are of runs that failed or made no evaluation"
                if records else "they hold no run records")
         raise CLIError(f"nothing to export from {', '.join(args.runs)}: {why}")
-    files = FORMATS[args.format](runs, out)
+    files = FORMATS[args.format](runs, out, value=args.value,
+                                 include_sanity=args.include_sanity)
+    sanity = [] if args.include_sanity else [r for r in runs if r["case"] in SANITY_CASES]
+    runs = [r for r in runs if args.include_sanity or r["case"] not in SANITY_CASES]
     errors = sum(map(is_error, skipped))
     summary = {
         "format": args.format, "out": str(out), "runs": len(runs),
-        "skipped": len(skipped), "skipped_errors": errors,
+        "skipped": len(skipped), "skipped_errors": errors, "sanity_left_out": len(sanity),
         "solvers": sorted({str(r["solver"]) for r in runs}),
         "functions": sorted({f"{r['case']}@{r['track']}" for r in runs}),
         "files": [str(f) for f in files],
@@ -70,4 +83,7 @@ def run(args: argparse.Namespace) -> int:
         if skipped:
             print(f"skipped {len(skipped)} runs: {errors} failed with an error, "
                   f"{len(skipped) - errors} made no evaluation")
+        if sanity:
+            print(f"left out {len(sanity)} runs of the sanity case (--include-sanity to "
+                  "export them)")
     return 0

@@ -23,6 +23,7 @@ Examples::
     ema-bench leaderboard --seeds 10 --budget 5000 --out leaderboards   # the full suite
     ema-bench leaderboard --executor dask --scheduler tcp://10.0.0.5:8786 --shard 0/4 --out lb
     ema-bench leaderboard --quick --check leaderboards/      # exit 1 on a regression
+    ema-bench leaderboard --quick --check     # no checkout: the baseline installed with the wheel
 """
 
 from __future__ import annotations
@@ -81,8 +82,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--quick", action="store_true",
                    help=f"small budget and seeds for CI ({QUICK['seeds']} seeds, "
                         f"budget {QUICK['budget']})")
-    p.add_argument("--check", default=None, metavar="DIR",
-                   help="compare with the committed runs in DIR (and DIR/*/) of the same "
+    p.add_argument("--check", default=None, metavar="DIR", nargs="?", const="",
+                   help="compare with the committed runs in DIR (and DIR/*/; no DIR: the "
+                        "checkout's leaderboards/, else the quick baseline installed with "
+                        "the package) of the same "
                         "budget and seeds, else larger-budget runs re-scored at this budget: "
                         "exit 1 when a solver's ECDF area is significantly lower (one-sided "
                         "Mann-Whitney per solver and track, family-wise level 5 %%)")
@@ -105,13 +108,22 @@ def run(args: argparse.Namespace) -> int:
     from . import CLIError, print_json
     from .args import check_output
 
+    if args.check is not None:
+        from ..leaderboard.check import packaged_baseline, require_baseline
+
+        # before any work: a check without a baseline used to run every task first
+        folder = args.check or packaged_baseline()
+        if folder is None:
+            raise CLIError("--check: no folder given and no baseline installed with this "
+                           "package (a checkout has leaderboards/)")
+        args.check = str(require_baseline(folder))
     preset = QUICK if args.quick else DEFAULT
     seeds = args.seeds if args.seeds is not None else preset["seeds"]
     cases = expand_cases(args.cases or preset["cases"])
     budget = args.budget if args.budget is not None else preset["budget"]
     if seeds < 1 or budget < 1:
         raise CLIError("--seeds and --budget must be >= 1")
-    if args.out is None and not args.check:
+    if args.out is None and args.check is None:
         # no default: a sweep written into the committed leaderboards/ by accident would
         # mix with (and be resumed from) the published runs
         raise CLIError("--out DIR is required: the folder for runs.jsonl, tables and plots "

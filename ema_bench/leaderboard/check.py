@@ -18,6 +18,7 @@ version are refused: the targets differ.
 
 from __future__ import annotations
 
+import importlib.metadata
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -30,6 +31,9 @@ from .store import RUNS_FILE, is_current, read_records, run_identity
 
 #: Family-wise false-alarm level of one check (all solvers and tracks together).
 ALPHA = 0.05
+#: where the wheel installs the committed quick baseline, under its data prefix
+#: (pyproject.toml, ``[tool.setuptools.data-files]``)
+PACKAGED_BASELINE = "share/ema-bench/leaderboards"
 
 
 def suite_of(record: dict) -> str:
@@ -133,6 +137,40 @@ def compare(now: list[dict], committed: list[dict], alpha: float = ALPHA
             bad.append(Regression(key[0], ALL, key[1], f"ECDF area (p={p:.2g})",
                                   sum(old) / len(old), sum(new) / len(new)))
     return bad
+
+
+def packaged_baseline() -> Path | None:
+    """The committed leaderboard folder this installation can compare with: the checkout's
+    ``leaderboards/`` when running from one, else the quick baseline installed with the
+    package (``leaderboards/quick/runs.jsonl`` as data under ``<prefix>/share/ema-bench/``);
+    None when neither is there."""
+    checkout = Path(__file__).resolve().parents[2] / "leaderboards"
+    if (checkout / "quick" / RUNS_FILE).is_file():
+        return checkout
+    try:
+        files = importlib.metadata.files("ema-bench") or []
+    except importlib.metadata.PackageNotFoundError:
+        return None
+    for f in files:
+        if f.as_posix().endswith(f"{PACKAGED_BASELINE}/quick/{RUNS_FILE}"):
+            path = Path(str(f.locate()))
+            if path.is_file():
+                return path.parent.parent
+    return None
+
+
+def require_baseline(folder: str | Path) -> Path:
+    """``folder`` if it holds committed run files (:func:`committed_files`); else a
+    ValueError saying so, raised before any run starts."""
+    folder = Path(folder)
+    if not committed_files(folder):
+        packaged = packaged_baseline()
+        hint = (f"; the baseline installed with this package is {packaged} (--check with no "
+                "folder uses it)" if packaged else
+                "; this installation has no baseline (install the wheel, or use a checkout)")
+        raise ValueError(f"--check {folder}: no committed runs there ({RUNS_FILE} or "
+                         f"*/{RUNS_FILE}){hint}")
+    return folder
 
 
 def load_baseline(folder: str | Path, budget: int, seeds: int, keys: set[tuple] | None = None

@@ -6,7 +6,10 @@ text is escaped (a solver may be named ``<script>``), and a Content-Security-Pol
 the page's own script and stylesheet run and loads images from ``data:`` URIs only, so even a
 missed escape could neither run code nor reach the network.
 
-Tables sort by clicking a header.  A cell sorts by its ``data-value`` attribute where it has one
+Tables sort by clicking a header; the first click puts the better end first (a column marked
+higher-is-better sorts descending, others ascending), the next reverses.  Each table sits in
+its own horizontal scroll container, so a wide table never makes the page scroll sideways.
+A cell sorts by its ``data-value`` attribute where it has one
 (numbers, and ``(display_text, sort_value)`` cells such as ``("1.2e3 [0.9e3, 1.6e3]", 1200.0)``)
 and by its text otherwise: numbers numerically (``inf`` above every number), then text, with
 missing values (``-``) last in either direction.
@@ -43,6 +46,8 @@ th[aria-sort=ascending] button::after { content: " \\25B2"; }
 th[aria-sort=descending] button::after { content: " \\25BC"; }
 tbody tr:nth-child(even) { background: #fafafa; }
 p.note, footer { color: #666; font-size: 0.85em; }
+p, footer { overflow-wrap: anywhere; }
+div.scroll { overflow-x: auto; max-width: 100%; }
 img { max-width: 100%; height: auto; display: block; margin: 1em 0; }
 """
 
@@ -71,7 +76,8 @@ _JS = """\
     const heads = table.tHead.rows[0].cells;
     Array.prototype.forEach.call(heads, function (th, col) {
       th.querySelector("button").addEventListener("click", function () {
-        const dir = th.getAttribute("aria-sort") === "ascending" ? -1 : 1;
+        const now = th.getAttribute("aria-sort");
+        const dir = now ? (now === "ascending" ? -1 : 1) : (th.dataset.better === "high" ? -1 : 1);
         Array.prototype.forEach.call(heads, function (h) { h.removeAttribute("aria-sort"); });
         th.setAttribute("aria-sort", dir === 1 ? "ascending" : "descending");
         const body = table.tBodies[0];
@@ -114,6 +120,8 @@ class Table:
         Small print under the table.
     digits : int
         Significant digits of float cells.
+    higher_better : Sequence[str]
+        Columns where a larger value is better: their first click sorts descending.
     """
 
     caption: str
@@ -121,6 +129,7 @@ class Table:
     rows: Sequence[Sequence[object]]
     note: str = ""
     digits: int = 4
+    higher_better: Sequence[str] = ()
 
     def __post_init__(self) -> None:
         # a short row would silently shift every later cell under the wrong header
@@ -210,9 +219,14 @@ def _paragraphs(text: str, cls: str = "") -> list[str]:
 
 
 def _table(table: Table) -> list[str]:
-    out = ['<table class="sortable">', f"<caption>{html.escape(table.caption)}</caption>",
+    label = html.escape(table.caption, quote=True)
+    out = [f'<div class="scroll" role="region" tabindex="0" aria-label="{label}">',
+           '<table class="sortable">', f"<caption>{html.escape(table.caption)}</caption>",
            "<thead><tr>"]
-    out += [f'<th scope="col"><button type="button">{html.escape(str(c))}</button></th>'
+    high = set(table.higher_better)
+    better = ' data-better="high"'
+    out += [f'<th scope="col"{better if c in high else ""}>'
+            f'<button type="button">{html.escape(str(c))}</button></th>'
             for c in table.columns]
     out += ["</tr></thead>", "<tbody>"]
     for row in table.rows:
@@ -224,7 +238,7 @@ def _table(table: Table) -> list[str]:
                 attrs += f' data-value="{html.escape(key)}"'
             cells.append(f"<td{attrs}>{html.escape(text)}</td>")
         out.append("<tr>" + "".join(cells) + "</tr>")
-    out += ["</tbody>", "</table>"]
+    out += ["</tbody>", "</table>", "</div>"]
     return out + _paragraphs(table.note, "note")
 
 

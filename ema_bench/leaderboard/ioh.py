@@ -23,16 +23,32 @@ The mapping: one IOH *function* per (case, track), named ``case@track``, with id
 position of its first appearance (or as given); dimension 4 (the fault vector, ``x`` in
 ``FAULT_NAMES`` order); minimisation; algorithm = solver, its info the library the solver
 wraps (with its version when the record has it; else the suite); suite = the record's suite,
-else ``ema-bench``.  The *instance* is the run seed, plus ``1000 * root_seed`` when the root seed
-is not 0 (so seeds must stay below 1000 then; iohinspector stores instances as 16-bit
-integers); the exact seed, root seed and budget are run attributes.  ``raw_y`` is the
-best-so-far fitness at each recorded evaluation: at an improvement it is the evaluated value
-itself; the last line of a run, at its last evaluation, repeats the best-so-far value where
-IOH would write that evaluation's own (records do not keep it).  A trace thinned by the
-record writer has fewer improvement lines; none is invented.  Values are written in Python's
-shortest round-trip form (``6.19e-05``), not IOH's default ``{:.10f}``, which would round a
-normalised fitness of 1e-11 to zero.  Runs that failed with an error (and runs without an
-evaluation, which IOH does not record) are skipped.
+else ``ema-bench``.  The *instance* is the run seed itself (IOH tools store instances as
+16-bit integers: iohinspector's ``instance`` column is ``UInt16``, so seeds must be below
+65536); the root seed is not folded in, so one export holds runs of one root seed (an export
+mixing root seeds is refused: the same seed of two root seeds is two instances).  Seed, root
+seed and budget, and where the suite knows them the instance's ``f_star`` and ``f_nominal``,
+are run attributes; ``fitness_targets`` lists each run's fitness targets in the written
+values, and the meta file's ``targets`` the target precisions and parameter targets.
+
+Values (``experiment_attributes`` ``value``): ``raw`` (default) writes the best-so-far fitness;
+``precision`` writes ``(f - f*) / (f_nominal - f*)``, the precision the suite's fitness targets
+are defined on (1e-1 .. 1e-4), so IOH's fixed targets equal the board's; a run without a
+shipped ``f*`` (root seed other than 0, seed beyond the shipped ten) cannot be written so and
+is refused.  Precision is floored at 0: a fit below the best-known ``f*`` (it fits the
+noise a little better than the best fit found) has reached every target, and a negative value
+would make a log-scaled analysis (iohinspector's ``transform_fval``) NaN; the raw export keeps
+the exact value.  The sanity
+instances (``nominal``, outside every ranking) are left out unless asked for, and then marked
+by the experiment attribute ``sanity`` (iohinspector: a column of its overview).
+
+``raw_y`` is the best-so-far value at each recorded evaluation: at an improvement it is the
+evaluated value itself; the last line of a run, at its last evaluation, repeats the best-so-far
+value where IOH would write that evaluation's own (records do not keep it).  A trace thinned
+by the record writer has fewer improvement lines; none is invented.  Values are written in
+Python's shortest round-trip form (``6.19e-05``), not IOH's default ``{:.10f}``, which would
+round a normalised fitness of 1e-11 to zero.  Runs that failed with an error (and runs without
+an evaluation, which IOH does not record) are skipped.
 """
 
 from __future__ import annotations
@@ -46,6 +62,7 @@ from pathlib import Path
 from typing import Any
 
 from ..faults import FAULT_NAMES
+from ..suite import FITNESS_PRECISIONS, PARAMETER_TARGETS, SANITY_CASES, best_known
 from .store import is_error
 
 log = logging.getLogger("ema_bench")
@@ -57,8 +74,12 @@ DEFAULT_SUITE = "ema-bench"
 DIMENSION = len(FAULT_NAMES)
 ATTRIBUTES = ("evaluations", "raw_y")
 RUN_ATTRIBUTES = ("seed", "root_seed", "budget")
-#: instance = seed + INSTANCE_STRIDE * root_seed
-INSTANCE_STRIDE = 1000
+#: per-run numbers written where the suite knows them (floats)
+OPTIMUM_ATTRIBUTES = ("f_star", "f_nominal")
+#: IOH tools store instance ids as unsigned 16-bit integers (iohinspector: ``UInt16``)
+MAX_INSTANCE = 2**16 - 1
+#: what the data files' ``raw_y`` holds
+VALUES = ("raw", "precision")
 
 _UNSAFE = re.compile(r"[^A-Za-z0-9._@+-]")
 
@@ -69,14 +90,32 @@ def function_name(record: Mapping[str, Any]) -> str:
 
 
 def instance_of(record: Mapping[str, Any]) -> int:
-    """The IOH instance of a run: its seed, plus ``1000 * root_seed`` when that is not 0."""
+    """The IOH instance of a run: its seed (0 .. 65535; the root seed is a run attribute)."""
     seed, root = int(record["seed"]), int(record.get("root_seed") or 0)
     if seed < 0 or root < 0:
         raise ValueError(f"run {_label(record)}: negative seed or root seed")
-    if root and seed >= INSTANCE_STRIDE:
-        raise ValueError(f"run {_label(record)}: seed {seed} >= {INSTANCE_STRIDE} with root "
-                         f"seed {root} has no distinct IOH instance")
-    return seed + INSTANCE_STRIDE * root
+    if seed > MAX_INSTANCE:
+        raise ValueError(f"run {_label(record)}: seed {seed} is beyond IOH's 16-bit instance "
+                         f"ids (at most {MAX_INSTANCE})")
+    return seed
+
+
+def optimum(record: Mapping[str, Any]) -> tuple[float, float] | None:
+    """``(f*, f_nominal)`` of a run's instance: the record's own (what it was scored on),
+    else the suite's shipped one, else None (root seed other than 0, seed beyond the shipped
+    ones, the sanity case, a custom case)."""
+    t = record.get("targets") or {}
+    if t.get("f_star") is not None and t.get("f_nominal") is not None:
+        return float(t["f_star"]), float(t["f_nominal"])
+    known = best_known(str(record["case"]), str(record["track"]), int(record["seed"]),
+                       int(record.get("root_seed") or 0))
+    return None if known is None else (float(known["f_star"]), float(known["f_nominal"]))
+
+
+def precision(f: float, f_star: float, f_nominal: float) -> float:
+    """``max(0, (f - f*) / (f_nominal - f*))``: the suite's precision of a fitness, floored
+    at 0 (below ``f*``: every target reached)."""
+    return max(0.0, (f - f_star) / (f_nominal - f_star))
 
 
 def split_runs(records: Iterable[dict]) -> tuple[list[dict], list[dict]]:
@@ -94,7 +133,8 @@ def split_runs(records: Iterable[dict]) -> tuple[list[dict], list[dict]]:
 
 
 def export_ioh(records: Iterable[dict], out: Path,
-               function_ids: Mapping[str, int] | None = None) -> list[Path]:
+               function_ids: Mapping[str, int] | None = None, value: str = "raw",
+               include_sanity: bool = False) -> list[Path]:
     """Write run records as IOHprofiler data under ``out`` (see the module docstring).
 
     Parameters
@@ -108,6 +148,12 @@ def export_ioh(records: Iterable[dict], out: Path,
         ``case@track`` -> IOH function id; default: :func:`suite_function_ids` (the same
         id for the same instance and track in every export), then ids after those for
         anything else, in order of first appearance.
+    value
+        ``raw`` (the best-so-far fitness) or ``precision`` (``(f - f*) / (f_nominal - f*)``:
+        IOH's fixed targets are then the board's fitness targets).
+    include_sanity
+        Export the sanity instances (``nominal``) too, marked by the experiment attribute
+        ``sanity``; by default they are left out, as from every ranking.
 
     Returns
     -------
@@ -118,9 +164,28 @@ def export_ioh(records: Iterable[dict], out: Path,
     ------
     ValueError
         A record lacks a field or has a malformed trace, a function has no id (or two share
-        one), or two solver or function names map to the same file name.
+        one), two solver or function names map to the same file name, the runs are of
+        several root seeds, or (``value="precision"``) a run has no known ``f*``.
     """
+    if value not in VALUES:
+        raise ValueError(f"value must be one of {', '.join(VALUES)}, got {value!r}")
     runs, skipped = split_runs(records)
+    if not include_sanity:
+        sanity = [r for r in runs if r["case"] in SANITY_CASES]
+        if sanity:
+            log.info("IOH export: left out %d runs of the sanity instances (%s)", len(sanity),
+                     ", ".join(SANITY_CASES))
+        runs = [r for r in runs if r["case"] not in SANITY_CASES]
+    roots = sorted({int(r.get("root_seed") or 0) for r in runs})
+    if len(roots) > 1:
+        raise ValueError(f"runs of several root seeds ({', '.join(map(str, roots))}) would "
+                         "share IOH instance ids; export each root seed separately")
+    if value == "precision":
+        lacking = [_label(r) for r in runs if optimum(r) is None]
+        if lacking:
+            raise ValueError(f"{len(lacking)} runs have no known f* for a precision export "
+                             f"(e.g. {', '.join(lacking[:3])}): the suite ships f* for root "
+                             "seed 0 and its first seeds only; export raw values instead")
     if skipped:
         log.warning("IOH export: skipped %d runs (%d failed with an error, the others made no "
                     "evaluation)", len(skipped), sum(map(is_error, skipped)))
@@ -135,7 +200,8 @@ def export_ioh(records: Iterable[dict], out: Path,
     files: list[tuple[Path, str]] = []
     for (solver, name), group in groups.items():
         group.sort(key=lambda r: (instance_of(r), int(r.get("budget") or 0)))
-        files += _function_files(Path(out) / safe_name(solver), solver, name, ids[name], group)
+        files += _function_files(Path(out) / safe_name(solver), solver, name, ids[name], group,
+                                 value)
     for path, text in files:
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(text, encoding="utf-8")
@@ -182,23 +248,34 @@ def _check_unique_files(names: Iterable[str], what: str) -> None:
             raise ValueError(f"{what} names {other!r} and {n!r} map to the same file name")
 
 
-def _function_files(folder: Path, solver: str, name: str, fid: int,
-                    group: list[dict]) -> list[tuple[Path, str]]:
+def _function_files(folder: Path, solver: str, name: str, fid: int, group: list[dict],
+                    value: str = "raw") -> list[tuple[Path, str]]:
     """``(path, text)`` of the meta and data files of one solver on one function."""
     stem = f"f{fid}_{safe_name(name)}"
     dat_rel = f"data_{stem}/IOHprofiler_f{fid}_DIM{DIMENSION}.dat"
     # per-run numbers every run of the file has (IOH's run attributes: one list per file)
     attrs = [a for a in RUN_ATTRIBUTES if all(r.get(a) is not None for r in group)]
+    optima = [optimum(r) for r in group]
+    known = all(o is not None for o in optima)
     lines, runs = [], []
-    for r in group:
+    for r, opt in zip(group, optima):
         trace = _trace(r)
+        if value == "precision":
+            f_star, f_nom = opt
+            trace = [(e, precision(y, f_star, f_nom)) for e, y in trace]
         lines.append(" ".join(ATTRIBUTES))
         lines += [f"{e} {y!r}" for e, y in trace]
         best_y = min(y for _, y in trace)
         best_e = next(e for e, y in trace if y == best_y)
-        runs.append({"instance": instance_of(r), "evals": _int(r, "evaluations"),
-                     "best": {"evals": best_e, "y": best_y, "x": _x(r)},
-                     **{a: _int(r, a) for a in attrs}})
+        run = {"instance": instance_of(r), "evals": _int(r, "evaluations"),
+               "best": {"evals": best_e, "y": best_y, "x": _x(r)},
+               **{a: _int(r, a) for a in attrs}}
+        if known:
+            run.update(zip(OPTIMUM_ATTRIBUTES, opt))
+            run["fitness_targets"] = (list(FITNESS_PRECISIONS) if value == "precision" else
+                                      [opt[0] + p * (opt[1] - opt[0])
+                                       for p in FITNESS_PRECISIONS])
+        runs.append(run)
     suites = {r.get("suite") or DEFAULT_SUITE for r in group}
     if len(suites) > 1:
         raise ValueError(f"{solver} on {name}: runs of several suites "
@@ -208,8 +285,13 @@ def _function_files(folder: Path, solver: str, name: str, fid: int,
         "version": IOH_FORMAT_VERSION, "suite": suite, "function_id": fid,
         "function_name": name, "maximization": False,
         "algorithm": {"name": solver, "info": _info(group[0]) or suite},
-        "run_attributes": attrs,
+        "experiment_attributes": [
+            {"value": value}, {"sanity": str(group[0]["case"] in SANITY_CASES)},
+            {"root_seed": str(int(group[0].get("root_seed") or 0))}],
+        "run_attributes": attrs + (list(OPTIMUM_ATTRIBUTES) if known else []),
         "attributes": list(ATTRIBUTES),
+        "targets": {"fitness_precisions": list(FITNESS_PRECISIONS),
+                    "parameter_targets": list(PARAMETER_TARGETS)},
         "scenarios": [{"dimension": DIMENSION, "path": dat_rel, "runs": runs}],
     }
     return [(folder / f"IOHprofiler_{stem}.json", json.dumps(meta, indent=1, allow_nan=False)

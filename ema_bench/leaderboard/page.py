@@ -1,20 +1,56 @@
-"""``leaderboard.html``: the leaderboard as one self-contained page (a CI artifact): the
-ranking, sanity and per-instance tables of each track, sortable, and the plots embedded."""
+"""``leaderboard.html``: the leaderboard as one self-contained page (a CI artifact, and the
+page GitHub Pages publishes): the ranking, sanity and per-instance tables of each track,
+sortable (the first click puts the better end first), and the plots embedded.
+
+The page is made to be shared: the command line in its header names no local folder (the
+values of ``--out``, ``--check`` and ``--scheduler`` read ``OUT``, ``DIR`` and ``ADDRESS``),
+and fixed-budget precisions are shown floored at 0 (a fit below the best-known ``f*`` fits the
+noise a little better than the best fit found; it has reached every target)."""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
-from ..suite import SUITE_ID
+from ..suite import SUITE_ID, instance_names
 from ..trace_cache import MODEL_VERSION
 from .anytime import anytime_scores, sanity_scores
 from .html import Section, Table, write_html
 from .report import _track_note, instance_rows, ranking_rows, sanity_rows
 
+#: options whose value is a local path or address, and what the page shows instead
+_LOCAL = {"--out": "OUT", "--check": "DIR", "--scheduler": "ADDRESS"}
+_LOCAL_RE = re.compile(r"(?P<opt>" + "|".join(map(re.escape, _LOCAL)) +
+                       r")(?P<sep>[ =])(?P<val>(?!-)(?:'[^']*'|[^\s`]+))")
+PRECISION_NOTE = ("Precision (f - f*) / (f_nominal - f*) is shown floored at 0: below 0 a fit "
+                  "beats the best-known f* (it fits the noise a little better than the best "
+                  "fit found) and has reached every fitness target.")
+
+
+def shareable(header: str) -> str:
+    """``header`` with the values of path-like options (``--out DIR``) replaced by a
+    placeholder: a published page must not show the folders of the machine that made it."""
+    return _LOCAL_RE.sub(lambda m: f"{m['opt']}{m['sep']}{_LOCAL[m['opt']]}", header)
+
+
+def higher_better(columns: list[str]) -> list[str]:
+    """The columns where a larger value is better: areas, hit rates, the sanity count and
+    the per-instance areas (named by instance)."""
+    instances = set(instance_names())
+    return [c for c in columns
+            if "area" in c or c.startswith("reached") or c.startswith("stayed")
+            or c in instances]
+
+
+def _floored(rows: list[dict[str, object]]) -> list[dict[str, object]]:
+    return [{k: (max(0.0, v) if k.startswith("median precision") and isinstance(v, float)
+                 and v == v else v) for k, v in r.items()} for r in rows]
+
 
 def _table(caption: str, rows: list[dict[str, object]], note: str = "") -> Table:
     cols = list(rows[0]) if rows else ["(no runs)"]
-    return Table(caption, cols, [list(r.values()) for r in rows], note=note)
+    return Table(caption, cols, [list(r.values()) for r in rows], note=note,
+                 higher_better=higher_better(cols))
 
 
 def write_page(records: list[dict], path: Path, header: str, images: list[Path]) -> Path:
@@ -26,11 +62,12 @@ def write_page(records: list[dict], path: Path, header: str, images: list[Path])
         sections.append(Section(
             f"{track} track", _track_note(track),
             tables=[_table("Ranking by ECDF area (every instance but the sanity case)",
-                           ranking_rows(scores, track),
-                           "Click a header to sort. Intervals: 95 % bootstrap over runs."),
+                           _floored(ranking_rows(scores, track)),
+                           "Click a header to sort (the first click puts the better end "
+                           "first). Intervals: 95 % bootstrap over runs. " + PRECISION_NOTE),
                     _table("Sanity: the healthy actuator (not ranked)",
                            sanity_rows(sanity, track)),
                     _table("ECDF area per instance", instance_rows(scores, track))]))
     sections.append(Section("Plots", images=images))
-    return write_html(path, f"ema-bench leaderboard ({SUITE_ID})", header, sections,
-                      footer=f"suite {SUITE_ID}, model version {MODEL_VERSION}")
+    return write_html(path, f"ema-bench leaderboard ({SUITE_ID})", shareable(header),
+                      sections, footer=f"suite {SUITE_ID}, model version {MODEL_VERSION}")

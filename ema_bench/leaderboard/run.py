@@ -11,7 +11,7 @@ from pathlib import Path
 from .. import jsonio
 from ..faults import CASES
 from ..progress import Progress, progress
-from ..suite import SUITE_ID
+from ..suite import SANITY_CASES, SUITE_ID
 from ..trace_cache import MODEL_VERSION
 from .anytime import anytime_scores
 from .claims import Claim, holder, try_claim
@@ -164,7 +164,8 @@ def write_outputs(records: list[dict], out: Path, command: str, plots: bool = Tr
         images.append(p)
     if plots and finished:
         for track in dict.fromkeys(r["track"] for r in finished):
-            if any(r["track"] == track and r["case"] in CASES for r in finished):
+            if any(r["track"] == track and r["case"] in CASES
+                   and r["case"] not in SANITY_CASES for r in finished):
                 p = out / f"convergence_{track}.png"
                 convergence_plot(finished, track, p)
                 images.append(p)

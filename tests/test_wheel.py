@@ -1,0 +1,93 @@
+"""The package stands alone: the wheel, installed into a fresh venv outside the checkout, runs
+the README's examples (sizes reduced), ``leaderboard --check`` included.
+
+Costs about a minute and a half on the 2-core CI machine (building the wheel, installing it
+and its dependencies from pip's cache, a dozen short commands); skipped with a reason where no
+wheel can be built (no network and no cache for its build requirements).
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+import venv
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _run(cmd: list[str], cwd: Path, timeout: int = 600) -> subprocess.CompletedProcess:
+    res = subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, timeout=timeout)
+    assert res.returncode == 0, f"{' '.join(cmd)}\n{res.stdout[-1500:]}\n{res.stderr[-3000:]}"
+    return res
+
+
+@pytest.fixture(scope="module")
+def alone(tmp_path_factory) -> tuple[Path, Path]:
+    """``(bin folder of a fresh venv with only the wheel installed, a work folder)``, both
+    outside the checkout."""
+    tmp = tmp_path_factory.mktemp("wheel")
+    build = subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "-w",
+                            str(tmp / "dist"), str(ROOT)], capture_output=True, text=True,
+                           timeout=600)
+    if build.returncode != 0:
+        pytest.skip(f"cannot build the wheel here: {build.stderr.strip()[-300:]}")
+    (wheel,) = (tmp / "dist").glob("ema_bench-*.whl")
+    venv.create(tmp / "venv", with_pip=True)
+    bin_ = tmp / "venv" / "bin"
+    # --no-compile: no .pyc for numba, scipy and matplotlib up front (a minute on CI)
+    _run([str(bin_ / "python"), "-m", "pip", "install", "-q", "--no-compile", str(wheel)], tmp)
+    work = tmp / "work"
+    work.mkdir()
+    return bin_, work
+
+
+def test_the_installed_package_is_the_wheel(alone):
+    bin_, work = alone
+    res = _run([str(bin_ / "python"), "-c", "import ema_bench; print(ema_bench.__file__)"],
+               work)
+    assert not Path(res.stdout.strip()).is_relative_to(ROOT)
+
+
+def test_the_readme_python_example_runs(alone):
+    bin_, work = alone
+    readme = (ROOT / "README.md").read_text()
+    block = re.search(r"### The problem, from Python\n\n```python\n(.*?)```", readme,
+                      flags=re.S).group(1)
+    assert "budget=2000" in block   # the README's example, run at a tenth of its budget
+    res = _run([str(bin_ / "python"), "-c", block.replace("budget=2000", "budget=200")], work)
+    assert res.stdout.strip().endswith("}") and "200" in res.stdout
+
+
+def test_the_readme_commands_run_and_check_against_the_shipped_baseline(alone):
+    bin_, work = alone
+    eb = str(bin_ / "ema-bench")
+    small = ["--solvers", "nelder-mead", "--cases", "small", "--tracks", "twin", "--seeds",
+             "1", "--budget", "60"]
+    for cmd in (["--help"], ["params"], ["solvers"],
+                ["simulate", "--case", "small", "--model", "reference", "--seed", "0",
+                 "--out", "traces.csv", "--plot", "traces.png"],
+                ["solve", "--case", "small", "--track", "twin", "--solver", "nelder-mead",
+                 "--budget", "60", "--seed", "0", "--json"],
+                ["solve", "--measured", "traces.csv", "--solver", "cmaes", "--budget", "30",
+                 "--plot", "fit.png"],
+                ["leaderboard", "--quick", *small, "--no-plots", "--out", "lb"],
+                ["validate", "lb/runs.jsonl", "--partial"],
+                ["export", "--format", "ioh", "lb/runs.jsonl", "--out", "ioh"]):
+        _run([eb, *cmd], work)
+    assert (work / "traces.png").is_file() and (work / "fit.png").is_file()
+    assert list((work / "ioh").glob("nelder-mead/IOHprofiler_*.json"))
+    # --check without a checkout: the quick baseline the wheel installs (budget 400 runs,
+    # re-scored at this budget)
+    res = _run([eb, "leaderboard", "--quick", *small, "--no-plots", "--check", "--json"], work)
+    summary = json.loads(res.stdout)
+    assert summary["regressions"] == [] and summary["baseline"]["re_scored"] == 1
+    # a folder without committed runs is refused at once, before any run
+    res = subprocess.run([eb, "leaderboard", "--quick", "--check", "nowhere"], cwd=work,
+                         capture_output=True, text=True, timeout=120)
+    assert res.returncode == 2 and "no committed runs" in res.stderr
+    assert "share/ema-bench/leaderboards" in res.stderr
