@@ -22,34 +22,44 @@ from ema_bench.leaderboard.store import read_records
 from ema_bench.leaderboard.tasks import Task, run_task
 from ema_bench.leaderboard.validate import validate
 from ema_bench.problem import BudgetExhausted
-from ema_bench.registry import run_solver
 
 # fields that legitimately differ between two runs of the same thing
 VOLATILE = {"wall_s", "solver_wall_s", "manifest"}
 
 
 class CountingBatches:
-    """Counts the batched evaluate calls a problem receives (and their sizes)."""
+    """Counts the batched evaluations a problem's log receives (and their sizes)."""
 
     def __init__(self, problem):
         self.sizes: list[int] = []
-        inner = problem.evaluate
+        log = problem._log     # the one counted door of the view and the scorer's problem
+        inner = log.evaluate_outputs
 
-        def evaluate(X):
+        def evaluate_outputs(X):
             self.sizes.append(len(np.atleast_2d(X)))
             return inner(X)
-        problem.evaluate = evaluate
+        log.evaluate_outputs = evaluate_outputs
 
 
 def _accepted(rec: dict) -> None:
     assert validate([rec], complete=False) == [], validate([rec], complete=False)
 
 
+def test_an_adapter_hands_out_the_solver_view_only():
+    """What an outside library reaches through an adapter run holds no truth or score."""
+    from ema_bench.problem import SolverView
+
+    run = AdapterRun("x", case="small", budget=5)
+    assert isinstance(run.problem, SolverView)
+    assert not hasattr(run.problem, "score") and not hasattr(run.problem, "truth")
+    assert "_problem" not in repr(run)
+
+
 def test_an_adapter_run_makes_the_leaderboards_record():
     """The same solver through AdapterRun and through the leaderboard: the same record."""
     run = AdapterRun("nelder-mead", case="small", track="twin", seed=1, budget=60,
                      library="scipy")
-    res = run_solver("nelder-mead", run.problem, 60, seed=run.node())
+    res = run.run_registered("nelder-mead")
     ours = run.record(res.stop_reason, **res.extra)
     board = run_task(Task("nelder-mead", "small", "twin", 1, 60))
     assert {k: v for k, v in ours.items() if k not in VOLATILE} == \

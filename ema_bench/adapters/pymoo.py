@@ -25,7 +25,7 @@ import numpy as np
 from pymoo.core.problem import Problem as _PymooProblem
 from pymoo.optimize import minimize
 
-from ..problem import Problem
+from ..problem import SolverView
 from .run import evaluate_unit
 
 
@@ -33,7 +33,7 @@ class PymooProblem(_PymooProblem):
     """An ema-bench :class:`~ema_bench.problem.Problem` as a single-objective pymoo problem
     in the unit box (vectorised: one population, one counted batch)."""
 
-    def __init__(self, problem: Problem) -> None:
+    def __init__(self, problem: SolverView) -> None:
         super().__init__(n_var=problem.dim, n_obj=1, xl=0.0, xu=1.0, elementwise=False)
         self.problem = problem
 
@@ -46,7 +46,7 @@ class PymooProblem(_PymooProblem):
         out["F"] = F[:, None]
 
 
-def solve(problem: Problem, algorithm: Any, seed: int | None = None, **kwargs: Any) -> Any:
+def solve(problem: SolverView, algorithm: Any, seed: int | None = None, **kwargs: Any) -> Any:
     """``pymoo.optimize.minimize`` of ``problem`` by ``algorithm``, terminated at the
     problem's remaining budget (``("n_eval", remaining)``); returns pymoo's ``Result``.  The
     run's best point is the problem's (``problem.best``), which is what the record keeps."""

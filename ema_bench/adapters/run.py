@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from ..leaderboard.tasks import Task
-from ..problem import Problem
+from ..problem import Problem, SolverView
 from ..records import run_record
 from ..registry import finish
 from ..seeding import stream
@@ -51,7 +51,7 @@ class AdapterRun:
     budget: int = 1000
     root_seed: int = 0
     library: str = ""
-    problem: Problem = field(init=False)
+    _problem: Problem = field(init=False, repr=False)
     _t0: float = field(init=False, default=0.0)
 
     def __post_init__(self) -> None:
@@ -60,8 +60,16 @@ class AdapterRun:
         self._task = Task(self.solver, self.case, self.track, int(self.seed), int(self.budget),
                           int(self.root_seed))
         self._t0 = time.perf_counter()
-        self.problem = make_problem(self.case, track=self.track, seed=self._task.node(),
-                                    budget=self.budget)
+        self._problem = make_problem(self.case, track=self.track, seed=self._task.node(),
+                                     budget=self.budget)
+        self._view = self._problem.view()
+
+    @property
+    def problem(self) -> SolverView:
+        """What the outside library may reach: the problem's solver view (the counted
+        evaluation, bounds, budget, data), never the truth or a score (the record is made
+        from the scorer's problem, which stays private to this run)."""
+        return self._view
 
     def node(self) -> np.random.SeedSequence:
         """The run node (``run_seed(root_seed, seed)``): what ``run_solver`` takes as the
@@ -73,12 +81,21 @@ class AdapterRun:
         as every registered solver gets (disjoint from the instance and noise streams)."""
         return int(stream(self.node(), "solver").generate_state(1)[0])
 
+    def run_registered(self, name: str) -> Any:
+        """Run the registered solver ``name`` on this instance as the leaderboard does
+        (:func:`~ema_bench.registry.run_solver` at the run node, the whole budget); returns
+        its :class:`~ema_bench.registry.SolveResult`.  The baseline an adapter run is
+        compared with."""
+        from ..registry import run_solver
+
+        return run_solver(name, self._problem, self.budget, seed=self.node())
+
     def record(self, stop_reason: str = "budget", **extra: Any) -> dict[str, Any]:
         """The run's record: the problem's best vector and count, never the library's."""
         libs = tuple(d for d in self.library.split(",") if d)
-        result = finish(self.problem, self.solver, stop_reason, self._t0, libraries=libs,
+        result = finish(self._problem, self.solver, stop_reason, self._t0, libraries=libs,
                         **extra)
-        return run_record(self.problem, result, case=self.case, track=self.track,
+        return run_record(self._problem, result, case=self.case, track=self.track,
                           seed=self.seed, budget=self.budget, root_seed=self.root_seed,
                           wall_s=time.perf_counter() - self._t0, info=self.library)
 
@@ -92,13 +109,13 @@ def append_record(path: str | Path, record: dict[str, Any]) -> None:
         store.append(record)
 
 
-def unit_bounds(problem: Problem) -> tuple[np.ndarray, np.ndarray]:
+def unit_bounds(problem: SolverView) -> tuple[np.ndarray, np.ndarray]:
     """The normalised box ``[0, 1]^dim`` every adapter searches (physical scales differ by
     six orders of magnitude)."""
     return np.zeros(problem.dim), np.ones(problem.dim)
 
 
-def evaluate_unit(problem: Problem, U: np.ndarray) -> np.ndarray:
+def evaluate_unit(problem: SolverView, U: np.ndarray) -> np.ndarray:
     """Fitness of unit-box points ``U`` (n, dim), clipped into the box first (a library's
     bound handling may step 1 ulp outside), as one batched, counted evaluation."""
     U = np.clip(np.atleast_2d(np.asarray(U, dtype=float)), 0.0, 1.0)

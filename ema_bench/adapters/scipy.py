@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 from scipy import optimize
 
-from ..problem import BudgetExhausted, Problem
+from ..problem import BudgetExhausted, SolverView
 from .run import evaluate_unit
 
 #: the option that caps a method's function evaluations, by method (lower case)
@@ -41,7 +41,7 @@ class _Spent(Exception):
     """The budget cannot hold the next evaluation (raised through SciPy, caught here)."""
 
 
-def _result(problem: Problem, start_evals: int, message: str, success: bool,
+def _result(problem: SolverView, start_evals: int, message: str, success: bool,
             nit: int | None = None) -> optimize.OptimizeResult:
     x, f = problem.best
     out = optimize.OptimizeResult(x=x, fun=f, nfev=problem.evaluations - start_evals,
@@ -53,7 +53,7 @@ def _result(problem: Problem, start_evals: int, message: str, success: bool,
     return out
 
 
-def _scalar(problem: Problem) -> Callable[[np.ndarray], float]:
+def _scalar(problem: SolverView) -> Callable[[np.ndarray], float]:
     def f(u: np.ndarray) -> float:
         try:
             return float(evaluate_unit(problem, u)[0])
@@ -62,7 +62,7 @@ def _scalar(problem: Problem) -> Callable[[np.ndarray], float]:
     return f
 
 
-def simplex(problem: Problem, edge: float = 0.1, x0: np.ndarray | None = None) -> np.ndarray:
+def simplex(problem: SolverView, edge: float = 0.1, x0: np.ndarray | None = None) -> np.ndarray:
     """A Nelder-Mead ``initial_simplex`` in the unit box: the start and one step of ``edge``
     along each axis, pointing into the box."""
     u0 = np.clip(problem.to_unit(problem.start if x0 is None else np.asarray(x0, float)), 0, 1)
@@ -70,13 +70,13 @@ def simplex(problem: Problem, edge: float = 0.1, x0: np.ndarray | None = None) -
     return np.vstack([u0, u0 + np.diag(step)])
 
 
-def minimize(problem: Problem, method: str = "Nelder-Mead", x0: np.ndarray | None = None,
+def minimize(problem: SolverView, method: str = "Nelder-Mead", x0: np.ndarray | None = None,
              options: dict[str, Any] | None = None, **kwargs: Any) -> optimize.OptimizeResult:
     """``scipy.optimize.minimize`` on ``problem``, in the unit box with bounds.
 
     Parameters
     ----------
-    problem : Problem
+    problem : SolverView
         The instance (its budget bounds the run; every evaluation is counted by it).
     method : str
         Any bounded ``minimize`` method (Nelder-Mead, Powell, L-BFGS-B, TNC, COBYLA, ...).
@@ -108,7 +108,7 @@ def minimize(problem: Problem, method: str = "Nelder-Mead", x0: np.ndarray | Non
     return _result(problem, start, str(res.message), bool(res.success), res.get("nit"))
 
 
-def differential_evolution(problem: Problem, seed: int | None = None,
+def differential_evolution(problem: SolverView, seed: int | None = None,
                            **kwargs: Any) -> optimize.OptimizeResult:
     """``scipy.optimize.differential_evolution`` on ``problem``: each generation one
     batched evaluation (``vectorized=True``, ``updating="deferred"``), ``maxiter`` set so
