@@ -569,6 +569,9 @@ def read_truth(path: Path | str, campaign: Campaign | None = None) -> dict:
     if file.parent.is_dir() and (file.parent / PARTIAL).exists():
         raise CampaignError(f"{file.parent}: the campaign was not finished (interrupted while "
                             "being made); make it again")
+    if not file.is_file():
+        raise CampaignError(f"{file}: no such truth file (the campaign's truth is given "
+                            "explicitly: 'campaign score --truth FILE')")
     doc = _read_json(file, TRUTH_FORMAT, "truth file")
     _need(doc, "units", dict, str(file))
     if campaign is not None:
