@@ -239,7 +239,8 @@ def score_unit(rows: list[dict], truth: dict, thresholds: dict[str, float], ever
     rec.update({
         "true_rul": true_rul, "rul": rul, "rul_low": low, "rul_high": high,
         "within": bool((1 - alpha) * true_rul <= rul <= (1 + alpha) * true_rul),
-        "covered": bool(low <= true_rul <= high), "width": high - low,
+        "covered": bool(low <= true_rul <= high),
+        "width": math.inf if math.isinf(low) or math.isinf(high) else high - low,
         "predicted_fault": final.get("failing_fault") if final is not None else None,
         "alpha_lambda": {lam: _alpha_lambda(flights, pred, eol, alpha, lam) for lam in LAMBDAS},
         "prognostic_horizon": (metrics.prognostic_horizon(flights, pred, eol, PH_ALPHA)
@@ -278,10 +279,12 @@ def headline_columns(units: list[dict], horizon: float, alpha: float = ALPHA
     low = np.array([u["rul_low"] for u in units], dtype=float)
     high = np.array([u["rul_high"] for u in units], dtype=float)
     clipped = metrics.clip_rul(pred, horizon)
+    with np.errstate(invalid="ignore"):   # a missing prediction's [inf, inf]: infinitely wide
+        width = np.where(np.isinf(low) | np.isinf(high), np.inf, high - low)
     return {"within": ((1 - alpha) * true <= pred) & (pred <= (1 + alpha) * true),
             "abs": np.abs(clipped - true), "sq": (clipped - true) ** 2,
             "phm08": metrics.phm08_terms(clipped, true),
-            "covered": (low <= true) & (true <= high), "width": high - low}
+            "covered": (low <= true) & (true <= high), "width": width}
 
 
 #: Each headline figure from the columns of a set of units (``idx``: their rows).
