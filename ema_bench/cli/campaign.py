@@ -225,6 +225,9 @@ def _register_score(actions: argparse._SubParsersAction) -> None:
                    help="relative half-width of the headline's accuracy (default 0.2)")
     p.add_argument("--no-oracle", action="store_true",
                    help="skip the oracle (about 0.3 s per failing unit) and the ratios to it")
+    p.add_argument("--tracked-only", action="store_true",
+                   help="score only the units each run has tracked to their cut (a partial "
+                        "run; the table says how many); default: a missing unit is a miss")
     p.add_argument("--plots", metavar="DIR", help="write PNG plots here")
     p.add_argument("--markdown", metavar="FILE", help="write the table as Markdown here")
     add_json(p, "the figures (one object per run, with per-unit rows)")
@@ -273,7 +276,9 @@ def score_table(results: list[dict]) -> list[str]:
     oracles: dict[tuple, dict] = {}
     for r in results:
         h, d, g = r["headline"], r["decisions"], r["diagnostics"]
-        cells = [r["tracker"], r["track"], str(r["units"]), str(r["failing_units"])]
+        scored = ("" if not r.get("tracked_only") else
+                  f" (partial: {r['scored_units']} tracked)")
+        cells = [r["tracker"] + scored, r["track"], str(r["units"]), str(r["failing_units"])]
         cells += [_cell(h[k], k, fmt) for k, _, fmt in _HEAD]
         cells += [_ratio_cell(h[k]) for k, _ in _RATIOS]
         cells += [f"{d['false_replacements']} / {d['early_replacements']}",
@@ -282,10 +287,12 @@ def score_table(results: list[dict]) -> list[str]:
                   f"{_fmt(g['prognostic_horizon_strict'], '{:.0f}')}"]
         lines.append("| " + " | ".join(cells) + " |")
         if "oracle" in h["within"]:
-            oracles.setdefault((r["campaign"], r["track"]), r)
-    for (_, track), r in oracles.items():
+            oracles.setdefault((r["campaign"], r["track"], r["scored_units"]), r)
+    for (_, track, _), r in oracles.items():
         h = r["headline"]
-        cells = ["**oracle**", track, str(r["units"]), str(r["failing_units"])]
+        scored = ("" if not r.get("tracked_only") else
+                  f" (on the {r['scored_units']} units of {r['tracker']})")
+        cells = ["**oracle**" + scored, track, str(r["units"]), str(r["failing_units"])]
         cells += [_cell({"value": h[k]["oracle"], "ci": h[k]["oracle_ci"]}, k, fmt)
                   for k, _, fmt in _HEAD]
         cells += ["1"] * len(_RATIOS) + ["-"] * 4
@@ -303,7 +310,8 @@ def _run_score(args: argparse.Namespace) -> int:
     if not 0.0 < args.alpha < 1.0:
         raise CLIError("--alpha must lie in (0, 1)")
     results = [score_tracking(run, truth=args.truth, alpha=args.alpha,
-                              oracle=not args.no_oracle) for run in args.runs]
+                              oracle=not args.no_oracle, tracked_only=args.tracked_only)
+               for run in args.runs]
     for run, r in zip(args.runs, results):
         if r["missing_at_cut"]:  # on stderr: stdout stays the table (or the JSON)
             print(f"note: {run}: {r['missing_at_cut']} failing unit(s) without a prediction "

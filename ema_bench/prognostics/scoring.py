@@ -422,7 +422,7 @@ def campaign_oracle(camp, truth: dict[str, dict], n_paths: int | None = None,
 
 def score_tracking(out: Path | str, truth: Path | str | None = None, alpha: float = ALPHA,
                    oracle: bool = True, n_boot: int = N_BOOT,
-                   oracle_paths: int | None = None) -> dict:
+                   oracle_paths: int | None = None, tracked_only: bool = False) -> dict:
     """Score the tracking run in ``out`` against its campaign's truth.
 
     Parameters
@@ -442,6 +442,10 @@ def score_tracking(out: Path | str, truth: Path | str | None = None, alpha: floa
         Bootstrap resamples.
     oracle_paths : int, optional
         The oracle's futures per unit (default :data:`~ema_bench.prognostics.oracle.N_PATHS`).
+    tracked_only : bool
+        Score only the units the run has tracked to their cut (a run still going, or cut
+        short): every figure, and the oracle's, on that subset (``scored_units`` says how
+        many); never for a final board, where a missing unit is a miss.
 
     Returns
     -------
@@ -468,6 +472,11 @@ def score_tracking(out: Path | str, truth: Path | str | None = None, alpha: floa
     steps, failed, m, camp, truth = _load(out, truth)
     every = camp.inspection_every
     horizon = float(HORIZON_INSPECTIONS * every)
+    full = truth   # the oracle's seeds follow the whole campaign's units
+    if tracked_only:   # the units tracked to their cut
+        done = {u for u, rows in steps.items()
+                if rows and int(rows[-1]["flight"]) == truth[u]["last_flight"]}
+        truth = {u: t for u, t in truth.items() if u in done}
     units = [score_unit(steps.get(u, []), truth[u], camp.thresholds, every, alpha)
              for u in sorted(truth)]
     tracked = [u for u in units if u["inspections"]]
@@ -477,14 +486,16 @@ def score_tracking(out: Path | str, truth: Path | str | None = None, alpha: floa
         "tracker": m.get("tracker"), "campaign": camp.name,
         "definition_version": camp.definition_version, "track": camp.track,
         "split": camp.split, "alpha": alpha, "rul_horizon": horizon,
-        "units": len(truth), "tracked": len(tracked), "failing_units": len(failing),
+        "units": len(camp.units), "tracked": len(tracked), "failing_units": len(failing),
         "missing_at_cut": sum(not u["at_cut"] for u in failing),
         "untracked": sorted(u["unit"] for u in units if not u["inspections"]),
-        "failed_units": failed,
+        "failed_units": failed, "tracked_only": bool(tracked_only),
+        "scored_units": len(units),
     }
     orows = None
     if oracle and failing:
-        orows = oracle_rows(truth, campaign_oracle(camp, truth, oracle_paths, alpha=alpha))
+        predictions = campaign_oracle(camp, full, oracle_paths, alpha=alpha)
+        orows = oracle_rows(truth, {u: p for u, p in predictions.items() if u in truth})
         ocols = headline_columns(orows, horizon, alpha)
         res["headline"] = headline(cols, ocols, n_boot)
     else:
