@@ -275,3 +275,24 @@ def test_headline_metrics_by_hand():
     assert math.isinf(metrics.mean_width([0, 5], [math.inf, 6]))
     with pytest.raises(ValueError, match="high < low"):
         metrics.mean_width([2], [1])
+
+
+def test_bayes_point_and_weighted_quantiles_by_hand():
+    from ema_bench.prognostics.bayes import best_point, weighted_quantile
+
+    # candidates 0.8 R: 8 holds {10}; 8.8 holds {10, 11}; 9.6 holds R in [8, 12]: {10, 11,
+    # 12}; 24 holds {30}: the point is 9.6 (the median, 11.5, holds only 3 too but is not the
+    # smallest; the mean 15.75 holds none)
+    assert best_point([10, 11, 12, 30]) == pytest.approx(9.6)
+    # weights move it: all the weight on 30
+    assert best_point([10, 11, 12, 30], [0, 0, 0, 1]) == pytest.approx(24.0)
+    # +-10 %: 0.9 R; 9 holds R in [8.18, 10]: {10}; 9.9 holds [9, 11]: {10, 11}; 10.8 holds
+    # [9.8, 12]: {10, 11, 12}
+    assert best_point([10, 11, 12, 30], alpha=0.1) == pytest.approx(10.8)
+    assert best_point([math.inf, math.inf]) == math.inf
+    assert best_point([math.inf, 50.0, math.inf]) == pytest.approx(40.0)
+    with pytest.raises(ValueError, match="sum to 0"):
+        best_point([1.0, 2.0], [0.0, 0.0])
+    assert list(weighted_quantile([4, 1, 3, 2], None, [0.25, 0.5, 1.0])) == [1, 2, 4]
+    assert list(weighted_quantile([1, 2], [3, 1], [0.5, 0.8])) == [1, 2]
+    assert weighted_quantile([1, math.inf], None, 0.975) == math.inf
