@@ -216,7 +216,9 @@ def test_reference_track_inspection(tmp_path):
 def test_trackers_get_the_settings_without_a_folder_as_a_fresh_copy(made):
     c = made["a"]
     info = c.info()
-    assert set(info) == {"name", "track", "seed", "split", "inspection_every", "thresholds",
+    # no seed: with it (and the public, deterministic generation) the lives could be simulated
+    # again
+    assert set(info) == {"name", "track", "split", "inspection_every", "thresholds",
                          "laws", "tests", "model_version", "definition_version", "cut_rule"}
     assert str(c.root) not in json.dumps(info) and "truth" not in json.dumps(info)
     assert info["cut_rule"] == {"rule": cmod.CUT_RULE, "stop": [0.5, 0.95]}

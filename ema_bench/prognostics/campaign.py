@@ -141,10 +141,13 @@ class Campaign:
 
     def info(self) -> dict:
         """The manifest's settings without the inspection list (for tracker factories): plain
-        JSON values, deep-copied, and no folder, so a tracker cannot find the truth file
-        through what it is given."""
+        JSON values, deep-copied, with no folder (a tracker cannot find the truth file through
+        what it is given) and no campaign seed (the generation is public and deterministic:
+        with the seed a tracker could simulate the units' lives again; campaigns that judge
+        untrusted trackers need a secret seed drawn from a large space, e.g.
+        ``secrets.randbits(63)``, which no search through the traces can find)."""
         return json.loads(json.dumps({
-            "name": self.name, "track": self.track, "seed": self.seed, "split": self.split,
+            "name": self.name, "track": self.track, "split": self.split,
             "inspection_every": self.inspection_every, "thresholds": dict(self.thresholds),
             "laws": self.laws, "tests": list(self.tests), "model_version": self.model_version,
             "definition_version": self.definition_version, "cut_rule": self.cut_rule}))
