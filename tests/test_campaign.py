@@ -75,8 +75,11 @@ def test_same_seed_same_bytes_other_seed_differs(made):
 
 def test_truth_is_hidden_from_what_trackers_see(made):
     c = made["a"]
-    manifest = (c.root / "manifest.json").read_text()
-    for word in ("faults", "eol", "rul", "failing", "effects", "params"):
+    doc = json.loads((c.root / "manifest.json").read_text())
+    # the published cut rule is no truth (its words aside: "rule" holds "rul")
+    assert doc.pop("cut_rule")["stop"] == [0.5, 0.95]
+    manifest = json.dumps(doc)
+    for word in ("faults", "eol", "rul", "failing", "effects", "params", "truth", "digest"):
         assert word not in manifest
     t = c.traces(c.units["u001"][0])
     assert set(t.meta) == {"model", "noise", "adc", "unit", "inspection", "flight"}
@@ -208,3 +211,54 @@ def test_reference_track_inspection(tmp_path):
     recs = c.units["u000"]
     assert len(recs) >= 2 and c.track == "reference"
     assert c.traces(recs[0]).meta["model"] == "reference"
+
+
+def test_trackers_get_the_settings_without_a_folder_as_a_fresh_copy(made):
+    c = made["a"]
+    info = c.info()
+    # no seed: with it (and the public, deterministic generation) the lives could be simulated
+    # again
+    assert set(info) == {"name", "track", "split", "inspection_every", "thresholds",
+                         "laws", "tests", "model_version", "definition_version", "cut_rule"}
+    assert str(c.root) not in json.dumps(info) and "truth" not in json.dumps(info)
+    assert info["cut_rule"] == {"rule": cmod.CUT_RULE, "stop": [0.5, 0.95]}
+    assert info["definition_version"] == MINI.version == 2
+    info["laws"]["fst_shape"] = 99.0            # a tracker's edit stays its own
+    info["thresholds"]["Fst"] = 0.0
+    assert c.info()["laws"]["fst_shape"] != 99.0 and c.thresholds["Fst"] == THRESHOLDS["Fst"]
+
+
+def test_the_truth_is_bound_to_its_manifest(made):
+    a, c = made["a"], made["c"]
+    doc = cmod.read_truth(a.root, a)
+    manifest = json.loads((a.root / "manifest.json").read_text())
+    assert doc["manifest_digest"] == cmod.manifest_digest(manifest) == a.digest
+    with pytest.raises(CampaignError, match="truth of another campaign.*seed"):
+        load_truth(c.root, a)
+    with pytest.raises(CampaignError, match="no such truth file"):
+        load_truth(a.root / "nowhere.json", a)
+
+
+def test_cut_likelihood_is_the_cut_rule(made):
+    """cut_likelihood against the rule itself (_inspection_flights drawn 4000 times per
+    life), lives from shorter than two spacings to long."""
+    rng = np.random.default_rng(1)
+    draws = 4000
+    for life in (23, 37, 151, 300, 455):
+        h = type("H", (), {"horizon": life})()
+        cuts = [cmod._inspection_flights(h, 10, "test", (0.5, 0.95), rng)[-1]
+                for _ in range(draws)]
+        flights = range(0, life + 20, 10)
+        p = np.array([float(cmod.cut_likelihood(f, life, 10, (0.5, 0.95))) for f in flights])
+        freq = np.array([cuts.count(f) / draws for f in flights])
+        assert p.sum() == pytest.approx(1.0)
+        assert np.abs(p - freq).max() < 0.025, (life, p, freq)
+    # vectorised over lives; a life not after the cut, or infinite, has probability 0
+    # (151: 150 lies past 95 % of it; 200: 150 nearest to u x 200 for u x 200 in [145, 155])
+    got = cmod.cut_likelihood(150, np.array([150.0, 151.0, 200.0, 300.0, np.inf]), 10,
+                              (0.5, 0.95))
+    assert got[0] == got[1] == got[4] == 0.0
+    assert got[2] == pytest.approx(10 / (0.45 * 200))
+    # life 300: the grid inside [150, 285]; 150 is its first point, nearest to u x 300 for
+    # u x 300 in [150, 155]: 5 / (0.45 x 300)
+    assert got[3] == pytest.approx(5 / (0.45 * 300))

@@ -96,21 +96,29 @@ def test_alpha_lambda_judges_one_prediction_at_its_own_true_rul():
     assert metrics.alpha_lambda([0, 10], [1, 1], 100, lam=0.5) is None
 
 
-def test_prognostic_horizon_counts_from_the_last_entry_into_the_bounds():
+def test_prognostic_horizons_first_entry_and_strict_by_hand():
     eol = 100            # bounds: true RUL +- 0.1 x 100 = +- 10 flights
     flights = [0, 20, 40, 60, 80]
     true = [100, 80, 60, 40, 20]
-    # errors 50, 5, 15, 5, 5: in at 20, out at 40, in from 60 on: PH = 100 - 60 = 40
-    # (catches counting from the first entry, which gives 80)
-    assert metrics.prognostic_horizon(flights, [150, 85, 75, 45, 25], eol) == 40.0
-    # error exactly 10 at every flight: inside (bounds included): PH = 100 - 0
+    # errors 50, 5, 15, 5, 5: in at 20, out at 40, in from 60 on
+    # first entry (Saxena, progpy): PH = 100 - 20 = 80; strict (stays inside): 100 - 60 = 40
+    pred = [150, 85, 75, 45, 25]
+    assert metrics.prognostic_horizon(flights, pred, eol) == 80.0
+    assert metrics.prognostic_horizon_strict(flights, pred, eol) == 40.0
+    # error exactly 10 at every flight: inside (bounds included): PH = 100 - 0 for both
     assert metrics.prognostic_horizon(flights, [t + 10 for t in true], eol) == 100.0
-    # the last prediction outside: 0
-    assert metrics.prognostic_horizon(flights, [*true[:-1], 40], eol) == 0.0
+    assert metrics.prognostic_horizon_strict(flights, [t + 10 for t in true], eol) == 100.0
+    # the last prediction outside: strict 0, first entry still counts the entry at 0
+    assert metrics.prognostic_horizon_strict(flights, [*true[:-1], 40], eol) == 0.0
+    assert metrics.prognostic_horizon(flights, [*true[:-1], 40], eol) == 100.0
+    # never inside: 0 for both
+    assert metrics.prognostic_horizon(flights, [t + 11 for t in true], eol) == 0.0
+    assert metrics.prognostic_horizon_strict(flights, [t + 11 for t in true], eol) == 0.0
     # fixed-width bounds (alpha x EOL), not relative: at flight 80 (true 20) an error of 9 is
     # 45 % of the true RUL but inside +- 10 (catches a relative cone)
-    assert metrics.prognostic_horizon(flights, [*true[:-1], 29], eol) == 100.0
-    assert metrics.prognostic_horizon(flights, [*true[:-1], math.inf], eol) == 0.0
+    assert metrics.prognostic_horizon_strict(flights, [*true[:-1], 29], eol) == 100.0
+    assert metrics.prognostic_horizon(flights, [150, 150, 150, 150, 29], eol) == 20.0
+    assert metrics.prognostic_horizon_strict(flights, [*true[:-1], math.inf], eol) == 0.0
 
 
 def test_monotonicity():
@@ -202,39 +210,89 @@ def test_alpha_lambda_agrees_with_progpy_on_point_predictions():
 
 
 def test_horizon_and_monotonicity_agree_with_progpy():
-    """progpy's horizon counts from the first prediction meeting the criterion: equal to ours
-    on profiles that stay inside the bounds once in; its monotonicity is of the mean
-    time-to-event, ours of the RUL series given: equal."""
-    pytest.importorskip("progpy")
+    """progpy's horizon counts from the first prediction meeting the criterion, as ours
+    (:func:`prognostic_horizon`) on any profile; the strict variant agrees on profiles that
+    stay inside once in.  Its monotonicity is of the mean time-to-event, ours of the RUL
+    series given: equal."""
+    pytest.importorskip("progpy", reason="progpy (the 'prognostics' extra) is not installed")
     from progpy.metrics import monotonicity as pp_monotonicity
     from progpy.metrics import prognostic_horizon as pp_horizon
 
     rng = np.random.default_rng(1)
-    for _ in range(50):
+    strict = 0
+    for _ in range(60):
         flights = np.arange(0, 200, 10, dtype=float)
         eol = 200.0 + float(rng.integers(1, 50))
         true = eol - flights
-        k = int(rng.integers(0, flights.size))        # inside the bounds from k on
-        err = np.where(np.arange(flights.size) < k, rng.uniform(0.15, 0.5, flights.size),
-                       rng.uniform(-0.09, 0.09, flights.size)) * eol
+        err = rng.uniform(-0.3, 0.3, flights.size) * eol * np.linspace(1, 0.1, flights.size)
         pred = np.maximum(true + err, 0.0)
-        inside = np.abs(pred - true) <= 0.1 * eol
-        if not inside[k:].all() or inside[:k].any():
-            continue
 
         def criterion(tte, gt, eol=eol):
             return {key: abs(tte.mean[key] - gt[key]) <= 0.1 * eol for key in gt}
 
         theirs = pp_horizon(_profile(flights, pred), criterion, {"EOL": eol})["EOL"]
-        assert metrics.prognostic_horizon(flights, pred, eol, 0.1) == pytest.approx(theirs)
+        ours = metrics.prognostic_horizon(flights, pred, eol, 0.1)
+        assert (0.0 if theirs is None else theirs) == pytest.approx(ours)
+        inside = np.abs(pred - true) <= 0.1 * eol
+        assert metrics.prognostic_horizon_strict(flights, pred, eol, 0.1) <= ours
+        if inside.any() and inside[int(np.argmax(inside)):].all():
+            assert metrics.prognostic_horizon_strict(flights, pred, eol, 0.1) == \
+                pytest.approx(ours)
+            strict += 1
         assert metrics.monotonicity(pred) == pytest.approx(
             pp_monotonicity(_profile(flights, pred))["EOL"])
-    # where they differ: a lucky first prediction (error 0), then out (20), then in for good
-    # from flight 20: progpy 100 - 0, ours 100 - 20
+    assert strict >= 1
+    # the issue's hand case: a lucky first prediction (error 0), then out (20), then in for
+    # good from flight 20: progpy and ours 100 - 0, strict 100 - 20
     flights, pred, eol = [0, 10, 20, 30], [100, 50, 70, 70], 100.0
 
     def criterion(tte, gt):
         return {key: abs(tte.mean[key] - gt[key]) <= 10 for key in gt}
 
     assert pp_horizon(_profile(flights, pred), criterion, {"EOL": eol})["EOL"] == 100.0
-    assert metrics.prognostic_horizon(flights, pred, eol, 0.1) == 80.0
+    assert metrics.prognostic_horizon(flights, pred, eol, 0.1) == 100.0
+    assert metrics.prognostic_horizon_strict(flights, pred, eol, 0.1) == 80.0
+
+
+def test_headline_metrics_by_hand():
+    true = [100.0, 50.0, 20.0, 10.0]
+    # 120 = +20 % (bound included), 39 = -22 % (out), 24 = +20 % (in), inf (out)
+    pred = [120.0, 39.0, 24.0, math.inf]
+    assert metrics.within_share(pred, true, 0.2) == 0.5
+    assert metrics.within_share(pred, true, 0.1) == 0.0
+    # clipping to a 60-flight horizon: 120 -> 60, inf -> 60; negative -> 0
+    assert list(metrics.clip_rul([120, -3, 24, math.inf], 60.0)) == [60.0, 0.0, 24.0, 60.0]
+    # PHM08 per unit, clipped at 60: d = -40 (early), -11, +4, +50 (late)
+    terms = [math.exp(40 / 13) - 1, math.exp(11 / 13) - 1, math.exp(4 / 10) - 1,
+             math.exp(50 / 10) - 1]
+    assert metrics.phm08_mean(pred, true, 60.0) == pytest.approx(sum(terms) / 4, rel=1e-12)
+    # a sum, not a mean, would be 4 x; unclipped it would be infinite
+    assert math.isinf(metrics.phm08_score(pred, true))
+    with pytest.raises(ValueError, match="horizon"):
+        metrics.phm08_mean(pred, true, math.inf)
+    # mean width: (20 + 0 + 40) / 3; an infinite bound makes it infinite
+    assert metrics.mean_width([10, 5, 0], [30, 5, 40]) == 20.0
+    assert math.isinf(metrics.mean_width([0, 5], [math.inf, 6]))
+    with pytest.raises(ValueError, match="high < low"):
+        metrics.mean_width([2], [1])
+
+
+def test_bayes_point_and_weighted_quantiles_by_hand():
+    from ema_bench.prognostics.bayes import best_point, weighted_quantile
+
+    # candidates 0.8 R: 8 holds {10}; 8.8 holds {10, 11}; 9.6 holds R in [8, 12]: {10, 11,
+    # 12}; 24 holds {30}: the point is 9.6 (the median, 11.5, holds only 3 too but is not the
+    # smallest; the mean 15.75 holds none)
+    assert best_point([10, 11, 12, 30]) == pytest.approx(9.6)
+    # weights move it: all the weight on 30
+    assert best_point([10, 11, 12, 30], [0, 0, 0, 1]) == pytest.approx(24.0)
+    # +-10 %: 0.9 R; 9 holds R in [8.18, 10]: {10}; 9.9 holds [9, 11]: {10, 11}; 10.8 holds
+    # [9.8, 12]: {10, 11, 12}
+    assert best_point([10, 11, 12, 30], alpha=0.1) == pytest.approx(10.8)
+    assert best_point([math.inf, math.inf]) == math.inf
+    assert best_point([math.inf, 50.0, math.inf]) == pytest.approx(40.0)
+    with pytest.raises(ValueError, match="sum to 0"):
+        best_point([1.0, 2.0], [0.0, 0.0])
+    assert list(weighted_quantile([4, 1, 3, 2], None, [0.25, 0.5, 1.0])) == [1, 2, 4]
+    assert list(weighted_quantile([1, 2], [3, 1], [0.5, 0.8])) == [1, 2]
+    assert weighted_quantile([1, math.inf], None, 0.975) == math.inf

@@ -71,10 +71,11 @@ def synthetic(tmp_path_factory) -> Path:
                 "ambient_temp_C": 25.0, "winding_temp_C": 20.0, "flights_since_last":
                 10 if i else 0, "duty_since_last": 10.0 if i else 0.0}})
         units.append({"unit": unit, "inspections": items})
-    manifest = {"format": "ema-bench-campaign", "version": 1, "name": "synthetic",
-                "track": "twin", "seed": 0, "split": "test", "inspection_every": 10,
-                "tests": ["step", "sine"], "thresholds": THRESHOLDS, "laws": {},
-                "units": units}
+    manifest = {"format": "ema-bench-campaign", "version": 2, "name": "synthetic",
+                "definition_version": 2, "track": "twin", "seed": 0, "split": "test",
+                "inspection_every": 10, "tests": ["step", "sine"], "thresholds": THRESHOLDS,
+                "laws": {}, "cut_rule": {"rule": "nearest-inspection-to-uniform-share",
+                                         "stop": [0.5, 0.95]}, "units": units}
     (root / "manifest.json").write_text(json.dumps(manifest))
     return root
 
@@ -122,7 +123,8 @@ def lines(out: Path) -> list[dict]:
 
 def test_baselines_are_found_through_entry_points():
     eps = {ep.name: ep for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP)}
-    assert set(BASELINES) <= set(eps)
+    assert set(BASELINES) | {"rul-age", "life-table"} <= set(eps)
+    assert eps["rul-age"].value == eps["life-table"].value == "ema_bench_trackers.references"
     registered = available_trackers()
     for name in BASELINES:
         assert eps[name].value.startswith("ema_bench_trackers.")
@@ -159,9 +161,11 @@ def test_third_party_tracker_end_to_end(synthetic, tmp_path, capsys):
     summary = json.loads(capsys.readouterr().out)
     assert summary["replaced"] == ["u000"] and summary["failed"] == []
     raw = lines(out)
-    # u000 stops at its replacement (flight 40); u001 runs to its last inspection
-    assert [(r["unit"], r["index"]) for r in raw] == [("u000", i) for i in range(5)] + [
+    # u000 calls for replacement at flight 40 and is tracked on to its cut (the RUL is judged
+    # there); u001 runs to its last inspection
+    assert [(r["unit"], r["index"]) for r in raw] == [("u000", i) for i in range(6)] + [
         ("u001", i) for i in range(6)]
+    assert [r["replace"] for r in raw[:6]] == [False] * 4 + [True] * 2
     assert all(r["rul_high"] is None for r in raw)          # inf is written as null
     log = read_track(out)
     assert log.manifest["tracker"] == "test-countdown" and log.manifest["seed"] == 3
@@ -204,7 +208,7 @@ def test_resume_after_interruption_writes_no_duplicates(synthetic, tmp_path):
     track_campaign(synthetic, "test-countdown", out)
     assert {u for u, _ in CALLS} == {"u001"}              # u000 was complete: skipped
     keys = [(r["unit"], r["index"]) for r in lines(out)]
-    assert len(keys) == len(set(keys)) == 11
+    assert len(keys) == len(set(keys)) == 12
     CALLS.clear()
     track_campaign(synthetic, "test-countdown", out)     # all complete: nothing to do
     assert CALLS == []
@@ -215,7 +219,7 @@ def test_resume_after_interruption_writes_no_duplicates(synthetic, tmp_path):
 def test_workers_track_units_in_parallel(synthetic, tmp_path):
     out = track_campaign(synthetic, "test-countdown", tmp_path / "run", workers=2)
     log = read_track(out)
-    assert len(log.steps["u000"]) == 5 and len(log.steps["u001"]) == 6 and not log.failed
+    assert len(log.steps["u000"]) == len(log.steps["u001"]) == 6 and not log.failed
 
 
 # --- the baselines on a short synthetic degradation ------------------------------------------
@@ -266,3 +270,20 @@ def test_configured_baseline_through_track_campaign(synthetic, tmp_path):
     n = len(lines(moved))
     track_campaign(synthetic, "test-kalman-light", moved)
     assert len(lines(moved)) == n
+
+
+def test_the_shared_fit_cache_changes_no_answer(synthetic, tmp_path, monkeypatch):
+    """EMA_BENCH_FIT_CACHE: the second tracker reads the first one's fits; every line is
+    what it is without the cache (cold and warm), and the cache holds one fit per
+    inspection."""
+    register_tracker("test-kalman-cache", description="kalman, cheap",
+                     first_budget=300, n_paths=200)(get_tracker("kalman").factory)
+    plain = track_campaign(synthetic, "test-kalman-cache", tmp_path / "plain")
+    monkeypatch.setenv("EMA_BENCH_FIT_CACHE", str(tmp_path / "cache"))
+    cold = track_campaign(synthetic, "test-kalman-cache", tmp_path / "cold")
+    assert len(list((tmp_path / "cache").glob("*.pkl"))) == 2 * len(FLIGHTS)
+    warm = track_campaign(synthetic, "test-kalman-cache", tmp_path / "warm")
+    assert lines(plain) == lines(cold) == lines(warm)
+    # another seed is another fit: not read from the cache
+    track_campaign(synthetic, "test-kalman-cache", tmp_path / "seed1", seed=1)
+    assert len(list((tmp_path / "cache").glob("*.pkl"))) == 4 * len(FLIGHTS)

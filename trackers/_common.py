@@ -12,6 +12,14 @@ Fits
     estimate (the trust-region polish of :func:`ema_bench.uncertainty.intervals`, whose
     Laplace intervals come with it), escalating to CMA-ES from the last estimate when the
     residuals say the local fit missed (a backlash jump, a coil-short onset).
+Fit cache
+    Every baseline fits the same inspections the same way (one :class:`Fitter`, the same seed
+    family), so the fits are shared: with ``EMA_BENCH_FIT_CACHE=DIR`` in the environment a
+    fit is stored under DIR keyed by everything it depends on (:func:`fit_key`: the traces'
+    values, the inspection's index and conditions' effects, the fitter's seed, budgets, solver
+    and track, and the previous fit's estimate and misfit) and read back by the next tracker
+    instead of being recomputed; the answers are bit for bit those without the cache (a test
+    checks it).  Off by default.
 RUL
     :func:`first_passage` runs Monte Carlo damage paths forward until each crosses its
     threshold; :func:`summarise` turns the crossing times into the median and 95 % interval
@@ -22,6 +30,9 @@ RUL
 from __future__ import annotations
 
 import dataclasses
+import hashlib
+import os
+import pickle
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
@@ -133,6 +144,26 @@ class Fit:
         return self.corr * np.outer(self.sd, self.sd)
 
 
+#: Environment variable naming the folder of the shared fit cache (module docstring).
+FIT_CACHE_ENV = "EMA_BENCH_FIT_CACHE"
+
+
+def fit_key(fitter: Fitter, insp: Inspection) -> str:
+    """SHA-256 of everything :meth:`Fitter.__call__` depends on for ``insp``."""
+    h = hashlib.sha256()
+    for name in sorted(insp.traces.data):
+        h.update(name.encode())
+        h.update(np.ascontiguousarray(insp.traces.data[name], dtype=float).tobytes())
+    e = fitter.effects(insp)
+    last = fitter.last
+    parts = (insp.index, float(insp.traces.dt), fitter.track, fitter.first_budget,
+             fitter.global_budget, fitter.solver, repr(fitter.seed.entropy),
+             tuple(fitter.seed.spawn_key), None if e is None else np.asarray(e).tobytes(),
+             None if last is None else (last.x.tobytes(), float(last.misfit)))
+    h.update(repr(parts).encode())
+    return h.hexdigest()
+
+
 #: Residual over sensor noise above which a local fit is doubted (absolute floor, and
 #: growth over the last accepted fit's: on the reference track the model-form error alone
 #: lifts the ratio above 1).
@@ -171,6 +202,24 @@ class Fitter:
         self.last: Fit | None = None
 
     def __call__(self, insp: Inspection) -> Fit:
+        folder = os.environ.get(FIT_CACHE_ENV)
+        if not folder:
+            return self._fit(insp)
+        path = os.path.join(folder, fit_key(self, insp) + ".pkl")
+        try:
+            with open(path, "rb") as fh:
+                fit = pickle.load(fh)
+        except (OSError, pickle.UnpicklingError, EOFError):
+            fit = self._fit(insp)
+            os.makedirs(folder, exist_ok=True)
+            tmp = f"{path}.{os.getpid()}.tmp"
+            with open(tmp, "wb") as fh:
+                pickle.dump(fit, fh)
+            os.replace(tmp, path)   # atomic: a parallel reader sees all or nothing
+        self.last = fit
+        return fit
+
+    def _fit(self, insp: Inspection) -> Fit:
         if self.last is None:
             fit = self._global(insp, None, self.first_budget, "global")
         else:

@@ -207,59 +207,97 @@ def _register_score(actions: argparse._SubParsersAction) -> None:
     p = actions.add_parser(
         "score", help="score tracking runs against the campaign's hidden truth",
         description="Score one or more tracking runs (DIR2 of 'ema-bench campaign track') "
-                    "against their campaign's truth.json: RUL RMSE and MAE, the PHM08 score "
-                    "(late predictions cost more), alpha-lambda accuracy (the share of failing "
-                    "units whose prediction at lambda of their life is within +-alpha of the "
-                    "true RUL), RUL interval coverage, false and early replacements, "
-                    "prognostic horizon, monotonicity, per-fault tracking error and interval "
-                    "coverage, detection delay and false-alarm rate (rules: "
-                    "ema_bench/prognostics/scoring.py).  Several runs: one table row each; "
-                    "--plots DIR draws the RUL predictions, the first failing units' faults "
-                    "and the fleet's RUL errors.")
+                    "against their campaign's truth (--truth, default the campaign folder's "
+                    "truth.json; another campaign's is refused).  Headline: the RUL at each "
+                    "failing unit's hidden cut (its last inspection): share within +-20 %, "
+                    "MAE, RMSE, PHM08 per unit (predictions clipped to a horizon), 95 % "
+                    "interval coverage and mean width, each with a bootstrap interval over "
+                    "units and as a ratio to the honest Bayes oracle (paired bootstrap).  "
+                    "Also maintenance decisions (false and early replacements, failures in "
+                    "service, cost) and diagnostics (alpha-lambda over lambda 0.5-0.9, "
+                    "prognostic horizons, monotonicity, per-fault tracking, detection).  "
+                    "Rules: ema_bench/prognostics/scoring.py.")
     p.add_argument("runs", metavar="DIR2", nargs="+", help="tracking run folder(s)")
+    p.add_argument("--truth", metavar="FILE",
+                   help="the campaign's truth file (default: truth.json in the campaign folder "
+                        "the run names); with several runs, all must be of that campaign")
     p.add_argument("--alpha", type=float, default=0.2,
-                   help="alpha of the alpha-lambda cone (default 0.2)")
-    p.add_argument("--lam", type=float, default=0.5,
-                   help="lambda: share of life at which alpha-lambda is judged (default 0.5)")
-    p.add_argument("--oracle", action="store_true",
-                   help="also the campaign's oracle bound: the alpha-lambda and RUL coverage of "
-                        "a tracker knowing each unit's law parameters and true faults (what "
-                        "the future's randomness leaves to any tracker; ~0.5 s per unit)")
+                   help="relative half-width of the headline's accuracy (default 0.2)")
+    p.add_argument("--no-oracle", action="store_true",
+                   help="skip the oracle (about 0.3 s per failing unit) and the ratios to it")
+    p.add_argument("--tracked-only", action="store_true",
+                   help="score only the units each run has tracked to their cut (a partial "
+                        "run; the table says how many); default: a missing unit is a miss")
     p.add_argument("--plots", metavar="DIR", help="write PNG plots here")
     p.add_argument("--markdown", metavar="FILE", help="write the table as Markdown here")
     add_json(p, "the figures (one object per run, with per-unit rows)")
     p.set_defaults(func=_run_score)
 
 
-#: Columns of the score table: key, header, format.
-_COLUMNS = (("units", "units", "{:d}"), ("failing_units", "failing", "{:d}"),
-            ("rul_rmse", "RUL RMSE", "{:.1f}"), ("rul_mae", "RUL MAE", "{:.1f}"),
-            ("phm08_score", "PHM08", "{:.3g}"), ("alpha_lambda", "alpha-lambda", "{:.0%}"),
-            ("rul_coverage", "RUL 95 % cover", "{:.0%}"),
-            ("oracle_alpha_lambda", "oracle alpha-lambda", "{:.0%}"),
-            ("false_replacements", "false repl.", "{:d}"),
-            ("early_replacements", "early repl.", "{:d}"),
-            ("prognostic_horizon", "PH", "{:.0f}"), ("monotonicity", "monot.", "{:.2f}"),
-            ("detection_delay", "detect delay", "{:.0f}"),
-            ("false_alarm_rate", "false alarms", "{:.1%}"))
+def _fmt(v: float, fmt: str) -> str:
+    import math
+
+    if v != v:
+        return "-"
+    if math.isinf(v):
+        return "inf"
+    return fmt.format(v)
+
+
+def _cell(h: dict, key: str, fmt: str) -> str:
+    lo, hi = h["ci"]
+    return f"{_fmt(h['value'], fmt)} [{_fmt(lo, fmt)}, {_fmt(hi, fmt)}]"
+
+
+def _ratio_cell(h: dict) -> str:
+    if "ratio" not in h:
+        return "-"
+    lo, hi = h["ratio_ci"]
+    return f"{_fmt(h['ratio'], '{:.2f}')} [{_fmt(lo, '{:.2f}')}, {_fmt(hi, '{:.2f}')}]"
+
+
+#: Headline columns of the table: figure, header, format.
+_HEAD = (("within", "within +-20 %", "{:.0%}"), ("mae", "MAE", "{:.1f}"),
+         ("rmse", "RMSE", "{:.1f}"), ("phm08", "PHM08/unit", "{:.3g}"),
+         ("coverage", "95 % cover", "{:.0%}"), ("width", "width", "{:.0f}"))
+#: Ratio columns (to the oracle).
+_RATIOS = (("within", "within / oracle"), ("mae", "MAE / oracle"),
+           ("width", "width / oracle"))
 
 
 def score_table(results: list[dict]) -> list[str]:
-    """The Markdown table of scored runs: one row per run."""
-    import math
-
+    """The Markdown table of scored runs: one row per run, then one per campaign for its
+    oracle (when scored).  Tracker names come from plugins: escaped (``escape.markdown``)."""
     from ..escape import markdown
 
-    head = ["tracker", "track"] + [h for _, h, _ in _COLUMNS] + [
-        f"{n} err / cover" for n in ("Na", "Fst", "BLK")]
+    head = (["tracker", "track", "units", "failing"] + [h for _, h, _ in _HEAD]
+            + [h for _, h in _RATIOS]
+            + ["false / early repl.", "fail in service", "cost/unit", "PH / strict"])
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    oracles: dict[tuple, dict] = {}
     for r in results:
-        cells = [markdown(r["tracker"]), markdown(r["track"])]   # plugin names: escaped
-        for key, _, fmt in _COLUMNS:
-            v = r.get(key, math.nan)
-            cells.append("-" if v != v else fmt.format(v))
-        cells += [f"{100 * r['fault_error'][n]:.2f} % / {r['fault_coverage'][n]:.0%}"
-                  for n in ("Na", "Fst", "BLK")]
+        h, d, g = r["headline"], r["decisions"], r["diagnostics"]
+        scored = ("" if not r.get("tracked_only") else
+                  f" (partial: {r['scored_units']} tracked)")
+        cells = [markdown(r["tracker"]) + scored, markdown(r["track"]), str(r["units"]),
+                 str(r["failing_units"])]
+        cells += [_cell(h[k], k, fmt) for k, _, fmt in _HEAD]
+        cells += [_ratio_cell(h[k]) for k, _ in _RATIOS]
+        cells += [f"{d['false_replacements']} / {d['early_replacements']}",
+                  str(d["failures_in_service"]), _fmt(d["maintenance_cost"], "{:.2f}"),
+                  f"{_fmt(g['prognostic_horizon'], '{:.0f}')} / "
+                  f"{_fmt(g['prognostic_horizon_strict'], '{:.0f}')}"]
+        lines.append("| " + " | ".join(cells) + " |")
+        if "oracle" in h["within"]:
+            oracles.setdefault((r["campaign"], r["track"], r["scored_units"]), r)
+    for (_, track, _), r in oracles.items():
+        h = r["headline"]
+        scored = ("" if not r.get("tracked_only") else
+                  f" (on the {r['scored_units']} units of {markdown(r['tracker'])})")
+        cells = ["**oracle**" + scored, track, str(r["units"]), str(r["failing_units"])]
+        cells += [_cell({"value": h[k]["oracle"], "ci": h[k]["oracle_ci"]}, k, fmt)
+                  for k, _, fmt in _HEAD]
+        cells += ["1"] * len(_RATIOS) + ["-"] * 4
         lines.append("| " + " | ".join(cells) + " |")
     return lines
 
@@ -271,17 +309,18 @@ def _run_score(args: argparse.Namespace) -> int:
     from ..prognostics.scoring import score_tracking
     from . import CLIError, print_json
 
-    if not 0.0 < args.alpha < 1.0 or not 0.0 <= args.lam <= 1.0:
-        raise CLIError("--alpha must lie in (0, 1) and --lam in [0, 1]")
-    results = [score_tracking(run, alpha=args.alpha, lam=args.lam, oracle=args.oracle)
+    if not 0.0 < args.alpha < 1.0:
+        raise CLIError("--alpha must lie in (0, 1)")
+    results = [score_tracking(run, truth=args.truth, alpha=args.alpha,
+                              oracle=not args.no_oracle, tracked_only=args.tracked_only)
                for run in args.runs]
     for run, r in zip(args.runs, results):
-        if r["untracked"]:  # on stderr: stdout stays the table (or the JSON)
-            print(f"note: {run}: {len(r['untracked'])} unit(s) not tracked "
-                  f"({', '.join(r['untracked'])}); failing ones count as misses in "
-                  "alpha_lambda and rul_coverage", file=sys.stderr)
+        if r["missing_at_cut"]:  # on stderr: stdout stays the table (or the JSON)
+            print(f"note: {run}: {r['missing_at_cut']} failing unit(s) without a prediction "
+                  "at their cut (untracked or failed): counted as infinite misses",
+                  file=sys.stderr)
     if args.plots:
-        _plots(args.runs, results, Path(args.plots), args.alpha)
+        _plots(args.runs, results, Path(args.plots), args.alpha, args.truth)
     lines = score_table(results)
     if args.markdown:
         Path(args.markdown).write_text("\n".join(lines) + "\n")
@@ -293,25 +332,35 @@ def _run_score(args: argparse.Namespace) -> int:
     return 0
 
 
-def _plots(runs: list[str], results: list[dict], folder, alpha: float, n_units: int = 3
-           ) -> None:
+def _plots(runs: list[str], results: list[dict], folder, alpha: float, truth_file=None,
+           n_units: int = 3) -> None:
     from ..prognostics.campaign import load_campaign, load_truth
-    from ..prognostics.plots import plot_errors, plot_rul, plot_unit
+    from ..prognostics.plots import plot_alpha_lambda, plot_errors, plot_rul, plot_unit
     from ..prognostics.tracking import campaign_path, read_track
 
     folder.mkdir(parents=True, exist_ok=True)
-    errors = {}
+    errors: dict[str, dict[str, list[float]]] = {}
+    curves: dict[str, dict[str, dict]] = {}
     for run, res in zip(runs, results):
         log = read_track(run)
         camp = load_campaign(campaign_path(run, log.manifest), traces=False)
-        truth = load_truth(camp.root)
+        truth = load_truth(camp.root if truth_file is None else truth_file, camp)
         tag = f"{res['tracker']}-{res['track']}"
         plot_rul(log.steps, truth, folder / f"rul_{tag}.png", alpha,
                  title=f"{res['tracker']} on {res['campaign']} ({res['track']} track)")
         failing = [u["unit"] for u in res["per_unit"] if u["eol"] is not None][:n_units]
         for unit in failing:
-            plot_unit(log.steps[unit], truth[unit], camp.thresholds,
+            plot_unit(log.steps.get(unit, []), truth[unit], camp.thresholds,
                       folder / f"unit_{tag}_{unit}.png",
                       title=f"{res['tracker']}: unit {unit} ({res['track']} track)")
-        errors[tag] = [u["rul"] - u["true_rul"] for u in res["per_unit"] if u["eol"] is not None]
-    plot_errors(errors, folder / "rul_errors.png")
+        errors.setdefault(res["track"], {})[res["tracker"]] = [
+            u["rul"] - u["true_rul"] for u in res["per_unit"] if u["eol"] is not None]
+        curves.setdefault(res["track"], {})[res["tracker"]] = res["diagnostics"]["alpha_lambda"]
+        if "oracle_per_unit" in res:
+            errors[res["track"]]["oracle"] = [u["rul"] - u["true_rul"]
+                                              for u in res["oracle_per_unit"]]
+    for track in errors:
+        plot_errors(errors[track], folder / f"rul_errors_{track}.png",
+                    title=f"RUL error at the cut ({track} track)")
+        plot_alpha_lambda(curves[track], folder / f"alpha_lambda_{track}.png", alpha,
+                          title=f"alpha-lambda over lambda, a diagnostic ({track} track)")

@@ -10,7 +10,8 @@ that against the hidden truth (:mod:`.metrics`).  ``EMAFault/Maintain-v0``
 
 from .campaign import CAMPAIGNS, Campaign, CampaignError, load_campaign, load_truth, make_campaign
 from .laws import THRESHOLDS
-from .scoring import ScoringError, oracle_bound, score_tracking
+from .oracle import oracle_predictions
+from .scoring import ScoringError, score_tracking
 from .tracking import (
     Inspection,
     TrackerError,
@@ -24,6 +25,6 @@ from .tracking import (
 __all__ = [
     "CAMPAIGNS", "THRESHOLDS", "Campaign", "CampaignError", "Inspection", "ScoringError",
     "TrackStep", "TrackerError", "available_trackers", "load_campaign", "load_truth",
-    "make_campaign", "oracle_bound", "read_track", "register_tracker", "score_tracking",
+    "make_campaign", "oracle_predictions", "read_track", "register_tracker", "score_tracking",
     "track_campaign",
 ]

@@ -4,12 +4,20 @@
 simulates each unit's life with :mod:`~ema_bench.prognostics.laws`, runs the standard step and
 sine tests at every inspection and writes a folder::
 
-    DIR/manifest.json   what a tracker may see (format "ema-bench-campaign", version 1)
+    DIR/manifest.json   what a tracker may see (format "ema-bench-campaign", version 2)
     DIR/u000/i000.npz   the traces of unit u000's inspection 0 (Traces.save)
     DIR/truth.json      the hidden truth: faults, effects, end of life, true RUL
 
 :func:`load_campaign` reads the manifest back (checked: clear errors on missing, broken or
-mislabelled files) as a :class:`Campaign`; :func:`load_truth` reads the truth.
+mislabelled files) as a :class:`Campaign`; :func:`load_truth` reads the truth.  Trackers see
+the manifest's settings (:meth:`Campaign.info`, no folder) and the inspections only; the truth
+file may be moved out of the folder before tracking (``campaign track`` never reads it) and is
+bound to its manifest by :func:`manifest_digest`, so scoring refuses another campaign's truth.
+
+The cut rule (published in the manifest as ``cut_rule``): a test unit's last inspection (its
+*cut*) is the inspection before end of life nearest to ``u x horizon``, ``u ~ U(lo, hi)``
+(``test_stop``), among those within ``[lo, hi] x horizon`` (ties: the earlier);
+:func:`cut_likelihood` is its probability given the life.
 
 Seeds: one root seed ``S``; unit ``u`` is run ``u`` of it (``run_seed(S, u)``, as a
 leaderboard row): its laws come from that node's ``instance`` stream, its stopping point from
@@ -20,6 +28,7 @@ for byte.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import os
@@ -38,7 +47,9 @@ from .laws import THRESHOLDS, FleetLaws, UnitHistory, unit_history
 
 FORMAT = "ema-bench-campaign"
 TRUTH_FORMAT = "ema-bench-campaign-truth"
-VERSION = 1
+VERSION = 2
+#: The cut rule's name in the manifest (:func:`cut_likelihood`).
+CUT_RULE = "nearest-inspection-to-uniform-share"
 SPLITS = ("train", "test")
 TRACKS = ("twin", "reference")
 #: Marker of a folder being written (removed when the manifest is in place).
@@ -63,6 +74,11 @@ class CampaignSpec:
         Share of units that degrade by gain drift only (never fail): ``round(share * units)``.
     test_stop : (float, float)
         Test units stop at a share of their life drawn uniformly in this range.
+    version : int
+        Revision of the definition (written to the manifest as ``definition_version``): a
+        change to the laws or the rules is a new revision or a new name, never a silent edit.
+        fleet-v1 revision 2 has revision 1's laws and rules; it publishes the cut rule and
+        binds the truth to the manifest.
     """
 
     name: str
@@ -72,6 +88,7 @@ class CampaignSpec:
     drift_share: float = 0.15
     test_stop: tuple[float, float] = (0.5, 0.95)
     tests: tuple[str, ...] = ("step", "sine")
+    version: int = 2
 
 
 #: The named campaigns.  fleet-v1: median life about 300 flights, an inspection every 10.
@@ -114,17 +131,26 @@ class Campaign:
     units: dict[str, list[InspectionRecord]]
     tests: tuple[str, ...] = ("step", "sine")
     model_version: str = ""
+    definition_version: int = 0
+    cut_rule: dict = field(default_factory=dict)
+    digest: str = ""
 
     def traces(self, rec: InspectionRecord) -> Traces:
         """The measured traces of an inspection."""
         return load_traces(rec.path)
 
     def info(self) -> dict:
-        """The manifest's settings without the inspection list (for tracker factories)."""
-        return {"name": self.name, "track": self.track, "seed": self.seed, "split": self.split,
-                "inspection_every": self.inspection_every, "thresholds": dict(self.thresholds),
-                "laws": self.laws, "tests": list(self.tests),
-                "model_version": self.model_version, "root": str(self.root)}
+        """The manifest's settings without the inspection list (for tracker factories): plain
+        JSON values, deep-copied, with no folder (a tracker cannot find the truth file through
+        what it is given) and no campaign seed (the generation is public and deterministic:
+        with the seed a tracker could simulate the units' lives again; campaigns that judge
+        untrusted trackers need a secret seed drawn from a large space, e.g.
+        ``secrets.randbits(63)``, which no search through the traces can find)."""
+        return json.loads(json.dumps({
+            "name": self.name, "track": self.track, "split": self.split,
+            "inspection_every": self.inspection_every, "thresholds": dict(self.thresholds),
+            "laws": self.laws, "tests": list(self.tests), "model_version": self.model_version,
+            "definition_version": self.definition_version, "cut_rule": self.cut_rule}))
 
 
 def get_spec(name: str) -> CampaignSpec:
@@ -197,18 +223,86 @@ def make_campaign(name: str = "fleet-v1", *, units: int = 20, split: str = "test
             bar.update(label)
 
     from .. import __version__
-    manifest = {"format": FORMAT, "version": VERSION, "name": name, "track": track,
+    manifest = {"format": FORMAT, "version": VERSION, "name": name,
+                "definition_version": spec.version, "track": track,
                 "seed": seed, "split": split, "inspection_every": every,
                 "tests": list(spec.tests), "thresholds": dict(THRESHOLDS),
                 "laws": spec.laws.to_dict(), "description": spec.description,
+                "cut_rule": cut_rule(spec, split), "drift_share": spec.drift_share,
                 "model_version": MODEL_VERSION, "package_version": __version__,
                 "units": manifest_units}
     truth = {"format": TRUTH_FORMAT, "version": VERSION, "name": name, "seed": seed,
+             "track": track, "split": split, "manifest_digest": manifest_digest(manifest),
              "units": truth_units}
     _write_json(root / "truth.json", truth)
     _write_json(root / "manifest.json", manifest)
     (root / PARTIAL).unlink()
     return load_campaign(root)
+
+
+def cut_rule(spec: CampaignSpec, split: str) -> dict:
+    """The manifest's ``cut_rule``: how a unit's last inspection was chosen (public)."""
+    if split == "train":
+        return {"rule": "run-to-failure", "stop": [1.0, 1.0]}
+    return {"rule": CUT_RULE, "stop": [float(v) for v in spec.test_stop]}
+
+
+def manifest_digest(manifest: dict) -> str:
+    """SHA-256 of a manifest's content (canonical JSON, ``package_version`` left out): what
+    binds a truth file to its campaign."""
+    doc = {k: v for k, v in manifest.items() if k != "package_version"}
+    return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()
+
+
+def cut_likelihood(cut: float, life: float | np.ndarray, every: int,
+                   stop: tuple[float, float]) -> np.ndarray:
+    """P(a test unit's last inspection is at flight ``cut`` | its life ``life``), flights.
+
+    The rule of :func:`_inspection_flights`: inspections at ``0, every, ...`` strictly before
+    ``life``; ``u ~ U(lo, hi)``; the cut is the inspection nearest to ``u life`` among those
+    in ``[lo life, hi life]`` (ties: the earlier, a set of measure zero); when none lies
+    there, the first at or after ``lo life`` (else the last before ``life``), with
+    probability 1.
+
+    Parameters
+    ----------
+    cut : float
+        The observed last inspection's flight.
+    life : float or array
+        Candidate lives (end-of-life flights); ``inf`` gives 0.
+    every : int
+        Flights between inspections.
+    stop : (lo, hi)
+        The manifest's ``cut_rule["stop"]``.
+
+    Returns
+    -------
+    ndarray
+        Probabilities, the shape of ``life``.
+    """
+    lo, hi = float(stop[0]), float(stop[1])
+    L = np.atleast_1d(np.asarray(life, dtype=float))
+    out = np.zeros(L.shape)
+    ok = np.isfinite(L) & (L > cut) & (cut % every == 0)
+    if hi <= lo:  # a degenerate rule: the cut is the last inspection before the life
+        return (ok & (L <= cut + every)).astype(float).reshape(np.shape(life))
+    a, b = lo * L, hi * L
+    # the first and last grid flights inside [a, b] (strictly before the life)
+    first = np.ceil(a / every) * every
+    last = np.minimum(np.floor(b / every) * every, np.ceil(L / every) * every - every)
+    inside = ok & (first <= last)
+    on = inside & (cut >= first) & (cut <= last)
+    left = np.where(cut > first, cut - every / 2.0, a)
+    right = np.where(cut < last, cut + every / 2.0, b)
+    cell = np.clip(np.minimum(right, b) - np.maximum(left, a), 0.0, None)
+    out[on] = (cell / ((hi - lo) * L))[on]
+    # no inspection inside: the first at or after lo x life, else the last before the life
+    none = ok & ~inside
+    if none.any():
+        before_last = np.ceil(L / every) * every - every
+        fallback = np.where(first < L, first, before_last)
+        out[none] = (fallback == cut)[none].astype(float)
+    return out.reshape(np.shape(life))
 
 
 def _count(v: Any, what: str, minimum: int = 1) -> int:
@@ -433,7 +527,10 @@ def load_campaign(path: Path | str, traces: bool = True) -> Campaign:
                     inspection_every=every,
                     thresholds={k: float(v) for k, v in thresholds.items()}, laws=laws,
                     units=units, tests=tuple(tests),
-                    model_version=str(doc.get("model_version", "")))
+                    model_version=str(doc.get("model_version", "")),
+                    definition_version=int(doc.get("definition_version", 0)),
+                    cut_rule=dict(_need(doc, "cut_rule", dict, where)),
+                    digest=manifest_digest(doc))
 
 
 def _records(root: Path, label: str, items: list, where: str,
@@ -461,16 +558,47 @@ def _records(root: Path, label: str, items: list, where: str,
     return out
 
 
-def load_truth(path: Path | str) -> dict[str, dict]:
-    """The hidden truth of a campaign, per unit (``truth.json``): ``eol`` (flight or None),
-    ``failing_fault``, ``last_flight``, ``true_rul``, ``life_fraction``, ``kind``,
-    ``horizon``, ``faults`` and ``effects`` per inspection flight (keys are flights as
-    strings), ``faults_after`` (the future at the inspection spacing, before EOL),
-    ``faults_at_eol`` and the unit's law ``params``."""
-    root = _folder(path)
-    doc = _read_json(root / "truth.json", TRUTH_FORMAT, "truth file")
-    units = _need(doc, "units", dict, str(root / "truth.json"))
-    return units
+def truth_path(path: Path | str) -> Path:
+    """The truth file named by ``path``: the file itself, or ``truth.json`` in a folder."""
+    path = Path(path)
+    return path / "truth.json" if path.is_dir() else path
+
+
+def read_truth(path: Path | str, campaign: Campaign | None = None) -> dict:
+    """The whole truth document (``truth.json`` of a campaign folder, or a truth file
+    anywhere); with ``campaign``, checked to be that campaign's (its manifest's digest, name,
+    seed, track and split): CampaignError naming both otherwise."""
+    file = truth_path(path)
+    if file.parent.is_dir() and (file.parent / PARTIAL).exists():
+        raise CampaignError(f"{file.parent}: the campaign was not finished (interrupted while "
+                            "being made); make it again")
+    if not file.is_file():
+        raise CampaignError(f"{file}: no such truth file (the campaign's truth is given "
+                            "explicitly: 'campaign score --truth FILE')")
+    doc = _read_json(file, TRUTH_FORMAT, "truth file")
+    _need(doc, "units", dict, str(file))
+    if campaign is not None:
+        ours = {"manifest_digest": campaign.digest, "name": campaign.name,
+                "seed": campaign.seed, "track": campaign.track, "split": campaign.split}
+        diff = sorted(k for k, v in ours.items() if doc.get(k) != v)
+        if diff:
+            raise CampaignError(
+                f"{file}: the truth of another campaign than {campaign.root} (differs in "
+                f"{diff}: truth {doc.get('name')!r} seed {doc.get('seed')!r}, campaign "
+                f"{campaign.name!r} seed {campaign.seed!r}); give that campaign's truth file")
+        missing = sorted(set(campaign.units) - set(doc["units"]))
+        if missing:
+            raise CampaignError(f"{file}: no truth for units {missing[:5]} of {campaign.root}")
+    return doc
+
+
+def load_truth(path: Path | str, campaign: Campaign | None = None) -> dict[str, dict]:
+    """The hidden truth of a campaign, per unit (``truth.json``; :func:`read_truth`):
+    ``eol`` (flight or None), ``failing_fault``, ``last_flight``, ``true_rul``,
+    ``life_fraction``, ``kind``, ``horizon``, ``faults`` and ``effects`` per inspection flight
+    (keys are flights as strings), ``faults_after`` (the future at the inspection spacing,
+    before EOL), ``faults_at_eol`` and the unit's law ``params``."""
+    return read_truth(path, campaign)["units"]
 
 
 def life_summary(truth: dict[str, dict]) -> dict:

@@ -396,7 +396,7 @@ def unit_history(seed: np.random.SeedSequence, laws: FleetLaws, *,
 class ForwardPaths:
     """Monte Carlo futures of one unit: the laws above run forward over ``n`` paths at once,
     in blocks of flights (what a law-aware tracker predicts with, and the oracle bound of
-    :func:`~ema_bench.prognostics.scoring.oracle_bound`).
+    :func:`~ema_bench.prognostics.oracle.oracle_predictions`).
 
     Parameters
     ----------

@@ -25,10 +25,10 @@ what a tracker reports.  Where they differ:
   (``tests/test_prognostics_metrics.py`` checks it when progpy is importable).  progpy takes
   ``t_lambda`` as an absolute time; ours is ``lambda`` of the way from the first prediction
   to EOL (:func:`lambda_flight`), as in Saxena et al.
-- prognostic horizon: progpy counts from the *first* prediction meeting a criterion; ours from
-  the first after which every prediction stays inside the bounds, so one lucky early
-  prediction cannot earn a long horizon.  The two agree on profiles that never leave the
-  bounds once inside.
+- prognostic horizon: :func:`prognostic_horizon` counts from the *first* prediction inside the
+  bounds, as Saxena et al. and progpy; :func:`prognostic_horizon_strict` from the first after
+  which every prediction stays inside (so one lucky early prediction cannot earn a long
+  horizon).  The two agree on profiles that never leave the bounds once inside.
 - monotonicity: progpy's is of the mean time-to-event, ours of whatever series is given (the
   scoring passes the median RUL, and separately the failing fault's estimate); same formula.
 """
@@ -145,6 +145,43 @@ def phm08_score(pred: ArrayLike, true: ArrayLike) -> float:
     return float(phm08_terms(pred, true).sum())
 
 
+def within_share(pred: ArrayLike, true: ArrayLike, alpha: float = 0.2) -> float:
+    """Share of predictions within ``+- alpha`` of the truth:
+    ``mean((1 - alpha) true <= pred <= (1 + alpha) true)`` (bounds included; the headline's
+    accuracy at the cut).
+
+    Parameters
+    ----------
+    pred, true : sequence of float
+        Predicted (inf allowed: a miss) and true RUL, flights.
+    alpha : float
+        Relative half-width, in (0, 1).
+
+    Returns
+    -------
+    float
+        In [0, 1].
+    """
+    p, t = _pair(pred, true)
+    _check_alpha(alpha)
+    return float(np.mean(((1.0 - alpha) * t <= p) & (p <= (1.0 + alpha) * t)))
+
+
+def clip_rul(pred: ArrayLike, horizon: float) -> np.ndarray:
+    """Predicted RULs clipped to ``[0, horizon]`` flights (an infinite or longer prediction
+    says "not within the horizon"); ``horizon`` finite and > 0."""
+    if not (math.isfinite(horizon) and horizon > 0):
+        raise ValueError(f"horizon must be finite and > 0, got {horizon!r}")
+    return np.clip(_vector(pred, "predicted RUL"), 0.0, horizon)
+
+
+def phm08_mean(pred: ArrayLike, true: ArrayLike, horizon: float) -> float:
+    """The PHM08 score per unit: ``mean_i s_i`` of :func:`phm08_terms` with the predictions
+    clipped to ``[0, horizon]`` flights (:func:`clip_rul`), so one infinite prediction does not
+    make the score infinite (dimensionless, >= 0; 0 is perfect)."""
+    return float(np.mean(phm08_terms(clip_rul(pred, horizon), true)))
+
+
 # --- accuracy over a unit's life -------------------------------------------------------------
 
 def within_alpha(pred: float, true: float, alpha: float) -> bool:
@@ -249,11 +286,11 @@ def alpha_lambda(flights: ArrayLike, pred: ArrayLike, eol: float, alpha: float =
 
 def prognostic_horizon(flights: ArrayLike, pred: ArrayLike, eol: float,
                        alpha: float = 0.1) -> float:
-    """Prognostic horizon of one unit (after Saxena et al. 2010).
+    """Prognostic horizon of one unit, Saxena et al. (2010) and progpy's definition.
 
-    ``PH = EOL - t_i``, ``t_i`` the first prediction flight from which every prediction
-    stays within ``r* +- alpha EOL`` (fixed-width bounds around the true RUL ``r* = EOL - t``,
-    bounds included).
+    ``PH = EOL - t_i``, ``t_i`` the first prediction flight at which the prediction lies
+    within ``r* +- alpha EOL`` (fixed-width bounds around the true RUL ``r* = EOL - t``,
+    bounds included), whatever the later predictions do (first entry).
 
     Parameters
     ----------
@@ -265,7 +302,26 @@ def prognostic_horizon(flights: ArrayLike, pred: ArrayLike, eol: float,
     Returns
     -------
     float
-        Flights; 0 when the last prediction is outside the bounds.
+        Flights; 0 when no prediction enters the bounds.
+
+    See Also
+    --------
+    prognostic_horizon_strict : from the first prediction after which every one stays inside.
+    """
+    f, p = _profile(flights, pred, eol)
+    _check_alpha(alpha)
+    inside = np.abs(p - (eol - f)) <= alpha * eol
+    return float(eol - f[int(np.argmax(inside))]) if inside.any() else 0.0
+
+
+def prognostic_horizon_strict(flights: ArrayLike, pred: ArrayLike, eol: float,
+                              alpha: float = 0.1) -> float:
+    """The strict prognostic horizon: ``EOL - t_i``, ``t_i`` the first prediction flight from
+    which *every* prediction stays within ``r* +- alpha EOL`` (bounds included), so one lucky
+    early prediction cannot earn a long horizon.  Never longer than
+    :func:`prognostic_horizon`; 0 when the last prediction is outside.
+
+    Parameters and returns as :func:`prognostic_horizon` (flights).
     """
     f, p = _profile(flights, pred, eol)
     _check_alpha(alpha)
@@ -324,6 +380,17 @@ def coverage(low: ArrayLike, high: ArrayLike, true: ArrayLike) -> float:
         raise ValueError(f"low, high and true must be of one length, got {lo.size}, "
                          f"{hi.size}, {t.size}")
     return float(np.mean((lo <= t) & (t <= hi)))
+
+
+def mean_width(low: ArrayLike, high: ArrayLike) -> float:
+    """Mean width ``mean(high - low)`` of intervals (the unit of the bounds; inf when any
+    bound is infinite): the sharpness that :func:`coverage` alone does not see."""
+    lo, hi = _vector(low, "low"), _vector(high, "high")
+    if lo.shape != hi.shape:
+        raise ValueError(f"low and high must be of one length, got {lo.size} and {hi.size}")
+    if (hi < lo).any():
+        raise ValueError("an interval has high < low")
+    return float(np.mean(hi - lo))
 
 
 def detection_delay(flights: ArrayLike, flagged: ArrayLike, onset: float | None

@@ -1,5 +1,6 @@
 """Plots of a tracked campaign: one unit's faults and prediction cone, RUL against true RUL
-with the alpha-lambda cone, and the fleet's RUL errors per tracker (matplotlib, Agg)."""
+with the alpha-lambda cone, the fleet's RUL errors at the cut per tracker, and the
+alpha-lambda diagnostic curve over lambda per tracker (matplotlib, Agg)."""
 
 from __future__ import annotations
 
@@ -119,9 +120,38 @@ def plot_errors(errors: Mapping[str, Sequence[float]], path: str | os.PathLike,
     for i, d in enumerate(data, start=1):
         ax.plot(i + rng.uniform(-0.12, 0.12, d.size), d, "o", ms=3, alpha=0.6)
     ax.axhline(0.0, color="k", lw=0.8)
-    ax.set_ylabel("RUL error at the last inspection [flights] (late > 0)")
+    ax.set_ylabel("RUL error at the cut [flights] (late > 0)")
     ax.grid(alpha=0.3, axis="y")
     ax.set_title(title or "RUL error over the fleet", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+#: Trackers drawn dashed in :func:`plot_alpha_lambda`: the no-sensing references.
+REFERENCES = ("rul-age", "life-table")
+
+
+def plot_alpha_lambda(curves: Mapping[str, Mapping[str, Mapping]], path: str | os.PathLike,
+                      alpha: float = 0.2, title: str = "") -> None:
+    """The alpha-lambda diagnostic: per tracker, the share of failing units whose prediction at
+    lambda of their life lies within ``+-alpha``, over lambda; the no-sensing references
+    (:data:`REFERENCES`) dashed beside the trackers.  ``curves``: tracker -> lambda (str) ->
+    ``{"share", "units"}`` (``score_tracking(...)["diagnostics"]["alpha_lambda"]``).  Saves a
+    PNG to ``path``."""
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    for k, (name, curve) in enumerate(curves.items()):
+        lam = np.array([float(x) for x in curve])
+        share = np.array([c["share"] for c in curve.values()], dtype=float)
+        ref = name in REFERENCES
+        ax.plot(lam, share, "--" if ref else "-o", ms=4, color=f"C{k % 10}", lw=1.2,
+                label=name + (" (no sensing)" if ref else ""))
+    ax.set_xlabel("lambda (share of life from the first inspection)")
+    ax.set_ylabel(f"share within +-{alpha:.0%} of the true RUL")
+    ax.set_ylim(-0.02, 1.02)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title(title or "alpha-lambda over lambda (diagnostic)", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

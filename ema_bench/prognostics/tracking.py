@@ -8,9 +8,14 @@ point of the group ``ema_bench.trackers``, exactly like solvers (:mod:`ema_bench
     my-tracker = "my_package.my_module"
 
 ``factory(campaign_info, seed, **config)`` is called once per unit (``campaign_info``:
-:meth:`Campaign.info`, the manifest's settings; ``seed``: the unit's ``SeedSequence``) and
-returns a closure ``step(inspection) -> TrackStep`` that keeps the unit's state; it is called
-with the unit's :class:`Inspection` objects in flight order.  The baselines live in the
+:meth:`Campaign.info`, a fresh dict of the manifest's settings as plain JSON values, with no
+folder in it; ``seed``: the unit's ``SeedSequence``) and returns a closure
+``step(inspection) -> TrackStep`` that keeps the unit's state; it is called with the unit's
+:class:`Inspection` objects (traces already read, logged conditions) in flight order, every
+one of them up to the unit's last inspection (the cut), also after the tracker has called for
+replacement: the call is recorded and scored as a maintenance decision, and the RUL headline
+is judged at the cut for every tracker alike.  Nothing a tracker is given leads to the truth
+file (``campaign track`` runs on a folder without it).  The baselines live in the
 top-level ``trackers/`` folder (installed as ``ema_bench_trackers``) and register through
 ema-bench's own entry points.
 
@@ -50,7 +55,8 @@ ENTRY_POINT_GROUP = "ema_bench.trackers"
 TRACK_FILE = "track.jsonl"
 MANIFEST_FILE = "manifest.json"
 FORMAT = "ema-bench-track"
-VERSION = 1
+#: 2: every inspection is tracked, also after a replacement call (1 stopped there).
+VERSION = 2
 #: Fields of a step that may be infinite: JSON has no infinity, so they are written as null.
 INFINITE_FIELDS = ("rul", "rul_low", "rul_high")
 
@@ -125,7 +131,8 @@ class TrackStep:
     failing_fault : str or None
         The fault predicted to cross its threshold first.
     replace : bool
-        The tracker calls for replacement now (tracking of the unit stops there).
+        The tracker calls for replacement now (the first such call is the unit's maintenance
+        decision; tracking goes on to the cut so that the RUL is judged there).
     evaluations : int
         Model runs this step cost.
     extra : dict
@@ -262,8 +269,8 @@ def _restore(record: dict) -> dict:
 class TrackLog:
     """A tracking run read back (:func:`read_track`).
 
-    ``steps``: unit -> its step records in inspection order (up to and including the first
-    ``replace``; RULs ``inf`` where the file says null); ``failed``: unit -> its error record
+    ``steps``: unit -> its step records in inspection order (RULs ``inf`` where the file says
+    null); ``failed``: unit -> its error record
     (its steps before the failure stay in ``steps``); ``manifest``: the run's manifest."""
 
     steps: dict[str, list[dict]]
@@ -302,22 +309,17 @@ def _group(records: list[dict]) -> tuple[dict[str, list[dict]], dict[str, dict]]
             failed[r["unit"]] = r
         else:
             steps.setdefault(r["unit"], {})[int(r["index"])] = _restore(r)
-    out: dict[str, list[dict]] = {}
-    for unit, by_index in steps.items():
-        rows = [by_index[i] for i in sorted(by_index)]
-        first = next((k for k, r in enumerate(rows) if r["replace"]), len(rows) - 1)
-        out[unit] = rows[:first + 1]
+    out = {unit: [by_index[i] for i in sorted(by_index)] for unit, by_index in steps.items()}
     return out, failed
 
 
 def _complete(campaign: Campaign, records: list[dict]) -> set[str]:
-    """Units tracked to the end: every inspection has its step, or a step called for
-    replacement, or the unit failed."""
+    """Units tracked to the end: every inspection has its step, or the unit failed."""
     steps, failed = _group(records)
     done = set(failed)
     for unit, rows in steps.items():
         n = len(campaign.units.get(unit, ()))
-        if rows and (rows[-1]["replace"] or {r["index"] for r in rows} >= set(range(n))):
+        if rows and {r["index"] for r in rows} >= set(range(n)):
             done.add(unit)
     return done
 
@@ -379,30 +381,32 @@ def track_unit(campaign: Campaign, info: TrackerInfo, unit: str, seed: np.random
     """Track one unit from its first inspection, appending each step to ``store`` (a
     :class:`~ema_bench.leaderboard.store.RunStore`) as it finishes.
 
-    Returns ``"replaced"``, ``"tracked"`` or ``"failed"``.  A tracker that raises, or answers
+    Returns ``"replaced"`` (a replacement was called at some inspection; the unit is still
+    tracked to its cut), ``"tracked"`` or ``"failed"``.  A tracker that raises, or answers
     something :func:`check_step` refuses, is logged and recorded as an error line: the unit
     has failed, the run goes on."""
     records = campaign.units[unit]
     ctx = campaign.info()
     index, flight = 0, records[0].flight if records else 0
+    replaced = False
     try:
         step_fn = info.start(ctx, seed)
         for rec in records:
             index, flight = rec.index, rec.flight
             insp = Inspection(unit=unit, index=rec.index, flight=rec.flight,
-                              traces=campaign.traces(rec), conditions=dict(rec.conditions),
+                              traces=campaign.traces(rec),
+                              conditions=json.loads(json.dumps(rec.conditions)),
                               thresholds=dict(campaign.thresholds),
                               inspection_every=campaign.inspection_every)
             step = check_step(step_fn(insp), insp)
             store.append(step_record(insp, step))
-            if step.replace:
-                return "replaced"
+            replaced = replaced or step.replace
     except Exception as exc:  # one unit's failure must not stop the fleet
         log.warning("tracker %s failed on unit %s at inspection %d (flight %d): %s: %s",
                     info.name, unit, index, flight, type(exc).__name__, exc)
         store.append(error_record(unit, index, flight, exc))
         return "failed"
-    return "tracked"
+    return "replaced" if replaced else "tracked"
 
 
 def _worker(root: str, name: str, module: str, unit: str, k: int, seed: int, path: str) -> str:
@@ -444,10 +448,11 @@ def track_campaign(campaign: Campaign | Path | str, tracker: str, out: Path | st
 
     Notes
     -----
-    Resumable: units already complete (every inspection tracked, a replacement called, or a
-    failure recorded) are skipped; a unit tracked part of the way is tracked again from its
+    Resumable: units already complete (every inspection tracked, or a failure recorded) are
+    skipped; a unit tracked part of the way is tracked again from its
     first inspection (a tracker's state is not saved), and its lines already written are not
-    written twice.  A unit's tracking stops at its first step with ``replace``.  A failed
+    written twice.  A unit is tracked to its last inspection (the cut) even after a step with
+    ``replace`` (the first is its maintenance decision).  A failed
     unit is not retried; delete its lines to retry it.
     """
     from ..leaderboard.store import RunStore, read_records
