@@ -294,7 +294,8 @@ def _fit_lowpass(ch: _Channel) -> tuple[float, dict, float, list[float]]:
             tau = float(r.x)
     best = sse(tau)
     s2 = max(best / max(ch.n(), 1.0), 1.0)
-    fine = np.unique(np.r_[np.linspace(lo, min(hi, 3 * tau + 1e-3), 61), tau])
+    fine = np.unique(np.r_[np.linspace(lo, min(hi, 3 * tau + 1e-3), 61),
+                           np.linspace(0.8 * tau, min(1.2 * tau, hi), 81), tau])
     ok = fine[np.array([sse(t) for t in fine]) <= best + CHI2_95 * s2]
     return tau, {}, vals[0] - best, [float(ok.min()), float(ok.max())]
 

@@ -339,16 +339,17 @@ def assess(measured: Traces, model: Fit, weights: dict[str, np.ndarray],
     clean = simulate_reference(model.x[:N_FAULTS], model.effects_vector(),
                                tests=tuple(KNOWN_TESTS[t] for t in measured.tests),
                                noise=False, adc=False)
-    # the replicates' record goes through the same acquisition chain (its noise is added
-    # after it: a low-pass smooths the real noise, so the envelopes err wide)
-    clean = acq.carry(dict(clean.data), model.acquisition)
     commands = _commands(measured.tests)
     lo, hi = _bounds(model.augment)
     _, jac = _jacobian(model.x, model.augment, lo, hi, TRAIN, faults=model.acquisition)
     jac = jac * np.concatenate([mask[t].ravel() for t in TRAIN])[:, None]
     project = refit_projector(jac, TRAIN, {t: measured.data[t].shape for t in TRAIN})
-    env, boot_fit = bootstrap(clean, model.outputs, commands, weights, TRAIN,
-                              settings.n_boot, seed, project, mask)
+    # the replicates' record goes through the acquisition chain the model carries, after
+    # the sensor noise, as the data's did
+    env, boot_fit = bootstrap(dict(clean.data), model.outputs, commands, weights, TRAIN,
+                              settings.n_boot, seed, project, mask,
+                              (lambda d: acq.carry(d, model.acquisition))
+                              if model.acquisition else None)
     feats = residual_features(project({t: (measured.data[t] - model.outputs[t]) * mask[t]
                                        for t in TRAIN}),
                               {t: measured.data[t] for t in TRAIN},
