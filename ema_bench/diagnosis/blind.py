@@ -48,10 +48,10 @@ A case's record (:func:`run_case`) holds its identity (``key``, ``root_seed``, `
 ``model_version``), the truth (the fields of :class:`BlindCase`: ``index``, ``category``,
 ``kind``, ``effects``, ``faults``, ``decoy``, ``decoy_params``), the answer (``verdict``,
 ``named``, ``partial``, ``gap_closed``, ``gap_before``, ``gap_after``, ``message``,
-``evaluations``, ``wall_s``) and its scores: ``correct`` (single and near-threshold: the first
-named effect is the truth) or ``both_named`` and ``one_named`` (pairs), with
-``named_partial`` and, per true effect found, ``estimates``, ``param_errors`` (relative),
-``intervals`` and ``interval_covers`` (``name -> ...``); ``false_alarm`` (null kinds);
+``evaluations``, ``wall_s``, ``cpu_s``) and its scores: ``correct`` (single and
+near-threshold: the first named effect is the truth) or ``both_named`` and ``one_named``
+(pairs), with ``named_partial`` and, per true effect found, ``estimates``, ``param_errors``
+(relative), ``intervals`` and ``interval_covers`` (``name -> ...``); ``false_alarm`` (null kinds);
 ``decoy_ok`` (decoys); ``all_named`` (three effects); ``effect_named``,
 ``acquisition_named`` and ``acquisition_ok`` (effect plus acquisition fault);
 ``misnamed`` (every effect and decoy case: the confidently named suspects that are not
@@ -266,7 +266,7 @@ def run_case(case: BlindCase, seed: int, settings: Settings) -> dict:
 
     Case ``i`` of root ``seed`` is run ``i`` of the seed tree: its diagnosis is that of
     ``ema-bench diagnose --root-seed R --seed i`` on :func:`measured_traces`."""
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     node = run_seed(seed, case.index)
     measured = measured_traces(case, seed)
     # the workflow sees the traces only
@@ -277,7 +277,9 @@ def run_case(case: BlindCase, seed: int, settings: Settings) -> dict:
             "partial": d.gap.get("partial"), "gap_closed": d.gap.get("closed", 0.0),
             "gap_before": d.gap["before"], "gap_after": d.gap["after"],
             "message": d.message, "evaluations": d.evaluations, **score(case, d),
-            "wall_s": time.perf_counter() - t0}
+            "wall_s": time.perf_counter() - t0,
+            # this process's CPU time: comparable across loads of a shared machine
+            "cpu_s": time.process_time() - c0}
 
 
 def score(case: BlindCase, d: Any) -> dict:
