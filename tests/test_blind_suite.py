@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import math
 from collections import Counter
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -29,6 +30,7 @@ from ema_bench.diagnosis.blind import (
 )
 from ema_bench.effects import DECOYS, EFFECT_INDEX, EFFECTS, effects_vector
 from ema_bench.faults import random_faults
+from ema_bench.jsonio import dumps
 from ema_bench.leaderboard.store import read_records
 from ema_bench.physics.sensors import SENSORS, measure, quantise
 from ema_bench.seeding import run_seed, stream
@@ -593,3 +595,57 @@ def test_summary_of_the_third_round_categories_by_hand():
     old = summarise(HAND)
     assert {k: v for k, v in s["per_category"].items() if k in old["per_category"]} == \
         old["per_category"]
+
+
+def test_run_case_builds_the_third_round_data_and_hides_the_truth(monkeypatch):
+    seen = []
+
+    def fake_diagnose(tr, settings, seed):
+        seen.append(tr)
+        return SimpleNamespace(verdict="unexplained", effects=[], acquisition=[],
+                               gap={"partial": None, "before": 1.0, "after": 1.0},
+                               message="m", evaluations=1)
+
+    monkeypatch.setattr(blind, "diagnose", fake_diagnose)
+    drawn = draw_cases(0, 5, extra=1)
+    for c in drawn:
+        rec = run_case(c, 5, blind.Settings())
+        assert rec["named_acquisition"] == [] and rec["misnamed"] == []
+        assert "cpu_s" in rec and rec["effects"] == c.effects
+    ea, te = sorted(drawn, key=lambda c: c.category)
+    assert (ea.category, te.category) == ("effect_acquisition", "three_effect")
+    for c, tr in zip(drawn, seen):
+        ref = blind.simulate_reference(np.array(list(c.faults.values())), c.effects,
+                                       tests=blind.TESTS,
+                                       seed=stream(run_seed(5, c.index), "noise"))
+        want = decoys.apply(c.decoy, ref, c.decoy_params) if c is ea else ref
+        assert tr.allclose(want) and tr.meta["effects"] is None and tr.meta["faults"] is None
+        if c is ea:
+            assert not tr.allclose(ref)      # the acquisition fault is on the record
+
+
+COMMITTED_R3 = Path(__file__).resolve().parents[1] / "leaderboards" / "blind_r3"
+
+
+@pytest.mark.parametrize("folder, n, extra, seed", [
+    ("", 0, 10, 2034), ("rerun_seed9672", 60, 0, 9672)])
+def test_the_committed_third_round_suites_are_the_cases_drawn_and_summed(folder, n, extra,
+                                                                         seed):
+    """Every committed record is the case its seed draws (truth and identity), and the
+    committed summary is :func:`summarise` of the records."""
+    path = COMMITTED_R3 / folder
+    records = read_records(path / "blind.jsonl")
+    assert records
+    drawn = {c.index: c for c in draw_cases(n, seed, extra)}
+    for r in records:
+        c = drawn[r["index"]]
+        assert r["root_seed"] == seed and r["key"] == f"case{c.index}"
+        assert {k: r[k] for k in ("category", "effects", "faults", "decoy",
+                                  "decoy_params")} == {
+            "category": c.category, "effects": c.effects, "faults": c.faults,
+            "decoy": c.decoy, "decoy_params": c.decoy_params}
+    summary = json.loads((path / "summary.json").read_text())
+    ordered = sorted(records, key=lambda r: r["index"])
+    # as the CLI writes it (jsonio: a NaN rate of an empty category becomes null)
+    assert {k: v for k, v in summary.items() if k != "command"} == \
+        json.loads(dumps(summarise(ordered)))
