@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import json
 import math
+from collections import Counter
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -28,6 +30,7 @@ from ema_bench.diagnosis.blind import (
 )
 from ema_bench.effects import DECOYS, EFFECT_INDEX, EFFECTS, effects_vector
 from ema_bench.faults import random_faults
+from ema_bench.jsonio import dumps
 from ema_bench.leaderboard.store import read_records
 from ema_bench.physics.sensors import SENSORS, measure, quantise
 from ema_bench.seeding import run_seed, stream
@@ -365,7 +368,7 @@ def test_summary_overall_figures_by_hand():
     assert (s["null_cases"], s["false_alarms"]) == (4, 2)
     assert (s["decoy_cases"], s["decoys_unexplained_or_partial"]) == (5, 4)
     assert s["decoys_by_outcome"] == {"unexplained": 2, "named_partial": 1,
-                                      "not_detected": 1, "named": 1}
+                                      "not_detected": 1, "acquisition_named": 0, "named": 1}
     # found: the three correct single/near cases and the pair named in full
     assert s["named_partial"] == 1
     assert s["median_heldout_gap_closed"] == pytest.approx(0.75)        # .9 .7 .8 .6
@@ -395,12 +398,14 @@ def test_summary_per_category_by_hand():
     assert b["monitor_null"]["by_verdict"] == {"none": 1, "unexplained": 1}
     assert b["physical_decoy"] == {"cases": 2, "ok": 2, "ok_rate": 1.0,
                                    "by_outcome": {"unexplained": 1, "named_partial": 1,
-                                                  "not_detected": 0, "named": 0},
+                                                  "not_detected": 0, "acquisition_named": 0,
+                                                  "named": 0},
                                    "ok_by_decoy": {"hinge_friction": "1/1",
                                                    "quadratic_damping": "1/1"}}
     assert b["acquisition_decoy"]["ok_by_decoy"] == {"drift": "1/1", "lowpass": "1/2"}
     assert b["acquisition_decoy"]["by_outcome"] == {"unexplained": 1, "named_partial": 0,
-                                                    "not_detected": 1, "named": 1}
+                                                    "not_detected": 1, "acquisition_named": 0,
+                                                    "named": 1}
 
 
 def test_summary_of_missing_categories():
@@ -466,3 +471,181 @@ def test_cli_prints_one_line_per_category_and_the_truth_of_each_case(tmp_path, m
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["per_category"]["two_effect"]["both_named_rate"] == 1.0
     assert main(["blind", "--cases", "3", "--workers", "0"]) == 2
+
+
+# --- the third round: an effect beside an acquisition fault, three effects at once -----------
+
+def acq_finding(name: str, value: float, partial: bool = False):
+    return SimpleNamespace(name=name, value=value, interval=[0.5 * value, 1.5 * value],
+                           partial=partial)
+
+
+def test_extra_cases_leave_the_suite_drawn_before_as_it_was():
+    with_extra = draw_cases(64, 0, extra=12)
+    assert with_extra[:64] == CASES64
+    new = with_extra[64:]
+    assert [c.index for c in new] == list(range(64, 88))
+    assert Counter(c.category for c in new) == {"effect_acquisition": 12, "three_effect": 12}
+    for c in new:
+        assert c.kind == "effect"
+        if c.category == "three_effect":
+            assert len(c.effects) == 3 and c.decoy is None
+            # 2-3 times each threshold, or the bound below it
+            for n, v in c.effects.items():
+                spec = EFFECTS[EFFECT_INDEX[n]]
+                assert 2.0 - 1e-9 <= detects(n, v) <= 3.0 + 1e-9 or abs(v) == spec.upper
+        else:
+            (n, v), = c.effects.items()
+            assert n in DRAWABLE and 1.5 - 1e-9 <= detects(n, v) <= 4.0 + 1e-9 or \
+                abs(v) == EFFECTS[EFFECT_INDEX[n]].upper
+            assert c.decoy in blind.ACQUISITION_LIBRARY and "signal" in c.decoy_params
+    # every library acquisition fault beside an effect, every effect, distinct triples
+    ea = [c for c in new if c.category == "effect_acquisition"]
+    assert {c.decoy for c in ea} == set(blind.ACQUISITION_LIBRARY) != set(decoys.ACQUISITION_DECOYS)
+    assert len({next(iter(c.effects)) for c in ea}) == len(DRAWABLE)
+    triples = [tuple(sorted(c.effects)) for c in new if c.category == "three_effect"]
+    assert len(set(triples)) == len(triples)
+    with pytest.raises(ValueError, match=">= 0"):
+        draw_cases(10, 0, extra=-1)
+
+
+def test_scores_of_an_effect_beside_an_acquisition_fault():
+    c = BlindCase(0, "effect_acquisition", "effect", {"viscous_friction": 1e-4}, {"Na": 1.0},
+                  "mains_hum", {"signal": "i_eq"})
+    both = score(c, SimpleNamespace(
+        verdict="effect", effects=[finding("viscous_friction", 1.1e-4, (9e-5, 1.2e-4))],
+        acquisition=[acq_finding("mains_hum(i_eq)", 0.3)], gap={"partial": None}))
+    assert both["effect_named"] and both["acquisition_named"] and both["acquisition_ok"]
+    assert both["misnamed"] == [] and both["interval_covers"] == {"viscous_friction": True}
+    # the fault on another channel is a misname, and neither named nor flagged
+    wrong = score(c, SimpleNamespace(
+        verdict="effect", effects=[finding("viscous_friction", 1e-4, (9e-5, 1.2e-4))],
+        acquisition=[acq_finding("mains_hum(omega_m)", 3.0)], gap={"partial": None}))
+    assert wrong["effect_named"] and not wrong["acquisition_ok"]
+    assert wrong["misnamed"] == ["mains_hum(omega_m)"]
+    # the effect named, flagged partial: the fault counts as flagged, nothing as misnamed
+    flagged = score(c, SimpleNamespace(
+        verdict="effect", effects=[finding("viscous_friction", 1e-4, (9e-5, 1.2e-4), True),
+                                   finding("current_gain", 0.05, (0.04, 0.06), True)],
+        acquisition=[], gap={"partial": "current_gain+viscous_friction"}))
+    assert flagged["effect_named"] and flagged["acquisition_ok"]
+    assert not flagged["acquisition_named"] and flagged["misnamed"] == []
+    lost = score(c, SimpleNamespace(verdict="unexplained", effects=[], acquisition=[],
+                                    gap={"partial": None}))
+    assert not lost["effect_named"] and not lost["acquisition_ok"]
+
+
+def test_scores_of_three_effects_and_of_acquisition_decoys():
+    c = BlindCase(0, "three_effect", "effect", {"delay": 8e-4, "cogging": 0.07,
+                                                "eccentricity": 0.1}, {"Na": 1.0})
+    three = [finding("cogging", 0.07, (0.06, 0.08)), finding("delay", 8e-4, (7e-4, 9e-4)),
+             finding("eccentricity", 0.1, (0.09, 0.11))]
+    ok = score(c, SimpleNamespace(verdict="effect", effects=three, acquisition=[],
+                                  gap={"partial": None}))
+    assert ok["all_named"] and ok["n_named"] == 3 and ok["misnamed"] == []
+    bad = score(c, SimpleNamespace(verdict="effect", effects=three[:2] + [
+        finding("aero_spring", 80.0, (60.0, 90.0))], acquisition=[], gap={"partial": None}))
+    assert not bad["all_named"] and bad["n_named"] == 2 and bad["misnamed"] == ["aero_spring"]
+    # an acquisition decoy the library holds: naming it on its channel is right, naming a
+    # physical effect beside it confidently is not; clipping has no name to get right
+    dec = BlindCase(0, "acquisition_decoy", "decoy", {}, {"Na": 1.0}, "drift",
+                    {"signal": "theta_u"})
+    named = SimpleNamespace(verdict="acquisition", effects=[], gap={"partial": None},
+                            acquisition=[acq_finding("drift(theta_u)", 0.02)])
+    assert score(dec, named) == {"decoy_ok": True, "misnamed": []}
+    named.effects = [finding("sensor_offset", 1e-3, (5e-4, 2e-3))]
+    assert score(dec, named) == {"decoy_ok": False, "misnamed": ["sensor_offset"]}
+    clip = BlindCase(0, "acquisition_decoy", "decoy", {}, {"Na": 1.0}, "clipping",
+                     {"signal": "i_eq"})
+    lp = SimpleNamespace(verdict="acquisition", effects=[], gap={"partial": None},
+                         acquisition=[acq_finding("lowpass(i_eq)", 2e-3)])
+    assert not score(clip, lp)["decoy_ok"]
+    lp.acquisition[0].partial = True
+    assert score(clip, lp)["decoy_ok"]
+
+
+def test_summary_of_the_third_round_categories_by_hand():
+    recs = [
+        eff("effect_acquisition", {"delay": 8e-4}, 1.0, {"delay": 0.01}, {"delay": True},
+            decoy="drift", effect_named=True, acquisition_named=True, acquisition_ok=True,
+            misnamed=[]),
+        eff("effect_acquisition", {"cogging": 0.06}, 0.5, {}, {}, decoy="lowpass",
+            effect_named=False, acquisition_named=False, acquisition_ok=True,
+            misnamed=["aero_spring"]),
+        eff("three_effect", {"delay": 8e-4, "cogging": 0.07, "eccentricity": 0.1}, 1.0,
+            {"delay": 0.01, "cogging": 0.02, "eccentricity": 0.03},
+            {"delay": True, "cogging": True, "eccentricity": False}, all_named=True,
+            n_named=3, misnamed=[]),
+        eff("three_effect", {"delay": 8e-4, "cogging": 0.07, "aero_spring": 100.0}, 0.8,
+            {"delay": 0.01}, {"delay": True}, all_named=False, n_named=1, misnamed=[]),
+    ]
+    s = summarise(recs + HAND)
+    assert s["categories"]["effect_acquisition"] == 2 and s["categories"]["three_effect"] == 2
+    ea, te = s["per_category"]["effect_acquisition"], s["per_category"]["three_effect"]
+    assert (ea["effect_named"], ea["acquisition_named"], ea["acquisition_named_or_flagged"],
+            ea["confident_misnames"]) == (1, 1, 2, 1)
+    assert ea["per_acquisition"] == {"drift": "1/1", "lowpass": "1/1"}
+    assert (te["all_named"], te["all_named_rate"], te["effects_named"],
+            te["confident_misnames"]) == (1, 0.5, "4/6", 0)
+    assert te["interval_coverage"] == "3/4"
+    # the wrongly named acquisition decoy of HAND is a record of the older format (no
+    # "misnamed"): counted by its decoy_ok, not here
+    assert s["confident_misnames"] == 1
+    # the older categories' figures do not move
+    old = summarise(HAND)
+    assert {k: v for k, v in s["per_category"].items() if k in old["per_category"]} == \
+        old["per_category"]
+
+
+def test_run_case_builds_the_third_round_data_and_hides_the_truth(monkeypatch):
+    seen = []
+
+    def fake_diagnose(tr, settings, seed):
+        seen.append(tr)
+        return SimpleNamespace(verdict="unexplained", effects=[], acquisition=[],
+                               gap={"partial": None, "before": 1.0, "after": 1.0},
+                               message="m", evaluations=1)
+
+    monkeypatch.setattr(blind, "diagnose", fake_diagnose)
+    drawn = draw_cases(0, 5, extra=1)
+    for c in drawn:
+        rec = run_case(c, 5, blind.Settings())
+        assert rec["named_acquisition"] == [] and rec["misnamed"] == []
+        assert "cpu_s" in rec and rec["effects"] == c.effects
+    ea, te = sorted(drawn, key=lambda c: c.category)
+    assert (ea.category, te.category) == ("effect_acquisition", "three_effect")
+    for c, tr in zip(drawn, seen):
+        ref = blind.simulate_reference(np.array(list(c.faults.values())), c.effects,
+                                       tests=blind.TESTS,
+                                       seed=stream(run_seed(5, c.index), "noise"))
+        want = decoys.apply(c.decoy, ref, c.decoy_params) if c is ea else ref
+        assert tr.allclose(want) and tr.meta["effects"] is None and tr.meta["faults"] is None
+        if c is ea:
+            assert not tr.allclose(ref)      # the acquisition fault is on the record
+
+
+COMMITTED_R3 = Path(__file__).resolve().parents[1] / "leaderboards" / "blind_r3"
+
+
+@pytest.mark.parametrize("folder, n, extra, seed", [
+    ("", 0, 10, 2034), ("rerun_seed9672", 60, 0, 9672)])
+def test_the_committed_third_round_suites_are_the_cases_drawn_and_summed(folder, n, extra,
+                                                                         seed):
+    """Every committed record is the case its seed draws (truth and identity), and the
+    committed summary is :func:`summarise` of the records."""
+    path = COMMITTED_R3 / folder
+    records = read_records(path / "blind.jsonl")
+    assert records
+    drawn = {c.index: c for c in draw_cases(n, seed, extra)}
+    for r in records:
+        c = drawn[r["index"]]
+        assert r["root_seed"] == seed and r["key"] == f"case{c.index}"
+        assert {k: r[k] for k in ("category", "effects", "faults", "decoy",
+                                  "decoy_params")} == {
+            "category": c.category, "effects": c.effects, "faults": c.faults,
+            "decoy": c.decoy, "decoy_params": c.decoy_params}
+    summary = json.loads((path / "summary.json").read_text())
+    ordered = sorted(records, key=lambda r: r["index"])
+    # as the CLI writes it (jsonio: a NaN rate of an empty category becomes null)
+    assert {k: v for k, v in summary.items() if k != "command"} == \
+        json.loads(dumps(summarise(ordered)))

@@ -38,6 +38,13 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "traces of 'ema-bench simulate --root-seed R --seed i' (reference-model "
                         "cases, before any acquisition decoy), the diagnosis of 'ema-bench "
                         "diagnose --root-seed R --seed i'")
+    p.add_argument("--extra", type=int, default=0, metavar="K",
+                   help="K more cases of each third-round category (an effect beside an "
+                        "acquisition-chain fault, three effects at once), after the --cases "
+                        "cases, which they leave as they were (default 0)")
+    p.add_argument("--only", default=None, metavar="CATEGORIES",
+                   help="comma-separated categories: run and summarise only their cases of "
+                        "the suite drawn (e.g. a rerun of part of a committed suite)")
     p.add_argument("--out", default=None, metavar="DIR",
                    help="write blind.jsonl and summary.json here, resumable (default "
                         "ema-bench-blind-seed<S>-n<N>)")
@@ -51,10 +58,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def default_out(seed: int, cases: int) -> str:
+def default_out(seed: int, cases: int, extra: int = 0) -> str:
     """The folder a blind suite writes to without ``--out``: named by what it holds, so the
     same command resumes and another seed or size never mixes in."""
-    return f"ema-bench-blind-seed{seed}-n{cases}"
+    return f"ema-bench-blind-seed{seed}-n{cases}" + (f"-x{extra}" if extra else "")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -65,15 +72,25 @@ def run(args: argparse.Namespace) -> int:
     from . import CLIError, print_json
     from .args import check_output
 
-    if args.cases < 1 or args.workers < 1:
-        raise CLIError("--cases and --workers must be >= 1")
+    if args.cases < 0 or args.extra < 0 or args.cases + args.extra < 1 or args.workers < 1:
+        raise CLIError("--cases and --extra must be >= 0 (not both 0), --workers >= 1")
+    only = None
+    if args.only is not None:
+        from ..diagnosis.blind import KINDS
+
+        only = [c.strip() for c in args.only.split(",") if c.strip()]
+        unknown = [c for c in only if c not in KINDS]
+        if unknown or not only:
+            raise CLIError(f"--only: unknown categories {unknown}; known: {', '.join(KINDS)}")
     if args.calibrate:
         return _calibrate(args)
     # before any work: the suite takes minutes per case
-    out = check_output(args.out or default_out(args.seed, args.cases), "--out", folder=True)
+    out = check_output(args.out or default_out(args.seed, args.cases, args.extra), "--out",
+                       folder=True)
     if args.out is None and not args.quiet:
         print(f"writing to {out}/ (rerun the same command to resume)", file=sys.stderr)
-    res = run_blind(args.cases, args.seed, out, quiet=args.quiet, workers=args.workers)
+    res = run_blind(args.cases, args.seed, out, quiet=args.quiet, workers=args.workers,
+                    extra=args.extra, only=only)
     (Path(out) / "summary.json").write_text(dumps(
         {"command": "ema-bench " + " ".join(sys.argv[1:]), **res["summary"]}, indent=1))
     if args.json:
@@ -118,12 +135,26 @@ def _category_line(name: str, b: dict) -> str:
         return (f"both named {b['both_named']}/{n}, at least one {b['one_named']}/{n}, gap "
                 f"closed {_pct(b['median_heldout_gap_closed'])}, intervals cover "
                 f"{b['interval_coverage'] or '-'}")
+    if name == "three_effect":
+        return (f"all three named {b['all_named']}/{n} ({_pct(b['all_named_rate'])}), "
+                f"effects named {b['effects_named']}, confident misnames "
+                f"{b['confident_misnames']}, gap closed "
+                f"{_pct(b['median_heldout_gap_closed'])}, intervals cover "
+                f"{b['interval_coverage'] or '-'}")
+    if name == "effect_acquisition":
+        return (f"effect named {b['effect_named']}/{n} ({_pct(b['effect_named_rate'])}), "
+                f"acquisition fault named {b['acquisition_named']}/{n}, named or flagged "
+                f"{b['acquisition_named_or_flagged']}/{n} "
+                f"({_pct(b['acquisition_named_or_flagged_rate'])}), confident misnames "
+                f"{b['confident_misnames']}, intervals cover {b['interval_coverage'] or '-'}"
+                f"  {b['per_acquisition']}")
     if name in ("null", "monitor_null"):
         return f"false alarms {b['false_alarms']}/{n}  {b['by_verdict']}"
     o = b["by_outcome"]
     return (f"handled {b['ok']}/{n} (unexplained {o['unexplained']}, named but partial "
-            f"{o['named_partial']}, not detected {o['not_detected']}, named {o['named']})  "
-            f"{b['ok_by_decoy']}")
+            f"{o['named_partial']}, acquisition fault named "
+            f"{o.get('acquisition_named', 0)}, not detected {o['not_detected']}, named "
+            f"{o['named']})  {b['ok_by_decoy']}")
 
 
 def summary_lines(s: dict, seed: int) -> list[str]:
@@ -135,6 +166,8 @@ def summary_lines(s: dict, seed: int) -> list[str]:
              "and monitor data)",
              f"  decoys not misnamed: {s['decoys_unexplained_or_partial']} of "
              f"{s['decoy_cases']}",
+             f"  cases with a confidently named suspect that is not there: "
+             f"{s.get('confident_misnames', '-')}",
              f"  median held-out gap closed: {_pct(s['median_heldout_gap_closed'])}; median "
              f"parameter error: {_pct(s['median_param_error'], 2)}"]
     if s.get("interval_coverage"):
@@ -151,6 +184,8 @@ def _truth(r: dict) -> str:
     effects = ",".join(f"{k}={v:.3g}" for k, v in r["effects"].items())
     if r["category"] == "acquisition_decoy":
         return f"{r['decoy']}({r['decoy_params'].get('signal', '')})"
+    if r["category"] == "effect_acquisition":
+        return f"{effects}+{r['decoy']}({r['decoy_params'].get('signal', '')})"
     if r["category"] == "monitor_null":
         return "nothing (monitor)"
     return effects or "nothing"
@@ -158,7 +193,8 @@ def _truth(r: dict) -> str:
 
 def case_line(r: dict) -> str:
     """One finished case: index, category, truth, verdict and what was named."""
-    named = ",".join(r["named"]) or r.get("partial") or ""
-    partial = " (partial)" if r["named"] and r.get("partial") else ""
+    suspects = r["named"] + r.get("named_acquisition", [])
+    named = ",".join(suspects) or r.get("partial") or ""
+    partial = " (partial)" if suspects and r.get("partial") else ""
     return (f"    case {r['index']:>3} {r['category']:<17} {_truth(r):<44} -> "
             f"{r['verdict']:<11} {named}{partial}")

@@ -6,9 +6,12 @@ The traces must hold the step and sine tests (fitted) and the held-out sine ``si
 (CSV, NPZ, MAT), in one file or several: a file holding one unnamed test (no 'test' column)
 gets its name from ``--test``, one name per file in order.  Verdicts: none, effect (named,
 with its value and interval; two or three effects at once when no single one explains the
-discrepancy), unexplained (the discrepancy left open, and the nearest library effect or set
-if it explains part of it).  A discrepancy is a held-out fitness above what the fitted model
-plus sensor noise reaches, or training residual statistics outside their bootstrap envelopes.
+discrepancy; faults of the acquisition chain beside them, each with its value and interval),
+acquisition (only faults of the recording named: a low-pass, a time shift, a drift, mains hum
+or outliers on one channel), unexplained (the discrepancy left open, and the nearest library
+effect or set if it explains part of it).  A discrepancy is a held-out fitness above what
+the fitted model plus sensor noise reaches, or training residual statistics outside their
+bootstrap envelopes.
 
 Examples::
 
@@ -88,6 +91,9 @@ def run(args: argparse.Namespace) -> int:
         (name, v), = e.params.items()
         print(f"  {name} = {v:.4g} (95 % interval {e.interval[0]:.4g} .. {e.interval[1]:.4g})"
               f"{', partial' if e.partial else ''}")
+    for a in d.acquisition:
+        print(f"  {a.name} = {a.value:.4g} (95 % interval {a.interval[0]:.4g} .. "
+              f"{a.interval[1]:.4g}): {a.description}{', partial' if a.partial else ''}")
     print("faults before -> after: " + ", ".join(
         f"{n} {v['before']:.4g} -> {v['after']:.4g}" for n, v in d.faults.items()))
     if args.report:

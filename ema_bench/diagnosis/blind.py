@@ -22,12 +22,25 @@ of the suite):
     a fault of the acquisition chain applied to the measured traces
     (:mod:`~ema_bench.diagnosis.decoys`: a slow filter, mains hum, clipping, a time shift,
     drift, outliers on one channel).
+``effect_acquisition``
+    one library effect at 1.5-4 times ``detect`` and one fault of the acquisition chain the
+    workflow's acquisition library holds (:data:`ACQUISITION_LIBRARY`, drawn as the decoys
+    are); the workflow must name the effect, and name the acquisition fault or flag the
+    verdict partial.
+``three_effect``
+    three different library effects, each at 2-3 times ``detect``, cycling through every
+    triple; the workflow should name all three.
 
-A decoy is handled when the workflow reports it unexplained or not at all, or names an
-effect only flagged partial.  The coarse ``kind`` of a case is ``effect`` (the first three),
-``null`` or ``decoy``.  Scores: naming accuracy (top-1) of single effects, both-named rate of
-pairs, false alarms on both null kinds, decoys handled, held-out gap closed, parameter error
-and the coverage of the named effects' intervals.
+A decoy is handled when nothing is named confidently that is not there: the workflow reports
+it unexplained or not at all, names a physical effect only flagged partial, or (an
+acquisition decoy its acquisition library holds) names that fault on that channel.  The
+coarse ``kind`` of a case is ``effect`` (single, near-threshold, two-, three-effect and
+effect-plus-acquisition cases), ``null`` or ``decoy``.  Scores: naming accuracy (top-1) of
+single effects, both-named rate of pairs, all-named rate of triples, effect named and
+acquisition fault named (or flagged) beside it, confident misnames (a named physical effect
+or acquisition fault that is not in the case, not flagged partial), false alarms on both
+null kinds, decoys handled, held-out gap closed, parameter error and the coverage of the
+named effects' intervals.
 
 Records
 -------
@@ -35,11 +48,14 @@ A case's record (:func:`run_case`) holds its identity (``key``, ``root_seed``, `
 ``model_version``), the truth (the fields of :class:`BlindCase`: ``index``, ``category``,
 ``kind``, ``effects``, ``faults``, ``decoy``, ``decoy_params``), the answer (``verdict``,
 ``named``, ``partial``, ``gap_closed``, ``gap_before``, ``gap_after``, ``message``,
-``evaluations``, ``wall_s``) and its scores: ``correct`` (single and near-threshold: the first
-named effect is the truth) or ``both_named`` and ``one_named`` (pairs), with
-``named_partial`` and, per true effect found, ``estimates``, ``param_errors`` (relative),
-``intervals`` and ``interval_covers`` (``name -> ...``); ``false_alarm`` (null kinds);
-``decoy_ok`` (decoys).
+``evaluations``, ``wall_s``, ``cpu_s``) and its scores: ``correct`` (single and
+near-threshold: the first named effect is the truth) or ``both_named`` and ``one_named``
+(pairs), with ``named_partial`` and, per true effect found, ``estimates``, ``param_errors``
+(relative), ``intervals`` and ``interval_covers`` (``name -> ...``); ``false_alarm`` (null kinds);
+``decoy_ok`` (decoys); ``all_named`` (three effects); ``effect_named``,
+``acquisition_named`` and ``acquisition_ok`` (effect plus acquisition fault);
+``misnamed`` (every effect and decoy case: the confidently named suspects that are not
+there).  ``named_acquisition`` lists the acquisition faults named, ``kind(channel)``.
 """
 
 from __future__ import annotations
@@ -70,27 +86,37 @@ from ..reference import simulate_reference
 from ..seeding import run_seed, stream
 from ..trace_cache import MODEL_VERSION
 from ..traces import Traces
-from . import decoys
+from . import acquisition, decoys
 from .workflow import Settings, diagnose
 
 DRAWABLE = tuple(n for n in LIBRARY if math.isfinite(EFFECTS[EFFECT_INDEX[n]].detect))
 #: Every unordered pair of different drawable effects (the two-effect cases cycle them).
 PAIRS: tuple[tuple[str, str], ...] = tuple(itertools.combinations(DRAWABLE, 2))
+#: Every unordered triple of different drawable effects (the three-effect cases cycle them).
+TRIPLES: tuple[tuple[str, str, str], ...] = tuple(itertools.combinations(DRAWABLE, 3))
 ACQUISITION = tuple(decoys.ACQUISITION_DECOYS)
+#: The acquisition decoys the workflow's acquisition library holds (clipping it does not).
+ACQUISITION_LIBRARY = tuple(n for n in ACQUISITION if n in acquisition.KINDS)
 #: Categories and their shares of a suite, in percent (largest remainders round them).
 CATEGORIES: dict[str, int] = {
     "single": 25, "near_threshold": 14, "two_effect": 19, "null": 9, "monitor_null": 8,
     "physical_decoy": 6, "acquisition_decoy": 19,
 }
+#: The third round's categories: ``extra`` cases of each after the ``n`` of the shares (so
+#: the suites drawn before keep their cases, and the interval calibration its own).
+EXTRA_CATEGORIES: tuple[str, ...] = ("effect_acquisition", "three_effect")
 KINDS: dict[str, str] = {
     "single": "effect", "near_threshold": "effect", "two_effect": "effect", "null": "null",
     "monitor_null": "null", "physical_decoy": "decoy", "acquisition_decoy": "decoy",
+    "effect_acquisition": "effect", "three_effect": "effect",
 }
 #: Magnitude of the hidden effects, as a range of multiples of ``detect`` (log-uniform).
 MAGNITUDES: dict[str, tuple[float, float]] = {
     "single": (1.5, 4.0), "near_threshold": (1.0, 1.5), "two_effect": (1.5, 3.0),
-    "physical_decoy": (1.0, 4.0),
+    "physical_decoy": (1.0, 4.0), "effect_acquisition": (1.5, 4.0), "three_effect": (2.0, 3.0),
 }
+#: Categories whose data go through an acquisition fault (the case's ``decoy``).
+ACQUIRED = ("acquisition_decoy", "effect_acquisition")
 TESTS = STANDARD_TESTS + HOLDOUT_TESTS
 
 Runner = Callable[["BlindCase", int, Settings], dict]
@@ -150,20 +176,47 @@ def _orders(rng: np.random.Generator) -> dict[str, list[tuple[str, ...]]]:
             "acquisition_decoy": [(n,) for n in perm(ACQUISITION)]}
 
 
-def draw_cases(n: int, seed: int) -> list[BlindCase]:
-    """``n`` hidden cases of the suite of root seed ``seed``, laid out in the fixed shares of
-    :data:`CATEGORIES`; each category cycles through its effects, pairs or decoys so that
-    every one appears.
+def _extra_orders(rng: np.random.Generator) -> dict[str, list[tuple[str, ...]]]:
+    """The order the third round's categories cycle their effects and faults in."""
+    def perm(items: Sequence) -> list:
+        return [items[i] for i in rng.permutation(len(items))]
 
-    The layout (categories, effect order, magnitudes) comes from the root's ``plan`` stream;
-    case ``i``'s faults from the ``instance`` stream of run ``i`` (``run_seed(seed, i)``), an
-    acquisition decoy's channel and magnitude from its ``acquisition`` stream."""
+    return {"effect_acquisition": [(n,) for n in perm(DRAWABLE)],
+            "three_effect": perm(TRIPLES),
+            "effect_acquisition_fault": [(n,) for n in perm(ACQUISITION_LIBRARY)]}
+
+
+def draw_cases(n: int, seed: int, extra: int = 0) -> list[BlindCase]:
+    """``n`` hidden cases of the suite of root seed ``seed``, laid out in the fixed shares of
+    :data:`CATEGORIES`, then ``extra`` cases of each of :data:`EXTRA_CATEGORIES` (indices
+    ``n`` on, shuffled); each category cycles through its effects, pairs, triples or decoys
+    so that every one appears.
+
+    The layout (categories, effect order, magnitudes) comes from the root's ``plan`` stream
+    (the extra cases' from its ``plan`` stream number 1, so ``extra`` leaves the first ``n``
+    cases as they were); case ``i``'s faults from the ``instance`` stream of run ``i``
+    (``run_seed(seed, i)``), an acquisition fault's channel and magnitude from its
+    ``acquisition`` stream."""
+    if n < 0 or extra < 0:
+        raise ValueError(f"cases and extra cases must be >= 0, got {n} and {extra}")
     rng = np.random.default_rng(stream(seed, "plan"))
     layout = [c for c, k in category_counts(n).items() for _ in range(k)]
     rng.shuffle(layout)
     orders, taken = _orders(rng), Counter()
+    cases = _draw(layout, 0, seed, rng, orders, taken)
+    if extra:
+        rng = np.random.default_rng(stream(seed, "plan", 1))
+        layout = [c for c in EXTRA_CATEGORIES for _ in range(extra)]
+        rng.shuffle(layout)
+        cases += _draw(layout, n, seed, rng, _extra_orders(rng), Counter())
+    return cases
+
+
+def _draw(layout: list[str], first: int, seed: int, rng: np.random.Generator,
+          orders: dict[str, list[tuple[str, ...]]], taken: Counter) -> list[BlindCase]:
+    """The cases of ``layout`` (their categories, in order), indices from ``first``."""
     cases = []
-    for i, category in enumerate(layout):
+    for i, category in enumerate(layout, start=first):
         node = run_seed(seed, i)
         faults = faults_to_dict(random_faults(stream(node, "instance"), 1.0))
         names: tuple[str, ...] = ()
@@ -173,8 +226,11 @@ def draw_cases(n: int, seed: int) -> list[BlindCase]:
         effects = ({name: _magnitude(rng, name, *MAGNITUDES[category]) for name in names}
                    if category in MAGNITUDES else {})
         decoy = names[0] if KINDS[category] == "decoy" else None
-        params = (decoys.draw(names[0], np.random.default_rng(stream(node, "acquisition")))
-                  if category == "acquisition_decoy" else {})
+        if category == "effect_acquisition":
+            cycle = orders["effect_acquisition_fault"]
+            decoy = cycle[(taken[category] - 1) % len(cycle)][0]
+        params = (decoys.draw(decoy, np.random.default_rng(stream(node, "acquisition")))
+                  if category in ACQUIRED else {})
         cases.append(BlindCase(i, category, KINDS[category], effects, faults, decoy, params))
     return cases
 
@@ -192,14 +248,15 @@ def measured_traces(case: BlindCase, seed: int) -> Traces:
     The reference model with the case's effects and the sensor noise of the run's ``noise``
     stream (the traces of ``ema-bench simulate --root-seed R --seed i``); for
     ``monitor_null`` the monitor model through the same sensors (its ``model`` meta hidden);
-    for ``acquisition_decoy`` the reference traces with the decoy applied."""
+    for ``acquisition_decoy`` and ``effect_acquisition`` the reference traces with the
+    acquisition fault applied."""
     node = run_seed(seed, case.index)
     x = np.array(list(case.faults.values()))
     if case.category == "monitor_null":
         tr = twin_traces(x, effects_vector({}), stream(node, "noise"), TESTS)
         return tr.with_meta(model=None)
     tr = simulate_reference(x, case.effects, tests=TESTS, seed=stream(node, "noise"))
-    if case.category == "acquisition_decoy":
+    if case.category in ACQUIRED:
         tr = decoys.apply(case.decoy, tr, case.decoy_params)
     return tr
 
@@ -209,17 +266,20 @@ def run_case(case: BlindCase, seed: int, settings: Settings) -> dict:
 
     Case ``i`` of root ``seed`` is run ``i`` of the seed tree: its diagnosis is that of
     ``ema-bench diagnose --root-seed R --seed i`` on :func:`measured_traces`."""
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     node = run_seed(seed, case.index)
     measured = measured_traces(case, seed)
     # the workflow sees the traces only
     d = diagnose(measured.with_meta(faults=None, effects=None), settings,
                  seed=stream(node, "diagnosis"))
     return {**case_record(case, seed), "verdict": d.verdict, "named": [e.name for e in d.effects],
+            "named_acquisition": [a.name for a in getattr(d, "acquisition", [])],
             "partial": d.gap.get("partial"), "gap_closed": d.gap.get("closed", 0.0),
             "gap_before": d.gap["before"], "gap_after": d.gap["after"],
             "message": d.message, "evaluations": d.evaluations, **score(case, d),
-            "wall_s": time.perf_counter() - t0}
+            "wall_s": time.perf_counter() - t0,
+            # this process's CPU time: comparable across loads of a shared machine
+            "cpu_s": time.process_time() - c0}
 
 
 def score(case: BlindCase, d: Any) -> dict:
@@ -227,20 +287,41 @@ def score(case: BlindCase, d: Any) -> dict:
     of ``case``: by kind, see the module's docstring."""
     if case.kind == "null":
         return {"false_alarm": d.verdict != "none"}
+    fault = acquisition_truth(case)
+    findings = list(d.effects) + list(getattr(d, "acquisition", []))
+    # a verdict flagged partial claims no suspect as the whole answer
+    flagged = bool(d.gap.get("partial")) or any(f.partial for f in findings)
+    misnamed = [] if flagged else sorted(f.name for f in findings
+                                         if f.name not in case.effects and f.name != fault)
     if case.kind == "decoy":
-        partial = bool(d.gap.get("partial")) or any(e.partial for e in d.effects)
-        return {"decoy_ok": d.verdict in ("none", "unexplained") or partial}
+        return {"decoy_ok": not misnamed, "misnamed": misnamed}
     named = [e.name for e in d.effects]
     truth = list(case.effects)
+    rec: dict[str, Any] = {"misnamed": misnamed}
     if case.category == "two_effect":
         found = [n for n in truth if n in named]
-        rec: dict[str, Any] = {"both_named": set(named) == set(truth),
-                               "one_named": bool(found)}
+        rec.update(both_named=set(named) == set(truth), one_named=bool(found))
+    elif case.category == "three_effect":
+        found = [n for n in truth if n in named]
+        rec.update(all_named=set(truth) <= set(named), n_named=len(found))
+    elif case.category == "effect_acquisition":
+        found = [n for n in truth if n in named]
+        acq_named = fault in [a.name for a in getattr(d, "acquisition", [])]
+        rec.update(effect_named=bool(found), acquisition_named=acq_named,
+                   acquisition_ok=acq_named or flagged)
     else:
         found = truth if named and named[0] == truth[0] else []
-        rec = {"correct": bool(found)}
+        rec["correct"] = bool(found)
     rec["named_partial"] = any(e.partial for e in d.effects if e.name in found)
     return {**rec, **_estimates(case.effects, d.effects, found)}
+
+
+def acquisition_truth(case: BlindCase) -> str | None:
+    """The acquisition fault a case hides, as the workflow names it (``kind(channel)``), or
+    ``None`` (also for a fault its library does not hold, e.g. clipping)."""
+    if case.category not in ACQUIRED or case.decoy not in ACQUISITION_LIBRARY:
+        return None
+    return f"{case.decoy}({case.decoy_params.get('signal')})"
 
 
 def _estimates(truth: dict[str, float], findings: Sequence[Any], found: Sequence[str]) -> dict:
@@ -283,9 +364,20 @@ def _tally(pairs: Sequence[tuple[str, bool]]) -> dict[str, str]:
     return {k: f"{v[0]}/{v[1]}" for k, v in sorted(hits.items())}
 
 
+#: The record field that says an effect case's truth was found, by category.
+FOUND = {"single": "correct", "near_threshold": "correct", "two_effect": "both_named",
+         "three_effect": "all_named", "effect_acquisition": "effect_named"}
+
+
 def _found(r: dict) -> bool:
-    """Whether an effect case's truth was found: named first, or both of a pair named."""
-    return bool(r.get("both_named") if r["category"] == "two_effect" else r.get("correct"))
+    """Whether an effect case's truth was found: named first, both of a pair or all three of
+    a triple named, the effect beside an acquisition fault named."""
+    return bool(r.get(FOUND[r["category"]]))
+
+
+def _misnames(rs: list[dict]) -> int:
+    """Cases with a confidently named suspect that is not there."""
+    return sum(bool(r.get("misnamed")) for r in rs)
 
 
 def _effect_block(rs: list[dict]) -> dict[str, object]:
@@ -315,6 +407,29 @@ def _pair_block(rs: list[dict]) -> dict[str, object]:
             **_effect_block(rs)}
 
 
+def _triple_block(rs: list[dict]) -> dict[str, object]:
+    alln = sum(r["all_named"] for r in rs)
+    return {"cases": len(rs), "all_named": alln, "all_named_rate": _rate(alln, len(rs)),
+            "effects_named": f"{sum(r['n_named'] for r in rs)}/{3 * len(rs)}",
+            "confident_misnames": _misnames(rs),
+            "per_triple": _tally([("+".join(sorted(r["effects"])), r["all_named"])
+                                  for r in rs]),
+            **_effect_block(rs)}
+
+
+def _effect_acquisition_block(rs: list[dict]) -> dict[str, object]:
+    eff = sum(r["effect_named"] for r in rs)
+    ok = sum(r["acquisition_ok"] for r in rs)
+    return {"cases": len(rs), "effect_named": eff, "effect_named_rate": _rate(eff, len(rs)),
+            "acquisition_named": sum(r["acquisition_named"] for r in rs),
+            "acquisition_named_or_flagged": ok,
+            "acquisition_named_or_flagged_rate": _rate(ok, len(rs)),
+            "confident_misnames": _misnames(rs),
+            "per_effect": _tally([(next(iter(r["effects"])), r["effect_named"]) for r in rs]),
+            "per_acquisition": _tally([(r["decoy"], r["acquisition_ok"]) for r in rs]),
+            **_effect_block(rs)}
+
+
 def _null_block(rs: list[dict]) -> dict[str, object]:
     alarms = sum(r["false_alarm"] for r in rs)
     return {"cases": len(rs), "false_alarms": alarms, "false_alarm_rate": _rate(alarms, len(rs)),
@@ -322,12 +437,14 @@ def _null_block(rs: list[dict]) -> dict[str, object]:
 
 
 def _decoy_outcomes(rs: list[dict]) -> dict[str, int]:
-    # named, but flagged partial: handled
+    # named, but flagged partial (or the acquisition decoy itself named): handled
     partial = [r["verdict"] == "effect" and bool(r["decoy_ok"]) for r in rs]
     return {"unexplained": sum(r["verdict"] == "unexplained" for r in rs),
             "named_partial": sum(partial),
             "not_detected": sum(r["verdict"] == "none" for r in rs),
-            "named": sum(r["verdict"] == "effect" and not p for r, p in zip(rs, partial))}
+            "acquisition_named": sum(r["verdict"] == "acquisition" and bool(r["decoy_ok"])
+                                     for r in rs),
+            "named": sum(not r["decoy_ok"] for r in rs)}
 
 
 def _decoy_block(rs: list[dict]) -> dict[str, object]:
@@ -340,7 +457,8 @@ def _decoy_block(rs: list[dict]) -> dict[str, object]:
 _BLOCKS: dict[str, Callable[[list[dict]], dict[str, object]]] = {
     "single": _single_block, "near_threshold": _single_block, "two_effect": _pair_block,
     "null": _null_block, "monitor_null": _null_block, "physical_decoy": _decoy_block,
-    "acquisition_decoy": _decoy_block,
+    "acquisition_decoy": _decoy_block, "effect_acquisition": _effect_acquisition_block,
+    "three_effect": _triple_block,
 }
 
 
@@ -349,9 +467,13 @@ def summarise(records: list[dict]) -> dict[str, object]:
     false alarms over both null kinds, decoys handled, gap closed over the found effect
     cases, parameter error and interval coverage over every found true effect) and one block
     per category (``per_category``)."""
-    by = {c: [r for r in records if r["category"] == c] for c in CATEGORIES}
+    # the third round's categories appear when the suite has them
+    present = {r["category"] for r in records}
+    by = {c: [r for r in records if r["category"] == c]
+          for c in (*CATEGORIES, *(c for c in EXTRA_CATEGORIES if c in present))}
     named = by["single"] + by["near_threshold"]
-    effect = named + by["two_effect"]
+    effect = named + by["two_effect"] + by.get("three_effect", []) + by.get(
+        "effect_acquisition", [])
     null = by["null"] + by["monitor_null"]
     dec = by["physical_decoy"] + by["acquisition_decoy"]
     return {
@@ -365,6 +487,8 @@ def summarise(records: list[dict]) -> dict[str, object]:
         "decoy_cases": len(dec), "decoys_unexplained_or_partial": sum(r["decoy_ok"]
                                                                       for r in dec),
         "decoys_by_outcome": _decoy_outcomes(dec),
+        # a suspect named without a partial flag that the case does not hold
+        "confident_misnames": _misnames(effect + dec),
         # found effects whose model still leaves the envelopes (e.g. at heavy stiction)
         **_effect_block(effect),
         "per_category": {c: _BLOCKS[c](rs) for c, rs in by.items()},
@@ -376,15 +500,23 @@ def summarise(records: list[dict]) -> dict[str, object]:
 
 def run_blind(n: int, seed: int, out: str | Path | None = None,
               settings: Settings | None = None, quiet: bool = True, workers: int = 1,
-              runner: Runner | None = None) -> dict[str, object]:
-    """Run (or resume, with ``out``) a blind suite of ``n`` cases and summarise it; progress
-    as :func:`~ema_bench.progress.progress` shows it unless ``quiet``.
+              runner: Runner | None = None, extra: int = 0,
+              only: Sequence[str] | None = None) -> dict[str, object]:
+    """Run (or resume, with ``out``) a blind suite of ``n`` cases (and ``extra`` of each
+    third-round category, :func:`draw_cases`) and summarise it; progress as
+    :func:`~ema_bench.progress.progress` shows it unless ``quiet``.  ``only``: run and
+    summarise the cases of these categories alone (the others are drawn, not run).
 
     ``workers`` > 1 runs the cases in that many processes; each record is appended to the
     store (by this process) as its case finishes, and the records come back in case order.
     ``runner`` replaces :func:`run_case` (a module-level function, for the processes)."""
     settings = settings or Settings()
-    cases = draw_cases(n, seed)
+    cases = draw_cases(n, seed, extra)
+    if only is not None:
+        unknown = sorted(set(only) - set(KINDS))
+        if unknown:
+            raise ValueError(f"unknown categories {unknown}; known: {list(KINDS)}")
+        cases = [c for c in cases if c.category in only]
     store = RunStore(Path(out) / "blind.jsonl") if out else None
     # cases of another model version are stale: run again, recorded beside the old ones
     done = {r["key"]: r for r in read_records(store.path) if is_current(r)} if store else {}

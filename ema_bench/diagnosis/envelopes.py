@@ -89,6 +89,7 @@ def bootstrap(clean: dict[str, np.ndarray], model: dict[str, np.ndarray],
               feature_tests: tuple[str, ...], n: int, seed: SeedLike,
               project: Callable[[dict[str, np.ndarray]], dict[str, np.ndarray]] | None = None,
               mask: dict[str, np.ndarray] | None = None,
+              record: Callable[[dict[str, np.ndarray]], dict[str, np.ndarray]] | None = None,
               ) -> tuple[Envelope, dict[str, np.ndarray]]:
     """Envelopes of the residual features and per-test fitness samples.
 
@@ -101,12 +102,17 @@ def bootstrap(clean: dict[str, np.ndarray], model: dict[str, np.ndarray],
     project : applied to each replicate's training residuals (see :func:`refit_projector`).
     mask : per test, (n_samples, 4) multipliers of the residuals before their statistics
         (the measured data's, so replicates and data are treated alike).
+    record : applied to each replicate's noisy outputs (test -> (n_samples, 4)): the
+        acquisition chain the fitted model carries, so that a low-pass smooths the
+        replicates' noise as it did the data's.
     """
     rows, fits = [], {t: [] for t in clean}
     names: tuple[str, ...] = ()
     for b, kid in enumerate(children(seed, n)):
         rngs = {t: np.random.default_rng(k) for t, k in zip(clean, children(kid, len(clean)))}
         data = {t: measure(clean[t], rngs[t]) for t in clean}
+        if record is not None:
+            data = record(data)
         res = {t: (data[t] - model[t]) * (1.0 if mask is None else mask[t])
                for t in feature_tests}
         feats = residual_features(project(res) if project else res,

@@ -113,6 +113,13 @@ def write_report(d: Diagnosis, measured: Traces, out: str | Path, source: str = 
             lines.append(f"| {name} | {v:.4g} | [{e.interval[0]:.4g}, {e.interval[1]:.4g}] | "
                          f"{100 * e.gap_closed:.0f} % |")
         lines.append("")
+    if d.acquisition:
+        lines += ["## Named faults of the acquisition chain (the measurement, not the actuator)",
+                  "", "| fault | what | value | 95 % interval |", "|---|---|---:|---|"]
+        for a in d.acquisition:
+            lines.append(f"| {a.name}{' (partial)' if a.partial else ''} | {a.description} | "
+                         f"{a.value:.4g} | [{a.interval[0]:.4g}, {a.interval[1]:.4g}] |")
+        lines.append("")
     lines += ["## Fault estimates (a missing effect biases them)", "",
               "| fault | before | after |", "|---|---:|---:|"]
     lines += [f"| {n} | {v['before']:.5g} | {v['after']:.5g} |" for n, v in d.faults.items()]
@@ -130,8 +137,9 @@ def write_report(d: Diagnosis, measured: Traces, out: str | Path, source: str = 
                   "| statistic | value | robust z |", "|---|---:|---:|"]
         lines += [f"| {n} | {v:.3g} | {z:.1f} |" for n, v, z in d.flagged_after[:15]]
     if d.screening:
-        lines += ["", "## Screening (linearised score, chi-square 1 dof)", "",
-                  "| effect | score | linear estimate |", "|---|---:|---:|"]
+        lines += ["", "## Screening (chi-square scale: linearised score of the effects, "
+                  "sum-of-squares drop of the acquisition faults)", "",
+                  "| effect or fault | score | estimate |", "|---|---:|---:|"]
         lines += [f"| {s['name']} | {s['score']:.3g} | {s['step']:.3g} |" for s in d.screening]
     if d.candidates:
         lines += ["", "## Candidate sets fitted", "",

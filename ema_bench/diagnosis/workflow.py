@@ -37,6 +37,8 @@ from ..reference import simulate_reference
 from ..registry import run_solver
 from ..seeding import SeedLike, stream
 from ..traces import OUTPUT_DT, Traces
+from . import acquisition as acq
+from .acquisition import Acquisition
 from .envelopes import Envelope, bootstrap, fitness_of, refit_projector
 from .features import residual_features, whiten
 from .screening import Candidate, score_effects, stack
@@ -73,12 +75,21 @@ class Settings:
     min_score: float = 50.0     # screening score (chi2, 1 dof) worth a joint fit
     accept_closed: float = 0.7  # share of the discrepancy a set must close to be named
     partial_closed: float = 0.3  # ... to be flagged as the nearest, partial explanation
-    max_effects: int = 3        # largest set of effects named at once
+    max_effects: int = 3        # largest set of physical effects named at once
+    max_acquisition: int = 2    # largest set of acquisition faults named at once
+    # acquisition faults (best screened, each a joint fit) tried as singles, and on top of a
+    # grown set: they cost a physics fit each, their screening costs none
+    acq_top_k: int = 2
     pair_pool: int = 4          # best singles (training fit) whose pairs are fitted jointly
     grow_k: int = 3             # re-screened effects tried on top of an accepted set
     # each effect beyond the first must close this much more of the discrepancy than the
     # set without it (the price of a parameter)
     pair_penalty: float = 0.15
+    # a set grown beyond the pairs must close this share of what its parent leaves (judged
+    # against the parent, each addition also beating the held-out noise band, its interval
+    # excluding zero): a third effect may close little of the base discrepancy but most of
+    # what two left
+    grow_closed: float = 0.3
 
 
 @dataclass
@@ -88,8 +99,26 @@ class Fit:
     augment: tuple[str, ...]
     x: np.ndarray                 # faults then augmented effect values (physical)
     fitness: float                # training fitness
-    outputs: dict[str, np.ndarray]  # test -> (n, 4) monitor outputs
+    outputs: dict[str, np.ndarray]  # test -> (n, 4) the record the model predicts
     evaluations: int
+    # acquisition faults the model carries (applied to ``raw``, the monitor's own outputs)
+    acquisition: tuple[Acquisition, ...] = ()
+    raw: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
+    acq_intervals: dict[str, list[float]] = field(default_factory=dict)
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """Every suspect the model carries: physical effects and acquisition faults."""
+        return tuple(sorted(self.augment + tuple(a.name for a in self.acquisition)))
+
+    @property
+    def key(self) -> str:
+        return "+".join(self.names)
+
+    @property
+    def values(self) -> dict[str, float]:
+        """Fitted value of every suspect (its unit)."""
+        return {**self.effects, **{a.name: a.value for a in self.acquisition}}
 
     @property
     def faults(self) -> dict[str, float]:
@@ -166,8 +195,24 @@ class EffectFinding:
 
 
 @dataclass
+class AcquisitionFinding:
+    """A named fault of the acquisition chain: its value and interval (the channel's unit,
+    :data:`~ema_bench.diagnosis.acquisition.KINDS`) and a phrase saying what it is."""
+
+    name: str
+    kind: str
+    channel: str
+    value: float
+    interval: list[float]
+    description: str
+    partial: bool = False
+
+
+@dataclass
 class Diagnosis:
-    verdict: str                      # "none" | "effect" | "unexplained"
+    # "none" | "effect" (a physical effect named, acquisition faults perhaps beside it) |
+    # "acquisition" (only faults of the recording named) | "unexplained"
+    verdict: str
     effects: list[EffectFinding]
     candidates: list[Trial]           # every candidate set fitted, accepted or not
     faults: dict[str, dict[str, float]]
@@ -178,17 +223,23 @@ class Diagnosis:
     fits: dict[str, Fit] = field(default_factory=dict, repr=False)
     message: str = ""
     flagged_after: list[tuple[str, float, float]] = field(default_factory=list)
+    acquisition: list[AcquisitionFinding] = field(default_factory=list)
+
+    @property
+    def named(self) -> list[str]:
+        """Everything named: physical effects, then acquisition faults."""
+        return [e.name for e in self.effects] + [a.name for a in self.acquisition]
 
     @property
     def final(self) -> Fit:
-        """The model the verdict rests on: with the named effects, else the base fit."""
-        return self.fits["+".join(e.name for e in self.effects)] if self.effects \
-            else self.fits["base"]
+        """The model the verdict rests on: with the named suspects, else the base fit."""
+        return self.fits["+".join(sorted(self.named))] if self.named else self.fits["base"]
 
     def as_dict(self) -> dict[str, object]:
         return {
             "verdict": self.verdict, "message": self.message,
             "effects": [asdict(f) for f in self.effects],
+            "acquisition": [asdict(f) for f in self.acquisition],
             "candidates": [{**asdict(t), "name": t.name} for t in self.candidates],
             "faults": self.faults, "gap": self.gap,
             "flagged": [{"feature": n, "value": v, "z": z} for n, v, z in self.flagged[:20]],
@@ -214,26 +265,67 @@ def _subset(tr: Traces, tests: tuple[str, ...]) -> Traces:
     return Traces({t: tr.data[t] for t in tests}, dt=tr.dt, meta=dict(tr.meta))
 
 
-def _simulate(x: np.ndarray, augment: tuple[str, ...], tests: tuple[str, ...]
-              ) -> dict[str, np.ndarray]:
-    """Monitor outputs of one or more parameter vectors (rows) on ``tests``: (k, n, 4)."""
+def _simulate(x: np.ndarray, augment: tuple[str, ...], tests: tuple[str, ...],
+              faults: tuple[Acquisition, ...] = ()) -> dict[str, np.ndarray]:
+    """Monitor outputs of one or more parameter vectors (rows) on ``tests``: (k, n, 4),
+    through the acquisition ``faults`` the model carries."""
     X = np.atleast_2d(x)
     out, _ = simulate_monitor(X[:, :4], SearchSpace.of(augment).effects_for(X),
                               tests=tuple(KNOWN_TESTS[t] for t in tests), check=False)
-    return out
+    return acq.carry(out, faults)
+
+
+class CarriedObjective(Objective):
+    """The fitness of a model that carries acquisition ``faults``: the monitor's outputs go
+    through them before they meet the record (their spikes weigh zero through
+    ``sample_weights``)."""
+
+    def __init__(self, measured: Traces, space: SearchSpace, *,
+                 sample_weights: dict[str, np.ndarray], faults: tuple[Acquisition, ...]
+                 ) -> None:
+        super().__init__(measured, space, sample_weights=sample_weights)
+        self.faults = faults
+
+    def outputs(self, X: np.ndarray) -> tuple[dict[str, np.ndarray], np.ndarray]:
+        out, ok = super().outputs(X)
+        return acq.carry(out, self.faults), ok
+
+
+def _fit_weights(measured: Traces, faults: tuple[Acquisition, ...]) -> dict[str, np.ndarray]:
+    """Per-sample weights of a fit: the stuck rotor's current and the spikes weigh zero."""
+    sw = stick_weights(measured)
+    aw = acq.weights(faults, {t: v.shape for t, v in sw.items()})
+    return {t: sw[t] * aw[t] for t in sw}
 
 
 def fit(measured: Traces, augment: tuple[str, ...], settings: Settings, seed: SeedLike,
-        start: np.ndarray | None = None) -> Fit:
+        start: np.ndarray | None = None, faults: tuple[Acquisition, ...] = ()) -> Fit:
     """Fit faults (and augmented effects) to the training tests with the chosen solver,
     warm-started at ``start`` when given; the stuck rotor's current has no weight
-    (:mod:`~ema_bench.diagnosis.stiction`)."""
+    (:mod:`~ema_bench.diagnosis.stiction`).
+
+    With acquisition ``faults`` (their starting values) the model carries them: the physics
+    is fitted through them held fixed, then each is fitted again at the new monitor outputs
+    (one alternation; their parameters need no simulation, :mod:`.acquisition`)."""
     train = _subset(measured, TRAIN)
+    weights = _fit_weights(train, faults)
     problem = make_problem(measured=train, budget=settings.budget, augment=augment,
-                           start=start, sample_weights=stick_weights(train))
+                           start=start, sample_weights=weights)
+    if faults:
+        # the problem's objective is swapped for one that carries the faults (the solvers
+        # only ever call problem.objective)
+        problem.objective = CarriedObjective(train, problem.space, sample_weights=weights,
+                                             faults=faults)
     res = run_solver(settings.solver, problem, settings.budget, seed=seed)
-    outputs = {t: v[0] for t, v in _simulate(res.x, augment, measured.tests).items()}
-    return Fit(augment, res.x, res.fitness, outputs, res.evaluations)
+    raw = {t: v[0] for t, v in _simulate(res.x, augment, measured.tests).items()}
+    if not faults:
+        return Fit(augment, res.x, res.fitness, raw, res.evaluations, (), raw)
+    new, ivs = acq.refit(faults, raw, measured.data, stick_weights(measured), TRAIN)
+    new = tuple(new)
+    weights = _fit_weights(train, new)
+    obj = CarriedObjective(train, problem.space, sample_weights=weights, faults=new)
+    fitness = float(obj.evaluate(res.x[None, :])[0][0])
+    return Fit(augment, res.x, fitness, acq.carry(raw, new), res.evaluations, new, raw, ivs)
 
 
 def assess(measured: Traces, model: Fit, weights: dict[str, np.ndarray],
@@ -241,17 +333,23 @@ def assess(measured: Traces, model: Fit, weights: dict[str, np.ndarray],
     """Compare the residuals of a fit with bootstrap envelopes of that fit (``weights``:
     per test, per-sample weights of the held-out fitness; the residual statistics drop the
     samples they weigh zero)."""
+    aw = acq.weights(model.acquisition, {t: measured.data[t].shape for t in measured.tests})
+    weights = {t: weights[t] * aw[t] for t in weights}
     mask = {t: (weights[t] > 0.0).astype(float) for t in TRAIN}
     clean = simulate_reference(model.x[:N_FAULTS], model.effects_vector(),
                                tests=tuple(KNOWN_TESTS[t] for t in measured.tests),
                                noise=False, adc=False)
     commands = _commands(measured.tests)
     lo, hi = _bounds(model.augment)
-    _, jac = _jacobian(model.x, model.augment, lo, hi, TRAIN)
+    _, jac = _jacobian(model.x, model.augment, lo, hi, TRAIN, faults=model.acquisition)
     jac = jac * np.concatenate([mask[t].ravel() for t in TRAIN])[:, None]
     project = refit_projector(jac, TRAIN, {t: measured.data[t].shape for t in TRAIN})
+    # the replicates' record goes through the acquisition chain the model carries, after
+    # the sensor noise, as the data's did
     env, boot_fit = bootstrap(dict(clean.data), model.outputs, commands, weights, TRAIN,
-                              settings.n_boot, seed, project, mask)
+                              settings.n_boot, seed, project, mask,
+                              (lambda d: acq.carry(d, model.acquisition))
+                              if model.acquisition else None)
     feats = residual_features(project({t: (measured.data[t] - model.outputs[t]) * mask[t]
                                        for t in TRAIN}),
                               {t: measured.data[t] for t in TRAIN},
@@ -265,8 +363,8 @@ def assess(measured: Traces, model: Fit, weights: dict[str, np.ndarray],
 
 
 def _jacobian(x: np.ndarray, augment: tuple[str, ...], lower: np.ndarray,
-              upper: np.ndarray, tests: tuple[str, ...], rel: float = 1e-3
-              ) -> tuple[np.ndarray, np.ndarray]:
+              upper: np.ndarray, tests: tuple[str, ...], rel: float = 1e-3,
+              faults: tuple[Acquisition, ...] = ()) -> tuple[np.ndarray, np.ndarray]:
     """Whitened outputs at ``x`` and their forward-difference Jacobian (physical units)."""
     h = rel * (upper - lower)
     X = np.tile(x, (len(x) + 1, 1))
@@ -274,7 +372,7 @@ def _jacobian(x: np.ndarray, augment: tuple[str, ...], lower: np.ndarray,
         # step inwards from a bound
         h[i] = h[i] if X[0, i] + h[i] <= upper[i] else -h[i]
         X[i + 1, i] += h[i]
-    y = stack(_simulate(X, augment, tests), tests)
+    y = stack(_simulate(X, augment, tests, faults), tests)
     return y[0], (y[1:] - y[0]).T / h
 
 
@@ -287,8 +385,9 @@ def profile(model: Fit, measured: Traces, params: tuple[str, ...], level: float 
     from ..uncertainty import intervals
 
     train = _subset(measured, TRAIN)
-    objective = Objective(train, SearchSpace.of(model.augment),
-                          sample_weights=stick_weights(train))
+    objective = CarriedObjective(train, SearchSpace.of(model.augment),
+                                 sample_weights=_fit_weights(train, model.acquisition),
+                                 faults=model.acquisition)
     return intervals(objective, model.x, method="profile", level=level, track="measured",
                      params=params, model_form="none", calibrate=False)
 
@@ -323,8 +422,8 @@ def screen(measured: Traces, model: Fit, lower: np.ndarray, upper: np.ndarray,
     tests = TRAIN + HOLDOUT
     names = [n for n in LIBRARY if n not in exclude
              and math.isfinite(EFFECTS[EFFECT_NAMES.index(n)].detect)]
-    y0, J = _jacobian(model.x, model.augment, lower, upper, tests)
-    sw = stick_weights(measured)
+    y0, J = _jacobian(model.x, model.augment, lower, upper, tests, faults=model.acquisition)
+    sw = _fit_weights(measured, model.acquisition)
     keep = np.concatenate([sw[t].ravel() for t in tests])
     y0, J = y0 * keep, J * keep[:, None]
     data = np.concatenate([whiten(measured.data[t]).ravel() for t in tests]) * keep
@@ -338,7 +437,7 @@ def screen(measured: Traces, model: Fit, lower: np.ndarray, upper: np.ndarray,
         E[i, EFFECT_NAMES.index(n)] += h
         steps[n] = h
     out, _ = simulate_monitor(X, E, tests=tuple(KNOWN_TESTS[t] for t in tests), check=False)
-    ys = stack(out, tests) * keep
+    ys = stack(acq.carry(out, model.acquisition), tests) * keep
     cols = {n: (ys[i], steps[n]) for i, n in enumerate(names)}
     return score_effects(data - y0, y0, J, cols)
 
@@ -350,6 +449,15 @@ def _bounds(augment: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
 
 def _spec(name: str):
     return EFFECTS[EFFECT_NAMES.index(name)]
+
+
+def _trivial(name: str) -> float:
+    """The trivial band of a physical effect or an acquisition fault (its unit)."""
+    return acq.trivial(name) if acq.is_acquisition(name) else _spec(name).trivial
+
+
+def _physical(names: tuple[str, ...]) -> tuple[str, ...]:
+    return tuple(n for n in names if not acq.is_acquisition(n))
 
 
 @dataclass
@@ -368,18 +476,27 @@ class _Search:
     trials: list[Trial] = field(default_factory=list)
     evaluations: int = 0
     n_trials: int = 0
+    # the latest fitted value of each acquisition fault: where its next fit starts
+    guess: dict[str, Acquisition] = field(default_factory=dict)
 
     def run(self, effects: tuple[str, ...], start: np.ndarray, against: Trial | None,
-            score: float, siblings: dict[str, Trial] | None = None) -> Trial:
-        """Fit the faults with ``effects``, assess the model, and judge it against the model
-        of ``against`` (``None``: the base fit); ``siblings`` are the trials one effect
-        smaller the set must beat by the parameter price."""
+            score: float, siblings: dict[str, Trial] | None = None,
+            accept: float | None = None, faults: tuple[Acquisition, ...] | None = None
+            ) -> Trial:
+        """Fit the faults with ``effects`` (physical effects and acquisition faults, sorted),
+        assess the model, and judge it against the model of ``against`` (``None``: the base
+        fit); ``siblings`` are the trials one effect smaller the set must beat by the
+        parameter price; ``accept`` the share it must close (default ``accept_closed``);
+        ``faults`` where the acquisition faults start (default: their latest fits)."""
         s = self.settings
         key = "+".join(effects)
         if key not in self.fits:       # a set fitted before is judged again, not refitted
             self.n_trials += 1
-            f = fit(self.measured, effects, s, stream(self.seed, "fit", 1, self.n_trials),
-                    start)
+            if faults is None:
+                faults = tuple(self.guess[n] for n in effects if acq.is_acquisition(n))
+            f = fit(self.measured, _physical(effects), s,
+                    stream(self.seed, "fit", 1, self.n_trials), start, faults)
+            self.guess.update({a.name: a for a in f.acquisition})
             self.evaluations += f.evaluations
             self.status[key], _ = assess(self.measured, f, self.weights, s,
                                          stream(self.seed, "bootstrap", 1, self.n_trials))
@@ -388,12 +505,12 @@ class _Search:
         ref_fit = self.base if against is None else self.fits[against.name]
         ref = self.base_status if against is None else self.status[against.name]
         before, after = ref.discrepancy, st.discrepancy
-        added = tuple(n for n in effects if n not in ref_fit.augment)
-        values = f.effects
+        added = tuple(n for n in effects if n not in ref_fit.names)
+        values = f.values
         kw = dict(base=before, after=after, fit_before=ref_fit.fitness, fit_after=f.fitness,
                   values={n: values[n] for n in added},
-                  trivial={n: _spec(n).trivial for n in added},
-                  accept_closed=s.accept_closed)
+                  trivial={n: _trivial(n) for n in added},
+                  accept_closed=s.accept_closed if accept is None else accept)
         where, closed = closure(before, after)
         _, closed_total = closure(self.base_status.discrepancy, after)
         reasons = acceptance_reasons(**kw, intervals=None)
@@ -405,7 +522,7 @@ class _Search:
         ivs: dict[str, list[float]] = {}
         if not reasons:
             # the interval costs a profile per effect: only for a set that passes the rest
-            ivs = interval(f, self.measured, added)
+            ivs = self.intervals(f, added)
             reasons = acceptance_reasons(**kw, intervals={n: tuple(v) for n, v in ivs.items()})
         t = Trial(effects, added, "base" if against is None else against.name, values, ivs,
                   where, closed, closed_total,
@@ -417,13 +534,24 @@ class _Search:
                    f"discrepancy{'' if t.accepted else ', not accepted'}")
         return t
 
+    def intervals(self, f: Fit, names: tuple[str, ...]) -> dict[str, list[float]]:
+        """95 % intervals of ``names`` in the model ``f``: profiles for physical effects
+        (:func:`interval`), the channel profiles for acquisition faults."""
+        phys = tuple(n for n in names if n in f.augment)
+        out = interval(f, self.measured, phys) if phys else {}
+        out.update({n: f.acq_intervals[n] for n in names if n in f.acq_intervals})
+        return out
+
     def adopt(self, trial: Trial) -> Trial | None:
         """A set fitted with some effects inside their trivial bands is, in effect, a fit of
         the set without them, often a better one than that set's own fit found (the extra
         dimension is a second start: at heavy stiction a viscous friction fit alone stopped
         at half the gap its pair with a zero current gain closed).  Keep the better fit of
-        the reduced set and judge it again (``None``: nothing to reduce or no better)."""
+        the reduced set and judge it again (``None``: nothing to reduce or no better; sets
+        with acquisition faults are not reduced)."""
         f = self.fits[trial.name]
+        if f.acquisition:
+            return None
         keep = tuple(n for n in f.augment if abs(f.effects[n]) > _spec(n).trivial)
         key = "+".join(keep)
         if not keep or keep == f.augment or key not in self.fits:
@@ -435,7 +563,7 @@ class _Search:
         if fitness >= self.fits[key].fitness:
             return None
         outputs = {t: v[0] for t, v in _simulate(x, keep, self.measured.tests).items()}
-        self.fits[key] = Fit(keep, x, fitness, outputs, 0)
+        self.fits[key] = Fit(keep, x, fitness, outputs, 0, (), outputs)
         self.n_trials += 1
         self.status[key], _ = assess(self.measured, self.fits[key], self.weights,
                                      self.settings, stream(self.seed, "bootstrap", 1,
@@ -445,23 +573,57 @@ class _Search:
 
     def start(self, effects: tuple[str, ...], values: dict[str, float],
               faults: np.ndarray) -> np.ndarray:
-        """A warm start: ``faults`` and each effect at ``values`` (else zero), in bounds."""
+        """A warm start: ``faults`` and each physical effect of ``effects`` at ``values``
+        (else zero), in bounds."""
         return np.r_[faults, [np.clip(values.get(n, 0.0), _spec(n).lower, _spec(n).upper)
-                              for n in effects]]
+                              for n in _physical(effects)]]
+
+    def screen_acquisition(self, f: Fit) -> list[acq.Estimate]:
+        """The acquisition faults ``f`` does not carry, fitted at its residuals, best first
+        (their fits become the next starts)."""
+        s = self.settings
+        out = [e for e in acq.screen(f.raw, self.measured.data, stick_weights(self.measured),
+                                     TRAIN, f.acquisition)[:s.acq_top_k]
+               if e.score >= s.min_score]
+        self.guess.update({e.fault.name: e.fault for e in out})
+        return out
 
     def grow(self, from_: Trial) -> list[Trial]:
         """Re-screen at the model of an accepted set that still leaves a discrepancy, and try
-        each of the best ``grow_k`` effects on top of it (judged against that model)."""
+        each of the best ``grow_k`` physical effects and ``acq_top_k`` acquisition faults on
+        top of it, judged against that model: each must close ``grow_closed`` of what it
+        leaves."""
+        s = self.settings
         f = self.fits[from_.name]
         lo, hi = _bounds(f.augment)
+        cands: list[tuple[str, float, dict[str, float]]] = []
+        if len(f.augment) < s.max_effects:
+            cands += [(c.name, c.score, {c.name: c.step})
+                      for c in screen(self.measured, f, lo, hi, f.augment)[:s.grow_k]
+                      if c.score >= s.min_score]
+        if len(f.acquisition) < s.max_acquisition:
+            cands += [(e.fault.name, e.score, {}) for e in self.screen_acquisition(f)]
         out = []
-        for cand in screen(self.measured, f, lo, hi, f.augment)[:self.settings.grow_k]:
-            effects = tuple(sorted(f.augment + (cand.name,)))
-            if cand.score < self.settings.min_score:
-                continue
-            start = self.start(effects, {**f.effects, cand.name: cand.step}, f.x[:N_FAULTS])
-            out.append(self.run(effects, start, from_, from_.score + cand.score))
+        for name, score, step in cands:
+            effects = tuple(sorted(f.names + (name,)))
+            start = self.start(effects, {**f.effects, **step}, f.x[:N_FAULTS])
+            faults = f.acquisition + ((self.guess[name],) if acq.is_acquisition(name) else ())
+            out.append(self.run(effects, start, from_, from_.score + score,
+                                accept=s.grow_closed, faults=faults))
         return out
+
+    def members_hold(self, trial: Trial) -> bool:
+        """Whether every member of a grown set keeps an interval excluding zero in the grown
+        model (the intervals are kept on the trial for the verdict)."""
+        f = self.fits[trial.name]
+        missing = tuple(n for n in trial.effects if n not in trial.intervals)
+        trial.intervals.update(self.intervals(f, missing))
+        bad = [n for n in trial.effects if trial.intervals[n][0] <= 0.0 <= trial.intervals[n][1]]
+        if bad:
+            trial.accepted = False
+            trial.reason = "; ".join(f"{n}: interval includes zero in the grown set"
+                                     for n in bad)
+        return not bad
 
 
 def _best(trials: list[Trial], penalty: float) -> Trial | None:
@@ -508,23 +670,31 @@ def diagnose(measured: Traces, settings: Settings | None = None, seed: SeedLike 
 
 
 def _search(search: _Search, result: Diagnosis) -> Trial | None:
-    """Singles, then pairs of the best singles, then growth of the accepted set."""
+    """Singles (physical effects and acquisition faults), then pairs of the best singles,
+    then triples on the best pair when no pair is accepted, then growth of the accepted
+    set."""
     s, base = search.settings, search.base
     lo, hi = _bounds(())
     ranked = screen(search.measured, base, lo, hi, ())
-    result.screening = [{"name": c.name, "score": c.score, "step": c.step} for c in ranked]
+    acq_ranked = search.screen_acquisition(base)
+    result.screening = ([{"name": c.name, "score": c.score, "step": c.step} for c in ranked]
+                        + [{"name": e.fault.name, "score": e.score, "step": e.fault.value}
+                           for e in acq_ranked])
     singles = []
     for cand in ranked[:s.top_k]:
         if cand.score < s.min_score:
             break
         start = search.start((cand.name,), {cand.name: cand.step}, base.x[:N_FAULTS])
         singles.append(search.run((cand.name,), start, None, cand.score))
+    n_physical = len(singles)
+    for e in acq_ranked:
+        singles.append(search.run((e.fault.name,), base.x[:N_FAULTS].copy(), None, e.score))
     chosen = _best(singles, s.pair_penalty)
     if chosen is None:
         # the linearised score can miss an effect entirely: at heavy stiction a sensor offset
         # moves where the rotor sticks, which no small step at the base fit shows (score 44
         # for an offset the fit then closes 100 % with).  Fit the rest of the library too.
-        for cand in ranked[len(singles):]:
+        for cand in ranked[n_physical:]:
             start = search.start((cand.name,), {cand.name: cand.step}, base.x[:N_FAULTS])
             singles.append(search.run((cand.name,), start, None, cand.score))
             if singles[-1].accepted and not singles[-1].still_detected:
@@ -538,24 +708,59 @@ def _search(search: _Search, result: Diagnosis) -> Trial | None:
         # held-out fit 3x worse on the nominal case with a soft gear, the pair closes it)
         pool = sorted((t for t in singles
                        if t.train_fitness[1] < t.train_fitness[0]
-                       and all(abs(v) > _spec(n).trivial for n, v in t.values.items())),
+                       and all(abs(v) > _trivial(n) for n, v in t.values.items())),
                       key=lambda t: t.train_fitness[1])[:s.pair_pool]
+        pairs = []
         for a, b in combinations(pool, 2):
-            effects = tuple(sorted(a.effects + b.effects))
-            faults = (a if a.train_fitness[1] <= b.train_fitness[1] else b)
-            start = search.start(effects, {**a.values, **b.values},
-                                 search.fits[faults.name].x[:N_FAULTS])
-            pair = search.run(effects, start, None, a.score + b.score,
-                              siblings={a.name: a, b.name: b})
-            if not pair.accepted:
-                search.adopt(pair)
+            pairs.append(_pair(search, a, b))
         chosen = _best(search.trials, s.pair_penalty)
-    while chosen is not None and chosen.still_detected and len(chosen.effects) < s.max_effects:
+        if chosen is None and pairs:
+            chosen = _triples(search, pool, pairs)
+    while chosen is not None and chosen.still_detected:
         grown = _best(search.grow(chosen), s.pair_penalty)
-        if grown is None:
+        if grown is None or not search.members_hold(grown):
             break
         chosen = grown
     return chosen
+
+
+def _pair(search: _Search, a: Trial, b: Trial) -> Trial:
+    """Two singles fitted jointly, started at their fits, judged with the parameter price
+    against each."""
+    effects = tuple(sorted(a.effects + b.effects))
+    faults = a if a.train_fitness[1] <= b.train_fitness[1] else b
+    start = search.start(effects, {**a.values, **b.values},
+                         search.fits[faults.name].x[:N_FAULTS])
+    pair = search.run(effects, start, None, a.score + b.score,
+                      siblings={a.name: a, b.name: b})
+    if not pair.accepted:
+        search.adopt(pair)
+    return pair
+
+
+def _triples(search: _Search, pool: list[Trial], pairs: list[Trial]) -> Trial | None:
+    """Three at once when neither a single nor a pair is accepted: the pair closing most of
+    the base discrepancy (at least ``partial_closed``), with each other single of the pool
+    on top, judged against the base model with the parameter price over that pair."""
+    s = search.settings
+    best = max(pairs, key=lambda t: t.closed_total)
+    if best.closed_total < s.partial_closed or \
+            len(_physical(best.effects)) > s.max_effects:
+        return None
+    out = []
+    for c in pool:
+        if set(c.effects) <= set(best.effects):
+            continue
+        effects = tuple(sorted(best.effects + c.effects))
+        if len(_physical(effects)) > s.max_effects or \
+                len(effects) - len(_physical(effects)) > s.max_acquisition:
+            continue
+        f = search.fits[best.name]
+        start = search.start(effects, {**f.effects, **c.values}, f.x[:N_FAULTS])
+        out.append(search.run(effects, start, None, best.score + c.score,
+                              siblings={best.name: best}))
+    chosen = _best(out, s.pair_penalty)
+    return chosen if chosen is None or search.members_hold(chosen) else None
 
 
 def _conclude(result: Diagnosis, search: _Search, chosen: Trial | None) -> None:
@@ -596,18 +801,27 @@ def _conclude(result: Diagnosis, search: _Search, chosen: Trial | None) -> None:
             result.message += (f"; nearest: {near.name} (partial, closes "
                                f"{100 * near.closed_total:.0f} %)")
         return
-    result.verdict = "effect"
     chosen.partial = d1.detected
     f = search.fits[chosen.name]
     ivs = dict(chosen.intervals)
-    # a grown set's earlier effects: their intervals in the final model
+    # a grown set's earlier members: their intervals in the final model
     missing = tuple(n for n in chosen.effects if n not in ivs)
     if missing:
-        ivs.update(interval(f, search.measured, missing))
+        ivs.update(search.intervals(f, missing))
+    phys = _physical(chosen.effects)
+    result.verdict = "effect" if phys else "acquisition"
     result.effects = [EffectFinding(n, {n: f.effects[n]}, ivs[n], d0.gap, d1.gap, closed,
-                                    partial=chosen.partial) for n in chosen.effects]
-    result.message = (f"named {' + '.join(chosen.effects)}; closes {100 * closed:.0f} % of "
-                      f"the {where} discrepancy of the base model: {where0}")
+                                    partial=chosen.partial) for n in phys]
+    result.acquisition = [AcquisitionFinding(a.name, a.kind, a.channel, a.value, ivs[a.name],
+                                             acq.describe(a), partial=chosen.partial)
+                          for a in f.acquisition]
+    if not result.acquisition:
+        named = " + ".join(phys)
+    else:
+        named = (f"the actuator: {' + '.join(phys) or 'nothing the library holds'}; the "
+                 f"measurement: {', '.join(a.description for a in result.acquisition)}")
+    result.message = (f"named {named}; closes {100 * closed:.0f} % of the {where} "
+                      f"discrepancy of the base model: {where0}")
     if chosen.partial:
         result.flagged_after = final.flagged
         result.gap["partial"] = chosen.name

@@ -1,0 +1,479 @@
+"""Faults of the acquisition chain as suspects: what the fitted model can carry.
+
+A real record is made by sensors, conditioning and a recorder, and these can be faulty while
+the actuator is not (or beside an actuator effect).  Each fault here acts on **one recorded
+channel of the model's outputs**, never on the loop, so the fitted monitor can carry it: the
+model's prediction of the record is ``carry(monitor outputs, faults)``.
+
+===========  =================================  ===========================================
+kind         parameter (bounds)                 what the channel's record becomes
+===========  =================================  ===========================================
+lowpass      tau, s (0-20 ms)                   first-order low-pass of the channel
+time_shift   samples, 1 ms each (-8..8)         the channel ``samples`` late (early if < 0)
+drift        rate, channel unit/s (+-200 sd/s)  ``+ rate * t`` from each test's start
+mains_hum    amplitude, channel unit (0-50 sd)  ``+`` a tone at a fitted frequency (40-495
+                                                Hz), its phase per test
+outliers     spikes, count (0-2 % of samples)   isolated spikes; the samples get weight 0
+===========  =================================  ===========================================
+
+(``sd``: the channel's sensor-noise standard deviation, :data:`~.features.NOISE_STD`.)  A
+fitted fault is an :class:`Acquisition`, named ``kind(channel)``, e.g. ``mains_hum(i_eq)``.
+
+Fitting.  Given the monitor's outputs, every parameter is found without simulating again:
+a bounded scalar search for ``tau``, all 16 shifts for ``time_shift``, least squares for the
+drift rate, a periodogram over the frequency grid then least squares of a sine and a cosine
+per test for the hum, a spike detector (a sample more than :data:`SPIKE_SD` noise sd from
+the median of its 5-sample neighbourhood, isolated, at most 2 % of the channel) for
+outliers.  The rate, ``tau``, the shift and the hum's frequency come from the training tests
+alone; the hum's phase and amplitude per test and the spikes' positions are nuisances of
+each record and are fitted on every test, the held-out one included.
+
+Screening.  :func:`screen` fits every kind on every channel at a model's residuals (20
+candidates, each a few milliseconds of numpy) and scores it as the drop of the channel's
+whitened sum of squares on the training tests, the chi-square scale of the physical
+effects' score test (:mod:`~.screening`).
+
+Intervals (95 %).  From the channel's profile with the residual variance estimated from the
+fit (at least the sensor noise): ``+-1.96`` standard errors for the linear parameters (the
+drift rate; a common scale of the fitted hum), the values whose sum of squares lies within
+3.84 variances of the best for ``tau`` and the shift, ``n +- 1.96 sqrt(n)`` spikes for
+outliers (so at least 4 spikes exclude zero).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+from scipy.ndimage import median_filter
+from scipy.optimize import minimize_scalar
+from scipy.signal import lfilter
+
+from ..traces import OUTPUT_DT, SIGNALS
+from .features import NOISE_STD
+
+#: Noise sd a sample must stand off the median of its 5-sample neighbourhood to be a spike.
+SPIKE_SD = 8.0
+#: Largest share of a channel's samples the outlier model may drop (more is not "sparse").
+MAX_SPIKE_SHARE = 0.02
+#: Shifts tried, in samples (both signs: a channel may be time-stamped early too).
+MAX_SHIFT = 8
+#: Frequency range of the hum search (Hz): mains of 50/60 Hz harmonics up to 400 Hz, below
+#: the 500 Hz Nyquist frequency of the 1 kHz record.
+HUM_BAND = (40.0, 495.0)
+HUM_STEP = 0.25        # Hz, the periodogram grid (a 1 s test resolves ~1 Hz)
+CHI2_95 = 3.841        # chi-square quantile, 1 dof
+
+
+@dataclass(frozen=True)
+class AcquisitionKind:
+    """One kind of acquisition fault: its parameter, bounds and thresholds.
+
+    ``lower``, ``upper``, ``trivial`` and ``detect`` are in ``scale`` units: seconds or
+    samples, or the channel's noise sd (per second for the drift) when ``per_sd``."""
+
+    name: str
+    param: str
+    unit: str
+    lower: float
+    upper: float
+    trivial: float      # |value| below this is negligible
+    detect: float       # |value| the blind draws start at (named reliably above it)
+    signature: str
+    per_sd: bool = False
+    additive: bool = False   # adds to the record (else a filter of it, or weights)
+
+    def scaled(self, channel: str) -> tuple[float, float, float, float]:
+        """``lower, upper, trivial, detect`` on ``channel``, in its unit."""
+        s = float(NOISE_STD[SIGNALS.index(channel)]) if self.per_sd else 1.0
+        return self.lower * s, self.upper * s, self.trivial * s, self.detect * s
+
+
+KINDS: dict[str, AcquisitionKind] = {k.name: k for k in (
+    AcquisitionKind("lowpass", "tau", "s", 0.0, 20e-3, 3e-4, 2e-3,
+                    "one channel's edges smeared over several samples, lagging its peers"),
+    AcquisitionKind("time_shift", "samples", "samples (1 ms)", -MAX_SHIFT, MAX_SHIFT, 0.5, 3,
+                    "one channel's residual is the derivative of the signal times a lag; "
+                    "the others fit"),
+    AcquisitionKind("drift", "rate", "unit/s", -200.0, 200.0, 1.0, 10.0,
+                    "one channel's residual grows linearly from each test's start",
+                    per_sd=True, additive=True),
+    AcquisitionKind("mains_hum", "amplitude", "unit", 0.0, 50.0, 0.5, 4.0,
+                    "a pure tone in one channel's residual, its phase set by each test",
+                    per_sd=True, additive=True),
+    AcquisitionKind("outliers", "spikes", "samples", 0.0, math.inf, 0.5, 4.0,
+                    "isolated spikes of tens of noise sd on one channel"),
+)}
+#: Order in which fitted faults act on the model's outputs: filters, then what adds, then
+#: weights (outliers).
+ORDER = ("time_shift", "lowpass", "drift", "mains_hum", "outliers")
+
+
+@dataclass(frozen=True)
+class Acquisition:
+    """A fitted acquisition fault on one channel.
+
+    ``value`` is the parameter in the channel's unit (:data:`KINDS`); ``detail`` holds what
+    else it needs: the hum's ``freq`` (Hz) and per-test ``coef`` (sine, cosine), the
+    outliers' per-test ``spikes`` (sample indices)."""
+
+    kind: str
+    channel: str
+    value: float
+    detail: dict[str, Any] = field(default_factory=dict, compare=False)
+
+    @property
+    def name(self) -> str:
+        return f"{self.kind}({self.channel})"
+
+    @property
+    def column(self) -> int:
+        return SIGNALS.index(self.channel)
+
+
+def parse(name: str) -> tuple[str, str]:
+    """``kind(channel)`` -> ``(kind, channel)``; :class:`ValueError` if not one."""
+    kind, _, rest = name.partition("(")
+    channel = rest[:-1] if rest.endswith(")") else ""
+    if kind not in KINDS or channel not in SIGNALS:
+        raise ValueError(f"{name!r} is not an acquisition fault kind(channel): kinds "
+                         f"{list(KINDS)}, channels {list(SIGNALS)}")
+    return kind, channel
+
+
+def is_acquisition(name: str) -> bool:
+    """Whether ``name`` names an acquisition fault (``kind(channel)``)."""
+    try:
+        parse(name)
+    except ValueError:
+        return False
+    return True
+
+
+def trivial(name: str) -> float:
+    """The trivial band of ``kind(channel)`` in the channel's unit."""
+    kind, channel = parse(name)
+    return KINDS[kind].scaled(channel)[2]
+
+
+def all_names() -> tuple[str, ...]:
+    """Every kind on every channel (the screened candidates)."""
+    return tuple(f"{k}({c})" for k in KINDS for c in SIGNALS)
+
+
+# --- the model's outputs through the faults -------------------------------------------------
+
+def _lowpass(y: np.ndarray, tau: float) -> np.ndarray:
+    """First-order low-pass along the last axis, at rest at the first sample (the
+    :func:`~ema_bench.diagnosis.decoys.lowpass` recursion)."""
+    if tau <= 0.0:
+        return y
+    a = 1.0 - math.exp(-OUTPUT_DT / tau)
+    zi = (1.0 - a) * y[..., :1]
+    return lfilter([a], [1.0, -(1.0 - a)], y, axis=-1, zi=zi)[0]
+
+
+def _shift(y: np.ndarray, s: int) -> np.ndarray:
+    """``y`` ``s`` samples late along the last axis (early if negative), the edge value
+    repeated (the :func:`~ema_bench.diagnosis.decoys.time_shift` convention)."""
+    n = y.shape[-1]
+    idx = np.clip(np.arange(n) - int(s), 0, n - 1)
+    return y[..., idx]
+
+
+def _times(n: int) -> np.ndarray:
+    return (np.arange(n) + 0.5) * OUTPUT_DT
+
+
+def _tone(freq: float, n: int) -> np.ndarray:
+    """(2, n): sine and cosine of ``freq`` at the window centres, window-averaged."""
+    w = 2 * math.pi * freq * _times(n)
+    return np.sinc(freq * OUTPUT_DT) * np.vstack([np.sin(w), np.cos(w)])
+
+
+def _added(f: Acquisition, test: str, n: int) -> np.ndarray:
+    """What an additive fault adds to its channel in ``test`` (n,)."""
+    if f.kind == "drift":
+        return f.value * _times(n)
+    coef = f.detail["coef"].get(test)
+    return np.zeros(n) if coef is None else np.asarray(coef) @ _tone(f.detail["freq"], n)
+
+
+def carry(outputs: Mapping[str, np.ndarray], faults: Sequence[Acquisition]
+          ) -> dict[str, np.ndarray]:
+    """The record the model predicts: ``outputs`` (test -> (n_samples, 4) or (k, n_samples,
+    4)) with each fault applied to its channel, in :data:`ORDER` (outliers change weights
+    only, :func:`weights`)."""
+    if not faults:
+        return dict(outputs)
+    out = {}
+    for test, y in outputs.items():
+        y = np.array(y, dtype=float, copy=True)
+        for f in sorted(faults, key=lambda f: ORDER.index(f.kind)):
+            col = y[..., f.column]
+            if f.kind == "time_shift":
+                col = _shift(col, int(f.value))
+            elif f.kind == "lowpass":
+                col = _lowpass(col, f.value)
+            elif KINDS[f.kind].additive:
+                col = col + _added(f, test, col.shape[-1])
+            y[..., f.column] = col
+        out[test] = y
+    return out
+
+
+def weights(faults: Sequence[Acquisition], shapes: Mapping[str, tuple[int, ...]]
+            ) -> dict[str, np.ndarray]:
+    """Per test, (n_samples, 4) sample weights: 0 at the outlier model's spikes, 1 else."""
+    out = {t: np.ones(s) for t, s in shapes.items()}
+    for f in faults:
+        if f.kind == "outliers":
+            for t, idx in f.detail["spikes"].items():
+                if t in out:
+                    out[t][np.asarray(idx, dtype=int), f.column] = 0.0
+    return out
+
+
+# --- fitting one fault at a model's residuals -----------------------------------------------
+
+@dataclass
+class _Channel:
+    """One channel of the data and of the model's prediction without the fault, whitened,
+    with its sample weights; ``pre`` is that prediction before the additive faults (where a
+    filter acts)."""
+
+    data: dict[str, np.ndarray]
+    pred: dict[str, np.ndarray]
+    pre: dict[str, np.ndarray]
+    w: dict[str, np.ndarray]
+    train: tuple[str, ...]
+
+    def sse(self, pred: Mapping[str, np.ndarray], tests: Sequence[str] | None = None) -> float:
+        return float(sum(np.sum(self.w[t] * (self.data[t] - pred[t]) ** 2)
+                         for t in (tests or self.train)))
+
+    def n(self) -> float:
+        return float(sum(np.sum(self.w[t] > 0) for t in self.train))
+
+
+def _channel(raw: Mapping[str, np.ndarray], measured: Mapping[str, np.ndarray],
+             others: Sequence[Acquisition], w: Mapping[str, np.ndarray], col: int,
+             train: tuple[str, ...]) -> _Channel:
+    sd = float(NOISE_STD[col])
+    filters = [f for f in others if not KINDS[f.kind].additive and f.kind != "outliers"]
+    pre = carry(raw, filters)
+    pred = carry(raw, others)
+    ow = weights(others, {t: v.shape for t, v in raw.items()})
+    return _Channel({t: measured[t][:, col] / sd for t in raw},
+                    {t: pred[t][:, col] / sd for t in raw},
+                    {t: pre[t][:, col] / sd for t in raw},
+                    {t: w[t][:, col] * ow[t][:, col] for t in raw}, train)
+
+
+def _with_filter(ch: _Channel, fn: Callable[[np.ndarray], np.ndarray]) -> dict[str, np.ndarray]:
+    """The prediction with a filter applied where filters act (before the additive faults)."""
+    return {t: ch.pred[t] - ch.pre[t] + fn(ch.pre[t]) for t in ch.pred}
+
+
+def _fit_lowpass(ch: _Channel) -> tuple[float, dict, float, list[float]]:
+    def sse(tau: float) -> float:
+        return ch.sse(_with_filter(ch, lambda y: _lowpass(y, tau)))
+
+    lo, hi = KINDS["lowpass"].lower, KINDS["lowpass"].upper
+    grid = np.r_[0.0, np.geomspace(2e-4, hi, 24)]
+    vals = np.array([sse(t) for t in grid])
+    i = int(np.argmin(vals))
+    a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
+    tau = float(grid[i])
+    if b > a:
+        r = minimize_scalar(sse, bounds=(a, b), method="bounded", options={"xatol": 1e-6})
+        if r.fun < vals[i]:
+            tau = float(r.x)
+    best = sse(tau)
+    s2 = max(best / max(ch.n(), 1.0), 1.0)
+    fine = np.unique(np.r_[np.linspace(lo, min(hi, 3 * tau + 1e-3), 61),
+                           np.linspace(0.8 * tau, min(1.2 * tau, hi), 81), tau])
+    ok = fine[np.array([sse(t) for t in fine]) <= best + CHI2_95 * s2]
+    return tau, {}, vals[0] - best, [float(ok.min()), float(ok.max())]
+
+
+def _fit_time_shift(ch: _Channel) -> tuple[float, dict, float, list[float]]:
+    shifts = np.arange(-MAX_SHIFT, MAX_SHIFT + 1)
+    vals = np.array([ch.sse(_with_filter(ch, lambda y, s=s: _shift(y, s))) for s in shifts])
+    i = int(np.argmin(vals))
+    s2 = max(vals[i] / max(ch.n(), 1.0), 1.0)
+    ok = shifts[vals <= vals[i] + CHI2_95 * s2]
+    return float(shifts[i]), {}, float(vals[MAX_SHIFT] - vals[i]), [float(ok.min()),
+                                                                    float(ok.max())]
+
+
+def _linear(ch: _Channel, basis: dict[str, np.ndarray], tests: Sequence[str]
+            ) -> tuple[float, float]:
+    """Least-squares scale of ``basis`` (whitened) and its standard error."""
+    num = sum(float(np.sum(ch.w[t] * basis[t] * (ch.data[t] - ch.pred[t]))) for t in tests)
+    den = sum(float(np.sum(ch.w[t] * basis[t] ** 2)) for t in tests)
+    if den <= 0.0:
+        return 0.0, math.inf
+    c = num / den
+    best = ch.sse({t: ch.pred[t] + c * basis[t] for t in ch.pred})
+    s2 = max(best / max(ch.n() - 1.0, 1.0), 1.0)
+    return c, math.sqrt(s2 / den)
+
+
+def _fit_drift(ch: _Channel) -> tuple[float, dict, float, list[float]]:
+    basis = {t: _times(v.size) for t, v in ch.pred.items()}
+    rate, se = _linear(ch, basis, ch.train)
+    drop = ch.sse(ch.pred) - ch.sse({t: ch.pred[t] + rate * basis[t] for t in ch.pred})
+    return rate, {}, drop, [rate - 1.96 * se, rate + 1.96 * se]
+
+
+def _hum_coef(ch: _Channel, freq: float, test: str) -> np.ndarray:
+    """Least-squares (sine, cosine) coefficients of a tone in one test's residual."""
+    tone = _tone(freq, ch.pred[test].size)
+    w = ch.w[test]
+    a = (tone * w) @ tone.T
+    b = (tone * w) @ (ch.data[test] - ch.pred[test])
+    return np.linalg.lstsq(a, b, rcond=None)[0]
+
+
+def _fit_mains_hum(ch: _Channel) -> tuple[float, dict, float, list[float]]:
+    freqs = np.arange(HUM_BAND[0], HUM_BAND[1] + HUM_STEP / 2, HUM_STEP)
+    # periodogram of the weighted residual (summed over the training tests): the drop of
+    # the sum of squares a tone of each frequency gives, nearly orthogonal sine and cosine
+    power = np.zeros(freqs.size)
+    for t in ch.train:
+        r = ch.w[t] * (ch.data[t] - ch.pred[t])
+        w = 2 * math.pi * np.outer(freqs, _times(r.size))
+        power += (np.sin(w) @ r) ** 2 + (np.cos(w) @ r) ** 2
+    f0 = float(freqs[int(np.argmax(power))])
+    fine = np.linspace(f0 - HUM_STEP, f0 + HUM_STEP, 21)
+
+    def sse_at(f: float) -> float:
+        return ch.sse({t: ch.pred[t] + _hum_coef(ch, f, t) @ _tone(f, ch.pred[t].size)
+                       for t in ch.train})
+
+    freq = float(fine[int(np.argmin([sse_at(f) for f in fine]))])
+    coef = {t: _hum_coef(ch, freq, t) for t in ch.pred}
+    basis = {t: coef[t] @ _tone(freq, ch.pred[t].size) for t in ch.pred}
+    scale, se = _linear(ch, basis, ch.train)
+    amp = float(np.mean([np.hypot(*coef[t]) for t in ch.train]))
+    drop = ch.sse(ch.pred) - ch.sse({t: ch.pred[t] + basis[t] for t in ch.pred})
+    detail = {"freq": freq, "coef": {t: [float(v) for v in c] for t, c in coef.items()}}
+    return amp, detail, drop, [amp * (scale - 1.96 * se), amp * (scale + 1.96 * se)]
+
+
+def _fit_outliers(ch: _Channel) -> tuple[float, dict, float, list[float]]:
+    spikes, drop = {}, 0.0
+    for t in ch.pred:
+        r = np.where(ch.w[t] > 0, ch.data[t] - ch.pred[t], 0.0)
+        dev = r - median_filter(r, size=5, mode="nearest")
+        hit = np.abs(dev) > SPIKE_SD
+        # isolated: a neighbour that is a spike too makes a burst, which is signal
+        hit &= ~(np.r_[False, hit[:-1]] | np.r_[hit[1:], False])
+        if hit.sum() > MAX_SPIKE_SHARE * r.size:
+            hit[:] = False
+        spikes[t] = [int(i) for i in np.flatnonzero(hit)]
+        if t in ch.train:
+            drop += float(np.sum(r[hit] ** 2))
+    n = float(sum(len(spikes[t]) for t in ch.train))
+    return n, {"spikes": spikes}, drop, [max(n - 1.96 * math.sqrt(n), 0.0),
+                                         n + 1.96 * math.sqrt(n)]
+
+
+_FITS: dict[str, Callable[[_Channel], tuple[float, dict, float, list[float]]]] = {
+    "lowpass": _fit_lowpass, "time_shift": _fit_time_shift, "drift": _fit_drift,
+    "mains_hum": _fit_mains_hum, "outliers": _fit_outliers,
+}
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """A fault fitted at a model's residuals: the fault, its screening score (drop of the
+    channel's whitened training sum of squares) and its 95 % interval (channel unit)."""
+
+    fault: Acquisition
+    score: float
+    interval: list[float]
+
+
+def estimate(name: str, raw: Mapping[str, np.ndarray], measured: Mapping[str, np.ndarray],
+             w: Mapping[str, np.ndarray], train: tuple[str, ...],
+             others: Sequence[Acquisition] = ()) -> Estimate:
+    """Fit fault ``kind(channel)`` at the monitor outputs ``raw`` (test -> (n_samples, 4)),
+    the ``others`` faults held at their values.
+
+    Parameters
+    ----------
+    measured : test -> (n_samples, 4) the record.
+    w : test -> (n_samples, 4) sample weights (0: the sample is not fitted).
+    train : the tests that fit the parameters the held-out test must not see.
+    """
+    kind, channel = parse(name)
+    ch = _channel(raw, measured, [o for o in others if o.name != name], w,
+                  SIGNALS.index(channel), train)
+    value, detail, drop, iv = _FITS[kind](ch)
+    lo, hi, _, _ = KINDS[kind].scaled(channel)
+    sd = 1.0 if kind in ("lowpass", "time_shift", "outliers") else float(
+        NOISE_STD[SIGNALS.index(channel)])
+    value = float(np.clip(value * sd, lo, hi))
+    if kind == "mains_hum":
+        detail = {**detail, "coef": {t: [v * sd for v in c] for t, c in detail["coef"].items()}}
+    return Estimate(Acquisition(kind, channel, value, detail), max(float(drop), 0.0),
+                    [float(v) * sd for v in iv])
+
+
+def refit(faults: Sequence[Acquisition], raw: Mapping[str, np.ndarray],
+          measured: Mapping[str, np.ndarray], w: Mapping[str, np.ndarray],
+          train: tuple[str, ...]) -> tuple[list[Acquisition], dict[str, list[float]]]:
+    """Each fault fitted again in turn at ``raw`` (the others held), outliers first (so
+    their spikes do not pull the least-squares fits); the faults and their intervals."""
+    cur = list(faults)
+    ivs = {}
+    for i in sorted(range(len(cur)), key=lambda i: (cur[i].kind != "outliers", i)):
+        e = estimate(cur[i].name, raw, measured, w, train, cur)
+        cur[i] = e.fault
+        ivs[e.fault.name] = e.interval
+    return cur, ivs
+
+
+def screen(raw: Mapping[str, np.ndarray], measured: Mapping[str, np.ndarray],
+           w: Mapping[str, np.ndarray], train: tuple[str, ...],
+           others: Sequence[Acquisition] = ()) -> list[Estimate]:
+    """Every kind on every channel not already carried, fitted at ``raw`` (the ``others``
+    held), best score first."""
+    have = {o.name for o in others}
+    out = [estimate(n, raw, measured, w, train, others) for n in all_names() if n not in have]
+    return sorted(out, key=lambda e: -e.score)
+
+
+def describe(f: Acquisition) -> str:
+    """One phrase for a verdict, e.g. ``400 Hz hum of 0.3 A on i_eq``."""
+    from ..traces import UNITS
+
+    u = UNITS[f.channel] if isinstance(UNITS, Mapping) else ""
+    text = {
+        "lowpass": f"a low-pass of {1e3 * f.value:.2g} ms on {f.channel}",
+        "time_shift": f"{f.channel} recorded {abs(int(f.value))} ms "
+                      f"{'late' if f.value > 0 else 'early'}",
+        "drift": f"a drift of {f.value:.3g} {u}/s on {f.channel}",
+        "mains_hum": f"{f.detail.get('freq', 0.0):.0f} Hz hum of {f.value:.3g} {u} on "
+                     f"{f.channel}",
+        "outliers": f"{int(f.value)} outlier spikes on {f.channel}",
+    }
+    return text[f.kind]
+
+
+def as_dict(f: Acquisition) -> dict[str, Any]:
+    """A JSON-friendly record of a fitted fault (the hum's frequency; not its spikes)."""
+    d = {"name": f.name, "kind": f.kind, "channel": f.channel, "value": f.value}
+    if "freq" in f.detail:
+        d["freq"] = f.detail["freq"]
+    return d
+
+
+def with_value(f: Acquisition, value: float) -> Acquisition:
+    """``f`` at another value (its detail kept)."""
+    return replace(f, value=float(value))
