@@ -324,6 +324,23 @@ class Problem(_Counted):
         blind._log = EvaluationLog(self.objective, self.space, self.budget)
         return blind
 
+    @property
+    def objective(self) -> Objective:
+        """The objective every evaluation of this problem (and of its view) computes."""
+        return self._objective
+
+    @objective.setter
+    def objective(self, objective: Objective) -> None:
+        # a stand-in objective (e.g. the diagnosis' model carrying acquisition faults) is
+        # allowed before the first evaluation only: the log's count and best stay one
+        # objective's
+        if getattr(self, "_log", None) is not None:
+            if self._log.count:
+                raise ProblemError("the objective of a problem can only be replaced before "
+                                   f"its first evaluation ({self._log.count} made)")
+            self._log.objective = objective
+        self._objective = objective
+
     def view(self) -> SolverView:
         """The solver's view of this problem: shares its budget and log, holds no truth."""
         return SolverView(self._log, self.space, self.start, self.normalise, self.measured)

@@ -523,3 +523,20 @@ def test_empty_batch_outputs_have_the_tests_shapes():
     assert f.shape == (0,) and p.evaluations == 0
     assert {t: v.shape for t, v in outputs.items()} == {"step": (0, 300, 4),
                                                         "sine": (0, 1000, 4)}
+
+
+def test_a_replaced_objective_is_what_the_solver_view_evaluates():
+    """A stand-in objective (the diagnosis carries acquisition faults this way) is what every
+    counted evaluation computes, through the problem and its solver view alike; replacing it
+    after the first evaluation would mix two objectives in one log and is refused."""
+    from ema_bench.objective import Objective
+
+    p = make_problem("small", track="twin", seed=0, budget=4)
+    raw = Objective(p.measured, p.space, normalise=False)
+    x = p.nominal.copy()
+    expected = float(raw.evaluate(x[None, :])[0][0])
+    assert expected != pytest.approx(float(p.objective.evaluate(x[None, :])[0][0]))
+    p.objective = raw
+    assert p.view().evaluate(x) == expected and p.evaluate(x) == expected
+    with pytest.raises(ProblemError, match="before its first evaluation"):
+        p.objective = raw
