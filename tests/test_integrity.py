@@ -372,3 +372,19 @@ def test_a_claimed_fitness_at_the_truth_is_re_evaluated(fresh):
     (msg,) = check_record(r)
     assert msg == (f"fitness_at_truth: claimed {r['fitness_at_truth']!r}, re-derived "
                    f"{fresh['fitness_at_truth']!r}")
+
+
+def test_the_campaign_score_table_escapes_a_tracker_name():
+    """A tracker's name reaches the campaign board's Markdown through ``score_table``: a pipe
+    or a tag in it must not add a column or markup (same helper as the leaderboard's)."""
+    from ema_bench.cli.campaign import _HEAD, score_table
+
+    h = {k: {"value": 0.5, "ci": [0.4, 0.6]} for k, _, _ in _HEAD}
+    row = {"tracker": "evil|<img src=x onerror=alert(1)>", "track": "twin", "units": 3,
+           "failing_units": 2, "headline": h, "campaign": "c", "scored_units": 2,
+           "decisions": {"false_replacements": 0, "early_replacements": 0,
+                         "failures_in_service": 1, "maintenance_cost": 1.0},
+           "diagnostics": {"prognostic_horizon": 10.0, "prognostic_horizon_strict": 5.0}}
+    head, rule, line = score_table([row])
+    assert line.count(" | ") == head.count(" | ")   # the pipe did not open a column
+    assert "<img" not in line and markdown(row["tracker"]) in line
