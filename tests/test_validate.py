@@ -252,3 +252,43 @@ def test_a_submission_lacking_instances_names_five_of_them(records):
     (finding,) = [f for f in check_complete(records) if "reference" in f.problem]
     lacking = finding.problem.split("(e.g. ")[1].rstrip(")").split(", ")
     assert len(lacking) == 5 and lacking[0] == "full/0"
+
+
+def test_the_truth_of_a_case_drawn_from_the_seed_is_the_runs_own_instance():
+    # a "seeded" case is drawn from the run's node (root seed, seed): its truth is rebuilt
+    # from them, never read from the record; a record without a root seed is root 0
+    from ema_bench.faults import FAULT_NAMES
+    from ema_bench.instances import make_problem
+    from ema_bench.leaderboard.derive import truth_of
+    from ema_bench.seeding import run_seed
+
+    def runs_truth(track, seed, root):
+        p = make_problem("seeded", track=track, seed=run_seed(root, seed), budget=1)
+        return [p.score(p.nominal).truth[n] for n in FAULT_NAMES]
+
+    r = {"case": "seeded", "track": "twin", "seed": 3, "root_seed": 7,
+         "truth": dict.fromkeys(FAULT_NAMES, 0.5)}
+    assert truth_of(r).tolist() == runs_truth("twin", 3, 7)
+    assert truth_of({**r, "seed": 4}).tolist() == runs_truth("twin", 4, 7)
+    legacy = {k: v for k, v in r.items() if k != "root_seed"}
+    assert truth_of(legacy).tolist() == runs_truth("twin", 3, 0)
+    assert len({tuple(runs_truth("twin", s, k)) for s, k in [(3, 7), (4, 7), (3, 0)]}) == 3
+
+
+@pytest.mark.parametrize("field, broken, message", [
+    ("trajectory", [], "schema-2 record without a trajectory"),
+    ("trajectory", "x", "schema-2 record without a trajectory"),
+    ("trajectory", [[1]], "malformed trajectory (list index out of range)"),
+    ("trace", [], "legacy record without a trace"),
+    ("trace", "x", "legacy record without a trace"),
+    ("trace", [[1]], "malformed trace (list index out of range)"),
+])
+def test_missing_or_malformed_evidence_is_one_clear_error(field, broken, message):
+    from ema_bench.leaderboard.derive import DerivationError, derive
+
+    r = evidence.record([(1, 1.0, evidence.vector("small", 0.3))])
+    if field == "trace":                          # a legacy (schema 1) record: its trace only
+        r = {k: v for k, v in r.items() if k not in ("schema", "trajectory")}
+    with pytest.raises(DerivationError) as exc:
+        derive({**r, field: broken})
+    assert str(exc.value) == message
