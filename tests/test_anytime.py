@@ -221,6 +221,10 @@ def test_ert_interval_at_its_edges_by_hand():
     assert e == 10.0 and math.isnan(lo) and math.isnan(hi)
     # both runs hit, at 10 and 30: the resampled rate is 2/20, 2/40 or 2/60: [10, 30]
     assert ert_ci([10, 30], [100, 100]) == (20.0, pytest.approx(10.0), pytest.approx(30.0))
+    # one hit at 10 in ten runs (the others miss at 100): j resampled hits, j ~ Binomial(10,
+    # 1/10), give the rate j / (10 j + 100 (10 - j)); P(j <= 2) = 0.930, P(j <= 3) = 0.987, so
+    # the percentile interval of the rate is [0, 3/730], inverted [243.3, inf] (BCa: 160)
+    assert ert_ci([10] + [None] * 9, [100] * 10) == (910.0, pytest.approx(730 / 3), math.inf)
 
 
 def test_the_same_records_give_the_same_interval_in_every_call():
