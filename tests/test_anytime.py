@@ -279,6 +279,7 @@ def test_a_stopped_run_is_read_at_its_final_fitness():
     r = evidence.record([(1, _at(0.5), x), (50, _at(0.05), x), (55, _at(0.02), x)],
                         evaluations=60)
     assert precision_at(r, 100) == pytest.approx(0.02)
+    assert precision_at(r, 60) == pytest.approx(0.02)      # at its last evaluation too
     assert precision_at(r, 50) == pytest.approx(0.05)
 
 
