@@ -292,3 +292,24 @@ def test_missing_or_malformed_evidence_is_one_clear_error(field, broken, message
     with pytest.raises(DerivationError) as exc:
         derive({**r, field: broken})
     assert str(exc.value) == message
+
+
+def test_edges_of_the_derived_figures():
+    from ema_bench.leaderboard.derive import derive
+
+    at = lambda p: evidence.level("small", "twin", 0, p)   # noqa: E731
+    x = evidence.vector("small", 0.3)
+    # a fitness exactly at the 1e-1 level reaches that target; best_at lists the budget
+    d = derive(evidence.record([(1, at(0.5), x), (7, at(0.1), x)]))
+    assert d.fitness_hits["0.1"] == 7 and d.fitness_hits["0.01"] is None
+    assert [b for b, _ in d.best_at] == [10, 20, 50, 100]
+    # a run that passed within 1 % of the truth and left it (its final vector 30 % off) has
+    # the parameter hit but is no success, so no evaluations to success
+    d = derive(evidence.record([(1, at(0.5), evidence.vector("small", 0.005)),
+                                (20, at(0.1), x)]))
+    assert d.parameter_hits["0.01"] == 1
+    assert d.success is False and d.evals_to_success is None
+    # an error record: no success, no hits, no checkpoints
+    d = derive(evidence.record([], status="error"))
+    assert (d.error, d.success, d.best_at) == (True, False, [])
+    assert d.parameter_hits == {"0.1": None, "0.03": None, "0.01": None}
