@@ -295,7 +295,7 @@ def test_missing_or_malformed_evidence_is_one_clear_error(field, broken, message
 
 
 def test_edges_of_the_derived_figures():
-    from ema_bench.leaderboard.derive import derive
+    from ema_bench.leaderboard.derive import DerivationError, derive
 
     at = lambda p: evidence.level("small", "twin", 0, p)   # noqa: E731
     x = evidence.vector("small", 0.3)
@@ -303,6 +303,14 @@ def test_edges_of_the_derived_figures():
     d = derive(evidence.record([(1, at(0.5), x), (7, at(0.1), x)]))
     assert d.fitness_hits["0.1"] == 7 and d.fitness_hits["0.01"] is None
     assert [b for b, _ in d.best_at] == [10, 20, 50, 100]
+    # a record without a root seed is root 0, whose f* the suite ships: still scored on f*
+    r = evidence.record([(1, at(0.5), x), (7, at(0.1), x)])
+    del r["root_seed"]
+    assert derive(r).fitness_hits["0.1"] == 7
+    # a legacy record whose final vector is unreadable: one clear error
+    legacy = {k: v for k, v in r.items() if k not in ("schema", "trajectory")}
+    with pytest.raises(DerivationError, match=r"^final vector x unreadable \("):
+        derive({**legacy, "x": None})
     # a run that passed within 1 % of the truth and left it (its final vector 30 % off) has
     # the parameter hit but is no success, so no evaluations to success
     d = derive(evidence.record([(1, at(0.5), evidence.vector("small", 0.005)),
