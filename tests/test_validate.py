@@ -321,3 +321,30 @@ def test_edges_of_the_derived_figures():
     d = derive(evidence.record([], status="error"))
     assert (d.error, d.success, d.best_at) == (True, False, [])
     assert d.parameter_hits == {"0.1": None, "0.03": None, "0.01": None}
+
+
+def test_a_legacy_trace_cut_before_its_final_vector_was_found_has_no_parameter_hit():
+    # legacy evidence: the trace and the final vector (0.5 % of Na's range off: within every
+    # parameter target), found at evaluation 60, the last improvement.  Re-scored at a
+    # smaller budget (--check's truncation), the vector at the cut is known only if the cut
+    # is at or after 60.
+    from ema_bench.leaderboard.derive import derive
+
+    at = lambda p: evidence.level("small", "twin", 0, p)   # noqa: E731
+    x = evidence.vector("small", 0.005)
+    r = evidence.record([(1, at(0.5), x), (20, at(0.1), x), (60, at(0.05), x)])
+    legacy = {k: v for k, v in r.items() if k not in ("schema", "trajectory")}
+    assert legacy["trace"][-1] == [100, at(0.05)]          # the repeated last evaluation
+    for budget in (100, 60):
+        d = derive({**legacy, "budget": budget})
+        assert d.success is True and d.evals_to_success == 60
+        assert d.parameter_hits == {"0.1": 60, "0.03": 60, "0.01": 60}
+    d = derive({**legacy, "budget": 50})
+    assert d.success is False and d.evals_to_success is None
+    assert d.parameter_hits == {"0.1": None, "0.03": None, "0.01": None}
+    # one improvement only, at evaluation 1: its vector is known at any cut
+    one = evidence.record([(1, at(0.5), x)])
+    one = {k: v for k, v in one.items() if k not in ("schema", "trajectory")}
+    assert one["trace"] == [[1, at(0.5)], [100, at(0.5)]]
+    d = derive({**one, "budget": 50})
+    assert d.success is True and d.parameter_hits["0.01"] == 1
