@@ -348,3 +348,18 @@ def test_a_legacy_trace_cut_before_its_final_vector_was_found_has_no_parameter_h
     assert one["trace"] == [[1, at(0.5)], [100, at(0.5)]]
     d = derive({**one, "budget": 50})
     assert d.success is True and d.parameter_hits["0.01"] == 1
+
+
+def test_a_vector_exactly_on_a_target_edge_reaches_it():
+    # Gprop 1 % of its range off exactly (101000 for a truth of 100000: the range errors are
+    # exact in binary): the targets and the success rule are "within", <= 1 %
+    from ema_bench.leaderboard.derive import derive
+
+    x = evidence.vector("small", 0.01, fault="Gprop")
+    r = evidence.record([(1, evidence.level("small", "twin", 0, 0.5), x)])
+    d = derive(r)
+    assert d.range_error["Gprop"] == 0.01 and max(d.range_error.values()) == 0.01
+    assert d.success is True and d.parameter_hits["0.01"] == 1 and d.evals_to_success == 1
+    legacy = {k: v for k, v in r.items() if k not in ("schema", "trajectory")}
+    d = derive(legacy)
+    assert d.success is True and d.parameter_hits["0.01"] == 1
