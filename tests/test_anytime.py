@@ -8,6 +8,7 @@ atoms: the margins below are many Monte Carlo standard errors wide).
 
 from __future__ import annotations
 
+import hashlib
 import math
 
 import evidence
@@ -19,6 +20,7 @@ from ema_bench.leaderboard.anytime import (
     credit,
     ecdf_curve,
     ert_ci,
+    group_seed,
     hits,
     mean_ci,
     precision_at,
@@ -185,3 +187,110 @@ def test_sanity_rows_name_their_track_and_solver_and_an_empty_ecdf_is_undefined(
     assert (s.track, s.solver) == ("twin", "z")
     assert np.isnan(ecdf_curve([], np.array([1, 10]))).all()
     assert np.isnan(ecdf_curve([rec(case="nominal")], np.array([1]))).all()   # sanity only
+
+
+def test_credit_at_the_edges_of_the_budget():
+    # a budget of 1: the only hit is at evaluation 1, full credit (ln 1 = 0 has no share to
+    # divide); a budget of 2: a hit at 2 is the end of the log axis, no credit; a hit past the
+    # budget (a longer run read at a smaller budget) is a miss
+    assert credit(1, 1) == 1.0
+    assert credit(2, 2) == 0.0 and credit(1, 2) == 1.0
+    assert credit(101, 100) == 0.0
+
+
+def test_mean_interval_at_its_edges_by_hand():
+    # {0, 1}: the resampled mean is 0 (p 1/4), 0.5 (1/2) or 1 (1/4): the interval is [0, 1]
+    assert mean_ci([0.0, 1.0]) == (0.5, 0.0, 1.0)
+    # two equal values: no spread, an interval of no width (not "no interval")
+    assert mean_ci([0.3, 0.3]) == (0.3, 0.3, 0.3)
+    # seven runs of 0.1, no spread: the exactly rounded mean 0.1 both sides (a resampled
+    # np.mean of seven 0.1 is 0.09999999999999999)
+    assert mean_ci([0.1] * 7) == (0.1, 0.1, 0.1)
+    m, lo, hi = mean_ci([0.3])                             # one run: no interval either side
+    assert m == 0.3 and math.isnan(lo) and math.isnan(hi)
+    # nine 0 and one 1: the resampled mean is Binomial(10, 1/10) / 10; P(<= 0.2) = 0.930 and
+    # P(<= 0.3) = 0.987, so the percentile interval is [0, 0.3] (BCa would give [0, 0.4])
+    assert mean_ci([0.0] * 9 + [1.0]) == (pytest.approx(0.1), 0.0, pytest.approx(0.3))
+
+
+def test_ert_interval_at_its_edges_by_hand():
+    # every run hit at the same evaluation: no spread, the interval is the ERT itself (the
+    # inverted rate 2 / 98 would be 49.00000000000001)
+    assert ert_ci([49, 49], [100, 100]) == (49.0, 49.0, 49.0)
+    e, lo, hi = ert_ci([10], [100])                       # one run: no interval
+    assert e == 10.0 and math.isnan(lo) and math.isnan(hi)
+    # both runs hit, at 10 and 30: the resampled rate is 2/20, 2/40 or 2/60: [10, 30]
+    assert ert_ci([10, 30], [100, 100]) == (20.0, pytest.approx(10.0), pytest.approx(30.0))
+    # one hit at 10 in ten runs (the others miss at 100): j resampled hits, j ~ Binomial(10,
+    # 1/10), give the rate j / (10 j + 100 (10 - j)); P(j <= 2) = 0.930, P(j <= 3) = 0.987, so
+    # the percentile interval of the rate is [0, 3/730], inverted [243.3, inf] (BCa: 160)
+    assert ert_ci([10] + [None] * 9, [100] * 10) == (910.0, pytest.approx(730 / 3), math.inf)
+
+
+def test_the_same_records_give_the_same_interval_in_every_call():
+    # twelve runs of spread costs: the 2000 resamples' percentiles fall between distinct
+    # atoms, so an unseeded bootstrap would move the bounds from call to call
+    hit_list = [3, 7, None, 12, 19, None, 25, 31, 44, None, 58, 77]
+    assert ert_ci(hit_list, [100] * 12) == ert_ci(hit_list, [100] * 12)
+
+
+def test_a_groups_intervals_are_seeded_by_its_identity_alone():
+    # the documented seed: BOOTSTRAP_SEED xor the first 8 bytes (little-endian) of the
+    # SHA-256 of the identity joined by "|": anyone can recompute a published interval
+    def seed(*identity):
+        digest = hashlib.sha256("|".join(identity).encode()).digest()
+        return 20261123 ^ int.from_bytes(digest[:8], "little")
+
+    assert group_seed("twin", "a", "all") == seed("twin", "a", "all")
+    f1 = [3, 7, None, 12, 19, None, 25, 31, 44, 58]     # spread: many bootstrap atoms
+    recs = [rec(seed=k, f_hits=(h, None, None, None), p_hits=(5 * k + 1, None, None))
+            for k, h in enumerate(f1)]
+    (s,) = anytime_scores(recs)
+    areas = [run_area(r) for r in recs]
+    assert s.area == mean_ci(areas, seed("twin", "a", "all"))
+    assert s.area != mean_ci(areas, seed("twin", "b", "all"))   # the seed matters here
+    assert s.ert["f0.1"] == ert_ci(f1, [100] * 10, seed("twin", "a", "all", "f0.1"))
+    assert s.ert["f0.1"] != ert_ci(f1, [100] * 10, seed("twin", "a", "all", "f0.01"))
+
+
+def test_fitness_and_parameter_areas_by_hand():
+    # run 1: fitness (1 + 0.5 + 0 + 0) / 4, parameters (0.5 + 0 + 0) / 3; run 2 misses all
+    recs = [rec(f_hits=(1, 10, None, None), p_hits=(10, 100, None)), rec(seed=1)]
+    (s,) = anytime_scores(recs)
+    assert s.fitness_area == pytest.approx(0.375 / 2)
+    assert s.parameter_area == pytest.approx(0.5 / 3 / 2)
+    # a sanity run has no f*: no fitness area, and the score is still written
+    (n,) = [x for x in anytime_scores([rec(case="nominal", p_hits=(10, None, None))],
+                                      per_case=True) if x.cases == "nominal"]
+    assert math.isnan(n.fitness_area) and n.parameter_area == pytest.approx(0.5 / 3)
+
+
+def test_a_group_of_crashed_runs_still_writes_its_row():
+    (s,) = anytime_scores([rec(seed=k, status="error") for k in range(2)])
+    assert (s.runs, s.errors, s.area) == (2, 2, (0.0, 0.0, 0.0))
+    row = s.row()
+    assert all(math.isnan(row[f"precision_{q}_at_100"]) for q in ("q10", "median", "q90"))
+
+
+def test_a_stopped_run_is_read_at_its_final_fitness():
+    # stopped at 60 after improving at 55: at budget 100 its best is the final 2 %, not the
+    # 5 % held at the last checkpoint (50) before it stopped
+    x = evidence.vector("small", 0.3)
+    r = evidence.record([(1, _at(0.5), x), (50, _at(0.05), x), (55, _at(0.02), x)],
+                        evaluations=60)
+    assert precision_at(r, 100) == pytest.approx(0.02)
+    assert precision_at(r, 60) == pytest.approx(0.02)      # at its last evaluation too
+    assert precision_at(r, 50) == pytest.approx(0.05)
+
+
+def test_per_case_rows_follow_the_aggregate_and_rank_by_the_mean_not_the_bound():
+    # "a": two runs of area 0.5 (mean 0.5, interval [0.5, 0.5]); "b": areas 1 and 1/7 (mean
+    # 0.571, lower bound 1/7): "b" ranks first on its mean though its lower bound is lower
+    recs = [rec("a", seed=k, f_hits=(10,) * 4, p_hits=(10,) * 3) for k in range(2)] + \
+        [rec("b", f_hits=(1,) * 4, p_hits=(1,) * 3),
+         rec("b", seed=1, f_hits=(10, 10, None, None), p_hits=(None,) * 3)]
+    scores = anytime_scores(recs, per_case=True)
+    assert [(s.cases, s.solver) for s in scores] == \
+        [("all", "b"), ("all", "a"), ("small", "b"), ("small", "a")]
+    assert scores[0].area[0] == pytest.approx((1 + 1 / 7) / 2)
+    assert scores[0].area[1] == pytest.approx(1 / 7)

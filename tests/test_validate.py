@@ -252,3 +252,114 @@ def test_a_submission_lacking_instances_names_five_of_them(records):
     (finding,) = [f for f in check_complete(records) if "reference" in f.problem]
     lacking = finding.problem.split("(e.g. ")[1].rstrip(")").split(", ")
     assert len(lacking) == 5 and lacking[0] == "full/0"
+
+
+def test_the_truth_of_a_case_drawn_from_the_seed_is_the_runs_own_instance():
+    # a "seeded" case is drawn from the run's node (root seed, seed): its truth is rebuilt
+    # from them, never read from the record; a record without a root seed is root 0
+    from ema_bench.faults import FAULT_NAMES
+    from ema_bench.instances import make_problem
+    from ema_bench.leaderboard.derive import truth_of
+    from ema_bench.seeding import run_seed
+
+    def runs_truth(track, seed, root):
+        p = make_problem("seeded", track=track, seed=run_seed(root, seed), budget=1)
+        return [p.score(p.nominal).truth[n] for n in FAULT_NAMES]
+
+    r = {"case": "seeded", "track": "twin", "seed": 3, "root_seed": 7,
+         "truth": dict.fromkeys(FAULT_NAMES, 0.5)}
+    assert truth_of(r).tolist() == runs_truth("twin", 3, 7)
+    assert truth_of({**r, "seed": 4}).tolist() == runs_truth("twin", 4, 7)
+    legacy = {k: v for k, v in r.items() if k != "root_seed"}
+    assert truth_of(legacy).tolist() == runs_truth("twin", 3, 0)
+    assert len({tuple(runs_truth("twin", s, k)) for s, k in [(3, 7), (4, 7), (3, 0)]}) == 3
+
+
+@pytest.mark.parametrize("field, broken, message", [
+    ("trajectory", [], "schema-2 record without a trajectory"),
+    ("trajectory", "x", "schema-2 record without a trajectory"),
+    ("trajectory", [[1]], "malformed trajectory (list index out of range)"),
+    ("trace", [], "legacy record without a trace"),
+    ("trace", "x", "legacy record without a trace"),
+    ("trace", [[1]], "malformed trace (list index out of range)"),
+])
+def test_missing_or_malformed_evidence_is_one_clear_error(field, broken, message):
+    from ema_bench.leaderboard.derive import DerivationError, derive
+
+    r = evidence.record([(1, 1.0, evidence.vector("small", 0.3))])
+    if field == "trace":                          # a legacy (schema 1) record: its trace only
+        r = {k: v for k, v in r.items() if k not in ("schema", "trajectory")}
+    with pytest.raises(DerivationError) as exc:
+        derive({**r, field: broken})
+    assert str(exc.value) == message
+
+
+def test_edges_of_the_derived_figures():
+    from ema_bench.leaderboard.derive import DerivationError, derive
+
+    at = lambda p: evidence.level("small", "twin", 0, p)   # noqa: E731
+    x = evidence.vector("small", 0.3)
+    # a fitness exactly at the 1e-1 level reaches that target; best_at lists the budget
+    d = derive(evidence.record([(1, at(0.5), x), (7, at(0.1), x)]))
+    assert d.fitness_hits["0.1"] == 7 and d.fitness_hits["0.01"] is None
+    assert [b for b, _ in d.best_at] == [10, 20, 50, 100]
+    # a record without a root seed is root 0, whose f* the suite ships: still scored on f*
+    r = evidence.record([(1, at(0.5), x), (7, at(0.1), x)])
+    del r["root_seed"]
+    assert derive(r).fitness_hits["0.1"] == 7
+    # a legacy record whose final vector is unreadable: one clear error
+    legacy = {k: v for k, v in r.items() if k not in ("schema", "trajectory")}
+    with pytest.raises(DerivationError, match=r"^final vector x unreadable \("):
+        derive({**legacy, "x": None})
+    # a run that passed within 1 % of the truth and left it (its final vector 30 % off) has
+    # the parameter hit but is no success, so no evaluations to success
+    d = derive(evidence.record([(1, at(0.5), evidence.vector("small", 0.005)),
+                                (20, at(0.1), x)]))
+    assert d.parameter_hits["0.01"] == 1
+    assert d.success is False and d.evals_to_success is None
+    # an error record: no success, no hits, no checkpoints
+    d = derive(evidence.record([], status="error"))
+    assert (d.error, d.success, d.best_at) == (True, False, [])
+    assert d.parameter_hits == {"0.1": None, "0.03": None, "0.01": None}
+
+
+def test_a_legacy_trace_cut_before_its_final_vector_was_found_has_no_parameter_hit():
+    # legacy evidence: the trace and the final vector (0.5 % of Na's range off: within every
+    # parameter target), found at evaluation 60, the last improvement.  Re-scored at a
+    # smaller budget (--check's truncation), the vector at the cut is known only if the cut
+    # is at or after 60.
+    from ema_bench.leaderboard.derive import derive
+
+    at = lambda p: evidence.level("small", "twin", 0, p)   # noqa: E731
+    x = evidence.vector("small", 0.005)
+    r = evidence.record([(1, at(0.5), x), (20, at(0.1), x), (60, at(0.05), x)])
+    legacy = {k: v for k, v in r.items() if k not in ("schema", "trajectory")}
+    assert legacy["trace"][-1] == [100, at(0.05)]          # the repeated last evaluation
+    for budget in (100, 60):
+        d = derive({**legacy, "budget": budget})
+        assert d.success is True and d.evals_to_success == 60
+        assert d.parameter_hits == {"0.1": 60, "0.03": 60, "0.01": 60}
+    d = derive({**legacy, "budget": 50})
+    assert d.success is False and d.evals_to_success is None
+    assert d.parameter_hits == {"0.1": None, "0.03": None, "0.01": None}
+    # one improvement only, at evaluation 1: its vector is known at any cut
+    one = evidence.record([(1, at(0.5), x)])
+    one = {k: v for k, v in one.items() if k not in ("schema", "trajectory")}
+    assert one["trace"] == [[1, at(0.5)], [100, at(0.5)]]
+    d = derive({**one, "budget": 50})
+    assert d.success is True and d.parameter_hits["0.01"] == 1
+
+
+def test_a_vector_exactly_on_a_target_edge_reaches_it():
+    # Gprop 1 % of its range off exactly (101000 for a truth of 100000: the range errors are
+    # exact in binary): the targets and the success rule are "within", <= 1 %
+    from ema_bench.leaderboard.derive import derive
+
+    x = evidence.vector("small", 0.01, fault="Gprop")
+    r = evidence.record([(1, evidence.level("small", "twin", 0, 0.5), x)])
+    d = derive(r)
+    assert d.range_error["Gprop"] == 0.01 and max(d.range_error.values()) == 0.01
+    assert d.success is True and d.parameter_hits["0.01"] == 1 and d.evals_to_success == 1
+    legacy = {k: v for k, v in r.items() if k not in ("schema", "trajectory")}
+    d = derive(legacy)
+    assert d.success is True and d.parameter_hits["0.01"] == 1
