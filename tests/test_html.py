@@ -323,7 +323,9 @@ def test_the_leaderboard_page_is_shareable(tmp_path: Path) -> None:
         t = r.get("targets") or {}
         if r["solver"] == "cmaes" and t.get("f_star") is not None:
             below = t["f_star"] - 0.01 * (t["f_nominal"] - t["f_star"])
+            # the evidence, not the claims, is what the scores read (issue 29)
             r["best_at"] = [[b, below] for b, _ in r["best_at"]]
+            r["trace"] = [[e, below] for e, _ in r["trace"]]
     raw = [v for t in ("reference", "twin") for r in ranking_rows(anytime_scores(records), t)
            for k, v in r.items() if k.startswith("median precision")]
     assert min(raw) == pytest.approx(-0.01)

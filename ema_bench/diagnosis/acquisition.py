@@ -50,7 +50,6 @@ from typing import Any
 import numpy as np
 from scipy.ndimage import median_filter
 from scipy.optimize import minimize_scalar
-from scipy.signal import lfilter
 
 from ..traces import OUTPUT_DT, SIGNALS
 from .features import NOISE_STD
@@ -173,6 +172,10 @@ def _lowpass(y: np.ndarray, tau: float) -> np.ndarray:
         return y
     a = 1.0 - math.exp(-OUTPUT_DT / tau)
     zi = (1.0 - a) * y[..., :1]
+    # scipy.signal imported here, not with the module: it pulls in scipy.stats, half a
+    # second of every CLI start-up (the parser imports the diagnosis)
+    from scipy.signal import lfilter
+
     return lfilter([a], [1.0, -(1.0 - a)], y, axis=-1, zi=zi)[0]
 
 
