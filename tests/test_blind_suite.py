@@ -649,3 +649,24 @@ def test_the_committed_third_round_suites_are_the_cases_drawn_and_summed(folder,
     # as the CLI writes it (jsonio: a NaN rate of an empty category becomes null)
     assert {k: v for k, v in summary.items() if k != "command"} == \
         json.loads(dumps(summarise(ordered)))
+
+
+def test_the_third_round_categories_end_to_end_reproduce_the_committed_verdicts():
+    """The cheapest committed case of each third-round category (root seed 2034: case 8, a
+    cogging effect beside an acquisition fault, 42 CPU-s; case 14, three effects at once,
+    77 CPU-s), run blind with the default settings: the same verdict, the same names and
+    the same acquisition faults as committed, and each scored right."""
+    from ema_bench.diagnosis.workflow import Settings
+
+    committed = {r["index"]: r for r in read_records(COMMITTED_R3 / "blind.jsonl")}
+    drawn = {c.index: c for c in draw_cases(0, 2034, 10)}
+    for i, category in ((8, "effect_acquisition"), (14, "three_effect")):
+        r, c = run_case(drawn[i], 2034, Settings()), committed[i]
+        assert r["category"] == c["category"] == category
+        assert (r["verdict"], sorted(r["named"]), r["partial"]) == \
+            (c["verdict"], sorted(c["named"]), c["partial"])
+        assert r["named_acquisition"] == c["named_acquisition"]
+        assert sorted(r["named"]) == sorted(drawn[i].effects)     # every true effect named
+        assert not r["misnamed"]
+    assert r["named_acquisition"] == [] and c["named_acquisition"] == []
+    assert committed[8]["named_acquisition"] == ["mains_hum(i_eq)"]   # case 8's hum, named
