@@ -28,8 +28,9 @@ PRECISION_NOTE = ("Precision (f - f*) / (f_nominal - f*) is shown floored at 0: 
 
 
 def shareable(header: str) -> str:
-    """``header`` with the values of path-like options (``--out DIR``) replaced by a
-    placeholder: a published page must not show the folders of the machine that made it."""
+    """``header`` with the values of path-like options (``--out DIR``) replaced by their
+    generic names (``OUT``, ``DIR``, ``ADDRESS``): a published page must not show the folders
+    of the machine that made it."""
     return _LOCAL_RE.sub(lambda m: f"{m['opt']}{m['sep']}{_LOCAL[m['opt']]}", header)
 
 
