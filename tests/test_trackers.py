@@ -125,6 +125,8 @@ def test_baselines_are_found_through_entry_points():
     eps = {ep.name: ep for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP)}
     assert set(BASELINES) | {"rul-age", "life-table"} <= set(eps)
     assert eps["rul-age"].value == eps["life-table"].value == "ema_bench_trackers.references"
+    assert eps["fleet-bayes-cut"].value == eps["fleet-bayes"].value
+    assert registered_config("fleet-bayes-cut") == {"cut_rule": True}
     registered = available_trackers()
     for name in BASELINES:
         assert eps[name].value.startswith("ema_bench_trackers.")
@@ -287,3 +289,25 @@ def test_the_shared_fit_cache_changes_no_answer(synthetic, tmp_path, monkeypatch
     # another seed is another fit: not read from the cache
     track_campaign(synthetic, "test-kalman-cache", tmp_path / "seed1", seed=1)
     assert len(list((tmp_path / "cache").glob("*.pkl"))) == 4 * len(FLIGHTS)
+
+
+def registered_config(name: str) -> dict:
+    return available_trackers()[name].config
+
+
+def test_fleet_bayes_cut_weighs_the_path_lives_by_the_cut_rule():
+    """At flight 100 (inspections every 10, cuts at 50-95 % of life) a life of 300 cannot end
+    in a cut at 100 (100 < 0.5 * 300), so the path that fails 200 flights on must not widen the
+    interval; lives 110-130 all can.  By hand: the +-20 % point 24 covers the RULs 20 and 30
+    (24/1.2 = 20, 24/0.8 = 30), no other point covers two; the 97.5 % quantile is 30, not
+    200.  The replacement rule keeps the unweighted summary (its p_fail is untouched)."""
+    from ema_bench_trackers._common import RulSummary
+    from ema_bench_trackers.fleet_bayes import _cut_summary
+
+    plain = RulSummary(25.0, 10.0, 200.0, "Fst", 0.4)
+    t = np.array([10.0, 20.0, 30.0, 200.0])
+    got = _cut_summary(plain, t, 100, 10, (0.5, 0.95))
+    assert (got.rul, got.low, got.high) == (24.0, 10.0, 30.0)
+    assert (got.failing_fault, got.p_fail) == ("Fst", 0.4)
+    # no path compatible with a cut here (all lives beyond 200): the summary is kept
+    assert _cut_summary(plain, np.array([150.0, 400.0]), 100, 10, (0.5, 0.95)) == plain

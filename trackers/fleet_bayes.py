@@ -28,15 +28,27 @@ Forward
     its threshold (up to 1,500 flights).  Median and 2.5-97.5 % of the first crossing.
 Replacement
     :func:`~._common.replace_now`, as every baseline.
+
+``fleet-bayes-cut``
+    The same tracker, its reported RUL also conditioned on the campaign's published cut rule
+    (:func:`~ema_bench.prognostics.campaign.cut_likelihood`, applied as if this inspection were
+    the cut, which the scored one is, as the ``life-table`` reference and the oracle do): the
+    forward paths' lives weighed by the rule, the Bayes point for +-20 %
+    (:func:`~ema_bench.prognostics.bayes.best_point`) and the weighted 95 % interval.  The
+    replacement decision keeps the unweighted paths: an inspection that is not the cut must not
+    be decided as if it were.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
 
 from ema_bench.faults import FAULT_INDEX
+from ema_bench.prognostics.bayes import best_point, weighted_quantile
+from ema_bench.prognostics.campaign import cut_likelihood
 from ema_bench.prognostics.laws import FleetLaws, ForwardPaths
 from ema_bench.prognostics.tracking import Inspection, TrackStep, register_tracker
 
@@ -75,12 +87,28 @@ def _normal_ll(x: float | np.ndarray, mean: np.ndarray, var: np.ndarray) -> np.n
     return -0.5 * ((x - mean) ** 2 / var + np.log(var))
 
 
+def _cut_summary(summary, t: np.ndarray, flight: float, every: int,
+                 stop: tuple[float, float], alpha: float = 0.2):
+    """``summary`` with its RUL point and interval taken from the path lives ``flight + t``
+    weighed by the cut rule (unchanged when no path is compatible with a cut here)."""
+    w = cut_likelihood(float(flight), float(flight) + t, every, stop)
+    if w.sum() <= 0:
+        return summary
+    point = best_point(t, w, alpha)
+    low, high = weighted_quantile(t, w, [0.025, 0.975])
+    return dataclasses.replace(summary, rul=point, low=float(min(low, point)),
+                               high=float(max(high, point)))
+
+
+@register_tracker("fleet-bayes-cut", description="fleet-bayes whose reported RUL is also "
+                  "conditioned on the published cut rule (Bayes point for +-20 %, weighted "
+                  "95 % interval); replacement decided as fleet-bayes", cut_rule=True)
 @register_tracker("fleet-bayes", description="Bayesian update of the unit's degradation-law "
                   "parameters (friction rate, wear rate, coil growth) from its fits, the "
                   "fleet's published laws as priors; RUL by running the laws forward")
 def factory(campaign_info: dict, seed: np.random.SeedSequence, *, n_paths: int = N_PATHS,
             first_budget: int = 1500, global_budget: int = 1000,
-            replace_prob: float = REPLACE_PROB):
+            replace_prob: float = REPLACE_PROB, cut_rule: bool = False):
     u = unit_setup(campaign_info, seed, first_budget, global_budget)
     thresholds, every, names, d_thr, fitter, mc_seed = (u.thresholds, u.every, u.names, u.d_thr,
                                                         u.fitter, u.mc_seed)
@@ -89,6 +117,7 @@ def factory(campaign_info: dict, seed: np.random.SeedSequence, *, n_paths: int =
     blk_grid, blk_prior = _grid(laws["blk_rate_median"], laws["blk_rate_sigma"])
     na_grid, na_prior = _grid(laws["na_growth_median"], laws["na_growth_sigma"])
     k_d = float(laws["duty_shape"])
+    stop = tuple(campaign_info.get("cut_rule", {}).get("stop", (0.5, 0.95)))
     hist: dict[str, list] = {"flight": [], "duty": [], "x": [], "sd": []}
 
     def step(insp: Inspection) -> TrackStep:
@@ -153,6 +182,8 @@ def factory(campaign_info: dict, seed: np.random.SeedSequence, *, n_paths: int =
                               d_thr, STEP, HORIZON_FLIGHTS)
         summary = summarise(cross, names, REPLACE_HORIZON * every)
         replace = replace_now(summary, fit.low, fit.high, names, thresholds, replace_prob)
+        if cut_rule:
+            summary = _cut_summary(summary, cross.min(axis=1), insp.flight, every, stop)
         return make_step(insp, fit.x, fit.low, fit.high, summary, replace, fit.evaluations,
                          fit=fit.how, mean_duty=m, coil_present=short is not None)
     return step
