@@ -6,6 +6,7 @@ Each test is a probe that failed before the fix; the comment says what the old c
 
 from __future__ import annotations
 
+import argparse
 import os
 import subprocess
 import sys
@@ -179,17 +180,23 @@ def test_a_single_vector_error_names_no_row():
         check_faults(np.array([get_case("nominal").x, bad]), batch=True)
 
 
-def _helps() -> dict[str, str]:
-    parser = build_parser()
-    sub = next(a for a in parser._actions if a.choices and "simulate" in a.choices)
-    return {"ema-bench": parser.format_help(),
-            **{name: p.format_help() for name, p in sub.choices.items()}}
+def _helps(parser=None, prefix: str = "ema-bench") -> dict[str, str]:
+    """Every command's and nested sub-command's help ('ema-bench campaign track' too)."""
+    parser = build_parser() if parser is None else parser
+    out = {prefix: parser.format_help()}
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, p in action.choices.items():
+                out.update(_helps(p, f"{prefix} {name}"))
+    return out
 
 
 @pytest.mark.parametrize("command", list(_helps()))
 def test_help_shows_no_rest_markup(command):
     text = _helps()[command]
-    for markup in ("``", ":func:", ":class:", ":meth:", ":mod:", ":data:"):
+    assert "ema-bench campaign track" in _helps()   # nested sub-commands are walked
+    # "%%" is argparse's escape in an option's help only; in a description it prints as is
+    for markup in ("``", ":func:", ":class:", ":meth:", ":mod:", ":data:", "%%"):
         assert markup not in text, f"{command} --help shows {markup!r}"
     assert not any(line.rstrip().endswith("::") for line in text.splitlines())
 

@@ -114,7 +114,7 @@ def _register_track(actions: argparse._SubParsersAction) -> None:
         "track", help="run a tracker over a campaign: fault estimates and RUL per inspection",
         description="Run a registered tracker over every unit of the campaign in DIR, "
                     "inspection by inspection, and write DIR2/track.jsonl (one line per unit "
-                    "and inspection: estimates with 95 %% intervals, RUL median and 95 %% "
+                    "and inspection: estimates with 95 % intervals, RUL median and 95 % "
                     "interval, failing fault, replace) as each finishes, plus "
                     "DIR2/manifest.json.  Rerunning the same command resumes: units already "
                     "complete are skipped.  A unit's tracking stops at its first replacement; "
