@@ -31,7 +31,16 @@ FILES = {"leaderboard": "runs.jsonl", "blind": "blind.jsonl", "coverage": "twin_
          "track": "track.jsonl", "targets": "targets.json.partial.jsonl"}
 #: Lines of a complete run: one per task, but one per inspection (4 units x 4) for tracking.
 LINES = {"leaderboard": 4, "blind": 4, "coverage": 4, "track": 16, "targets": 4}
+#: What may differ between runs of one task: timings, and the numba threads of the process
+#: that ran it (a run's manifest says how many; the results do not depend on it).
 VOLATILE = {"wall_s", "solver_wall_s", "cpu_s"}
+
+
+def stable(record: dict) -> dict:
+    out = {k: v for k, v in record.items() if k not in VOLATILE}
+    if "manifest" in out:
+        out["manifest"] = {k: v for k, v in out["manifest"].items() if k != "threads"}
+    return out
 JOB = [sys.executable, str(Path(__file__).with_name("sweep_jobs.py"))]
 
 pytestmark = pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc")
@@ -61,7 +70,7 @@ def records(command: str, out: Path) -> dict[str, dict]:
     keys = [r["key"] for r in rows]
     assert len(keys) == len(set(keys)), f"recorded twice: {keys}"
     assert not [r for r in rows if r.get("status") == "error"]
-    return {r["key"]: {k: v for k, v in r.items() if k not in VOLATILE} for r in rows}
+    return {r["key"]: stable(r) for r in rows}
 
 
 _REFERENCE: dict[str, dict[str, dict]] = {}
