@@ -37,12 +37,16 @@ log = logging.getLogger("ema_bench")
 RETRIES = 2
 
 
-class SweepIncomplete(RuntimeError):
+class SweepError(RuntimeError):
+    """A sweep that ended without every task recorded: one line for the user."""
+
+
+class SweepIncomplete(SweepError):
     """Some tasks could not run for reasons outside them (their worker kept dying); a rerun
     of the same command runs them again."""
 
 
-class TaskFailed(RuntimeError):
+class TaskFailed(SweepError):
     """A task raised (its traceback is logged); the other tasks were run and recorded."""
 
 
