@@ -126,7 +126,7 @@ CASE_SCHEMA = {
     "key": req("str"), "root_seed": req("int"), "seed": req("int"), "index": req("int"),
     "model_version": opt("str|int"), "kind": req("str"), "category": opt("str"),
     "effects": opt("dict"), "faults": opt("dict"), "decoy": opt("str|null"),
-    "decoy_params": opt("dict"), "verdict": req("str"), "named": req("list"),
+    "decoy_params": opt("dict"), "verdict": req("str"), "named": opt("list"),
     "named_acquisition": opt("list"), "partial": opt("str|null"),
     "gap_closed": opt("number|null"), "evaluations": opt("int"), "wall_s": opt("number"),
     "cpu_s": opt("number"), "misnamed": opt("list"), "correct": _FLAG, "both_named": _FLAG,
