@@ -582,13 +582,15 @@ def _verdict(outcome) -> str:
 
 
 def run_cases(cases: Sequence[BlindCase], seed: int, settings: Settings, workers: int = 1,
-              runner: Runner = run_case) -> list[dict]:
+              runner: Runner = run_case, label: str = "blind", quiet: bool = True
+              ) -> list[dict]:
     """The records of ``cases`` in completion order, run on the sweep engine (in this
-    process, or in ``workers`` spawned processes, one numba thread each), stored nowhere."""
+    process, or in ``workers`` spawned processes, one numba thread each), stored nowhere;
+    progress under ``label`` unless ``quiet``."""
     tasks = [_CaseTask(c, seed) for c in cases]
     return run_sweep(tasks, functools.partial(_run_task, runner, settings),
                      executor="serial" if workers <= 1 else "processes",
-                     workers=workers).records
+                     workers=workers, label=label, unit="case", quiet=quiet).records
 
 
 def _check_resumed(rec: dict, case: BlindCase, seed: int, path: Path) -> None:
