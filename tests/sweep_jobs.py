@@ -9,6 +9,7 @@ Each job runs the command's own code on the sweep engine, only smaller:
 - ``coverage``: ``ema-bench coverage`` (4 instances, differential evolution at 60 evaluations);
 - ``track``: ``ema-bench campaign track`` on a 4-unit synthetic campaign (made once, under
   ``OUT/../campaign``) with ``slow-age``: the ``rul-age`` reference, 0.2 s per inspection;
+- ``track-exit``: the same with ``exits-on-u001``, whose worker dies on unit ``u001``;
 - ``blind``: :func:`~ema_bench.diagnosis.blind.run_blind` of 4 cases with a runner that
   scores a perfect diagnosis after 0.5 s (the real one takes a minute per case);
 - ``targets``: :func:`~ema_bench.best_known.compute_targets` of 4 instances with polishing
@@ -52,6 +53,20 @@ def slow_age(campaign_info, seed):
                          rul=float(insp.flight), rul_low=0.0, rul_high=math.inf,
                          failing_fault=None, replace=insp.flight >= 20, evaluations=0)
     return step
+
+
+@register_tracker("exits-on-u001", description="test tracker: slow-age that kills its "
+                  "worker process on unit u001")
+def exits_on_u001(campaign_info, seed):
+    import os
+
+    step = slow_age(campaign_info, seed)
+
+    def exiting(insp: Inspection) -> TrackStep:
+        if insp.unit == "u001":
+            os._exit(3)
+        return step(insp)
+    return exiting
 
 
 def slow_perfect_case(case, seed, settings):
@@ -122,6 +137,9 @@ def run(command: str, out: Path, workers: int) -> int:
     if command == "track":
         return main(["campaign", "track", str(campaign(out.parent / "campaign")),
                      "--tracker", "slow-age", *w, "--quiet", "--json", "--out", str(out)])
+    if command == "track-exit":
+        return main(["campaign", "track", str(campaign(out.parent / "campaign")),
+                     "--tracker", "exits-on-u001", *w, "--quiet", "--json", "--out", str(out)])
     if command == "blind":
         from ema_bench.diagnosis.blind import run_blind
 

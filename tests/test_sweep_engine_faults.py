@@ -204,6 +204,22 @@ def test_two_processes_on_one_folder_run_each_task_once(tmp_path, command, refer
     assert records(command, out) == reference(command)
 
 
+def test_a_tracker_that_kills_its_worker_gets_no_failure_line_and_no_pass(tmp_path):
+    """A tracker whose worker dies on a unit (every time) is not recorded as failed there
+    (that is for a tracker's own error): the unit is left untracked, named in one line
+    (exit 2), and stays untracked on a rerun: the campaign's scoring counts a unit without
+    a step at its cut as a miss, so killing a worker earns nothing."""
+    out = tmp_path / "out"
+    res = subprocess.run([*JOB, "track-exit", str(out), "2"], capture_output=True, text=True,
+                         timeout=180)
+    assert res.returncode == 2, res.stderr
+    err = res.stderr.strip().splitlines()
+    assert len(err) == 1 and "1 unit(s) not done (u001)" in err[0] and "rerun" in err[0]
+    rows = [json.loads(line) for line in (out / "track.jsonl").read_text().splitlines()]
+    assert sorted({r["unit"] for r in rows}) == ["u000", "u002", "u003"]
+    assert len(rows) == 12 and not [r for r in rows if r.get("status") == "error"]
+
+
 def test_no_pool_executor_or_jsonl_append_outside_the_engine():
     """Process pools, Dask clients and JSON-lines appends live in ``ema_bench/sweep/``
     alone: every other module runs its tasks through :func:`~ema_bench.sweep.loop.run_sweep`

@@ -10,9 +10,12 @@ faults the same way:
   claimed is left to it, and waited for at the end (run here after all if its claimer dies
   first), so sweeps sharing a folder split the work and run nothing twice;
 - a task's records are appended, in one piece, as it finishes (:class:`~.store.Store`);
-- a task whose worker died is run again here (up to ``retries`` times); after that it is
-  left unrecorded and :class:`SweepIncomplete` names it: a worker's death, like a full disk
-  (the store's ``OSError``) or an interrupt, is never recorded as the task's own result;
+- a task whose worker died is run again here (up to ``retries`` times), never recorded as
+  the task's own result, like a full disk (the store's ``OSError``) or an interrupt; a task
+  whose worker dies every time is most likely killing it itself: recorded through
+  ``on_error`` where the command scores failures (so a solver cannot drop its hard runs
+  from a board by killing its worker; a resume runs it again), else left unrecorded and
+  named by :class:`SweepIncomplete`;
 - a task that raised is the task's own failure: recorded through ``on_error`` where the
   command scores failures (the leaderboard), else reported by :class:`TaskFailed` after the
   other tasks have finished and been recorded.
@@ -134,7 +137,8 @@ def run_sweep(tasks: Sequence[Task], runner: Runner, stores: Sequence[Store] = (
     label, unit, quiet
         The progress bar (:func:`~ema_bench.progress.progress`).
     retries : int
-        Times a task whose worker died is run again before :class:`SweepIncomplete`.
+        Times a task whose worker died is run again before it is given up (recorded through
+        ``on_error``, or named by :class:`SweepIncomplete`).
 
     Returns
     -------
@@ -151,10 +155,17 @@ def run_sweep(tasks: Sequence[Task], runner: Runner, stores: Sequence[Store] = (
             elsewhere: list[Task] = []
             again = _run_claimed(pending, sweep, elsewhere, executor, workers, scheduler,
                                  runner)
-            for t in again:
+            retry = []
+            for t, failure in again:
                 tries[t.identity] = tries.get(t.identity, 0) + 1
-            retry = [t for t in again if tries[t.identity] <= retries]
-            report.lost += [t for t in again if tries[t.identity] > retries]
+                if tries[t.identity] <= retries:
+                    retry.append(t)
+                elif on_error is not None:   # scored as a failure, run again by a resume
+                    sweep.record(Outcome(t, failure=failure))
+                    report.ran += 1
+                    sweep.bar.update(f"{t.key} FAILED ({failure.error_type})")
+                else:
+                    report.lost.append(t)
             pending = retry + _wait_for_others(elsewhere, sweep, poll_s)
     if report.failed:
         for task, failure in report.failed:
@@ -172,17 +183,18 @@ def run_sweep(tasks: Sequence[Task], runner: Runner, stores: Sequence[Store] = (
 
 
 def _run_claimed(tasks: list[Task], sweep: _Sweep, elsewhere: list[Task], executor: str,
-                 workers: int | None, scheduler: str | None, runner: Runner) -> list[Task]:
+                 workers: int | None, scheduler: str | None, runner: Runner
+                 ) -> list[tuple[Task, Failure]]:
     """Run the ``tasks`` this process can claim, recording what they give; returns those
-    whose worker died (to run again)."""
+    whose worker died (to run again), with their failure."""
     claims: dict[Hashable, Claim] = {}
-    again: list[Task] = []
+    again: list[tuple[Task, Failure]] = []
     try:
         feed = _claimed(tasks, sweep, claims, elsewhere)
         for outcome in execute(feed, runner, executor, workers, scheduler):
             task, failure = outcome.task, outcome.failure
             if failure is not None and failure.infrastructure:
-                again.append(task)
+                again.append((task, failure))
                 sweep.bar.note(f"{task.key}: {failure.line()}; it will run again")
             elif failure is not None and sweep.on_error is None:
                 sweep.report.failed.append((task, failure))
