@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import json
 import os
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -46,6 +45,7 @@ from .suite import (
     instance_names,
     target_key,
 )
+from .sweep.executors import Job
 from .sweep.loop import run_sweep
 from .sweep.schema import req
 from .sweep.store import Store
@@ -92,19 +92,8 @@ ENTRY_SCHEMA = {"key": req("str"), "f_star": req("number"), "x_star": req("dict"
                 "bias_range_error": req("number"), "stages": req("dict")}
 
 
-@dataclass(frozen=True)
-class _Instance:
-    """One (instance, track, seed) to polish: a task of the sweep engine."""
-
-    key: str
-
-    @property
-    def identity(self) -> str:
-        return self.key
-
-
-def _polish_key(task: _Instance) -> dict[str, object]:
-    case, track, seed = task.key.split("|")
+def _polish_key(job: Job) -> dict[str, object]:
+    case, track, seed = job.key.split("|")
     return polish(case, track, int(seed))
 
 
@@ -130,7 +119,7 @@ def compute_targets(out: Path, workers: int | None = None, quiet: bool = False,
     keys = all_keys() if keys is None else keys
     workers = workers or os.cpu_count() or 1
     with Store(partial, identity=_key, schema=ENTRY_SCHEMA) as store:
-        run_sweep([_Instance(k) for k in keys], _polish_key,
+        run_sweep([Job(k, k) for k in keys], _polish_key,
                   [store], executor="serial" if workers == 1 else "processes",
                   workers=workers, label="best-known optima", unit="instance", quiet=quiet)
         done = {r["key"]: r for r in store.records}

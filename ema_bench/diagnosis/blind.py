@@ -79,6 +79,7 @@ from ..instances import twin_traces
 from ..protocol import HOLDOUT_TESTS, STANDARD_TESTS
 from ..reference import simulate_reference
 from ..seeding import run_seed, stream
+from ..sweep.executors import Job
 from ..sweep.loop import run_sweep
 from ..sweep.schema import opt, req
 from ..sweep.store import Store, is_current
@@ -512,25 +513,13 @@ def summarise(records: list[dict]) -> dict[str, object]:
 
 # --- running a suite ------------------------------------------------------------------------
 
-@dataclass(frozen=True)
-class _CaseTask:
-    """One case of a suite: a task of the sweep engine (identity: its record's key and this
-    installation's model version)."""
-
-    case: BlindCase
-    seed: int
-
-    @property
-    def key(self) -> str:
-        return f"case{self.case.index}"
-
-    @property
-    def identity(self) -> tuple:
-        return self.key, MODEL_VERSION
+def _job(case: BlindCase) -> Job:
+    """A case as a task of the sweep engine: its record's key and model version."""
+    return Job(f"case{case.index}", (f"case{case.index}", MODEL_VERSION), case)
 
 
-def _run_task(runner: Runner, settings: Settings, task: _CaseTask) -> dict:
-    return runner(task.case, task.seed, settings)
+def _run_task(runner: Runner, seed: int, settings: Settings, job: Job) -> dict:
+    return runner(job.data, seed, settings)
 
 
 def run_blind(n: int, seed: int, out: str | Path | None = None,
@@ -554,8 +543,8 @@ def run_blind(n: int, seed: int, out: str | Path | None = None,
         if unknown:
             raise ValueError(f"unknown categories {unknown}; known: {list(KINDS)}")
         cases = [c for c in cases if c.category in only]
-    tasks = [_CaseTask(c, seed) for c in cases]
-    run = functools.partial(_run_task, runner or run_case, settings)
+    tasks = [_job(c) for c in cases]
+    run = functools.partial(_run_task, runner or run_case, seed, settings)
     if out is None:
         got = run_sweep(tasks, run, executor="serial" if workers <= 1 else "processes",
                         workers=workers, label="blind", unit="case", quiet=quiet,
@@ -563,7 +552,7 @@ def run_blind(n: int, seed: int, out: str | Path | None = None,
     else:
         with Store(Path(out) / CASES_FILE, schema=CASE_SCHEMA) as store:
             # cases of another model version are stale: run again, recorded beside the old
-            drawn = {t.key: t.case for t in tasks}
+            drawn = {t.key: t.data for t in tasks}
             for rec in store.records:
                 if is_current(rec) and rec["key"] in drawn:
                     _check_resumed(rec, drawn[rec["key"]], seed, store.path)
@@ -587,8 +576,8 @@ def run_cases(cases: Sequence[BlindCase], seed: int, settings: Settings, workers
     """The records of ``cases`` in completion order, run on the sweep engine (in this
     process, or in ``workers`` spawned processes, one numba thread each), stored nowhere;
     progress under ``label`` unless ``quiet``."""
-    tasks = [_CaseTask(c, seed) for c in cases]
-    return run_sweep(tasks, functools.partial(_run_task, runner, settings),
+    return run_sweep([_job(c) for c in cases], functools.partial(_run_task, runner, seed,
+                                                                  settings),
                      executor="serial" if workers <= 1 else "processes",
                      workers=workers, label=label, unit="case", quiet=quiet).records
 

@@ -44,6 +44,7 @@ from ..faults import FAULT_NAMES
 from ..jsonio import plain
 from ..plugins import PluginRegistry
 from ..seeding import run_seed, stream
+from ..sweep.executors import Job
 from ..sweep.schema import opt, req
 from ..traces import Traces
 
@@ -432,31 +433,16 @@ def track_unit(campaign: Campaign, info: TrackerInfo, unit: str, seed: np.random
     return "replaced" if replaced else "tracked"
 
 
-@dataclass(frozen=True)
-class _UnitTask:
-    """One unit of a campaign: a task of the sweep engine."""
-
-    k: int
-    unit: str
-
-    @property
-    def key(self) -> str:
-        return self.unit
-
-    @property
-    def identity(self) -> str:
-        return self.unit
-
-
-def _track(campaign: Campaign, info: TrackerInfo, seed: int, task: _UnitTask) -> list[dict]:
-    """The records of one unit (its steps, and its error line if the tracker failed)."""
+def _track(campaign: Campaign, info: TrackerInfo, seed: int, job: Job) -> list[dict]:
+    """The records of unit ``job.key``, the ``job.data``-th of the manifest (its steps, and
+    its error line if the tracker failed)."""
     rows: list[dict] = []
-    track_unit(campaign, info, task.unit, unit_seed(seed, task.k), SimpleNamespace(
+    track_unit(campaign, info, job.key, unit_seed(seed, job.data), SimpleNamespace(
         append=rows.append))
     return rows
 
 
-def _worker(root: str, name: str, module: str, seed: int, task: _UnitTask) -> list[dict]:
+def _worker(root: str, name: str, module: str, seed: int, job: Job) -> list[dict]:
     """One unit in a worker process: the tracker's module imported by name (a tracker
     registered in a script's ``__main__`` is not importable there)."""
     from .campaign import load_campaign
@@ -466,7 +452,7 @@ def _worker(root: str, name: str, module: str, seed: int, task: _UnitTask) -> li
             importlib.import_module(module)
         except ImportError:
             pass
-    return _track(load_campaign(root), get_tracker(name), seed, task)
+    return _track(load_campaign(root), get_tracker(name), seed, job)
 
 
 def track_campaign(campaign: Campaign | Path | str, tracker: str, out: Path | str,
@@ -517,7 +503,7 @@ def track_campaign(campaign: Campaign | Path | str, tracker: str, out: Path | st
     camp = campaign if not isinstance(campaign, str | Path) else load_campaign(campaign)
     out = Path(out)
     _prepare(out, _manifest(camp, info, int(seed), out))
-    tasks = [_UnitTask(k, u) for k, u in enumerate(camp.units)]
+    tasks = [Job(u, u, k) for k, u in enumerate(camp.units)]
     if workers == 1:   # in this process: the campaign as given, the tracker as registered
         runner = functools.partial(_track, camp, info, int(seed))
     else:
@@ -538,4 +524,4 @@ def _status(outcome) -> str:
     recs = outcome.records
     status = ("failed" if any(r.get("status") == "error" for r in recs) else
               "replaced" if any(r.get("replace") for r in recs) else "tracked")
-    return f"{outcome.task.unit} {status}"
+    return f"{outcome.task.key} {status}"

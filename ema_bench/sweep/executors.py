@@ -30,7 +30,7 @@ import threading
 import time
 import traceback
 from collections import deque
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Hashable, Iterable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -42,6 +42,16 @@ _PR_SET_PDEATHSIG = 1
 
 Task = Any
 Runner = Callable[[Any], "dict | list[dict]"]
+
+
+@dataclass(frozen=True)
+class Job:
+    """A task for commands that need no class of their own: a label, the identity its
+    records complete (:class:`~.store.Store`'s ``task_of``) and what the runner needs."""
+
+    key: str
+    identity: Hashable
+    data: Any = None
 
 
 class WorkerDied(RuntimeError):

@@ -26,6 +26,7 @@ from ..faults import FAULT_NAMES, LOWER, UPPER, faults_to_dict
 from ..progress import log
 from ..seeding import run_seed, stream
 from ..sweep import store as sweep_store
+from ..sweep.executors import Job
 from ..sweep.loop import run_sweep
 from ..sweep.schema import opt, req
 from . import calibration as cal
@@ -65,21 +66,6 @@ RECORD_SCHEMA = {
     "interval_evaluations": req("int"), "non_identifiable": req("list"),
     "fit_fitness": opt("number"), "fit_evaluations": opt("int"), "error": opt("str"),
 }
-
-
-@dataclass(frozen=True)
-class _Instance:
-    """Instance ``index`` of a coverage run: a task of the sweep engine."""
-
-    index: int
-
-    @property
-    def key(self) -> str:
-        return f"#{self.index}"
-
-    @property
-    def identity(self) -> int:
-        return self.index
 
 
 def _of(settings: Settings):
@@ -155,8 +141,8 @@ def _ends(pair: Sequence[float | None]) -> tuple[float, float]:
     return tuple(math.nan if v is None else float(v) for v in pair)  # type: ignore[return-value]
 
 
-def _run_many(settings: tuple[Settings, ...], task: _Instance) -> list[dict[str, object]]:
-    return [run_instance(st, task.index) for st in settings]
+def _run_many(settings: tuple[Settings, ...], job: Job) -> list[dict[str, object]]:
+    return [run_instance(st, job.data) for st in settings]
 
 
 def read_records(path: Path) -> dict[str, dict]:
@@ -176,7 +162,7 @@ def run_methods(settings: Sequence[Settings], n: int, paths: Sequence[Path | Non
     """:func:`run` for several settings over the same instances (typically one per interval
     method), each instance fitted once for all of them; one records file per settings
     (records in memory alone when a path is ``None``)."""
-    tasks = [_Instance(i) for i in range(n)]
+    tasks = [Job(f"#{i}", i, i) for i in range(n)]
     runner = functools.partial(_run_many, tuple(settings))
     place = {json.dumps(asdict(st), sort_keys=True): k for k, st in enumerate(settings)}
     what = "/".join(st.method for st in settings)
