@@ -99,7 +99,7 @@ class _Sweep:
         if outcome.failure is not None:
             records = [self.on_error(outcome.task, outcome.failure)]
         groups: dict[int, list[dict]] = {}
-        for r in records:
+        for r in records if self.stores else ():   # without stores: the report alone
             groups.setdefault(self.route(r), []).append(r)
         for i, group in groups.items():
             self.stores[i].append(group)
