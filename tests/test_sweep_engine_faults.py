@@ -89,7 +89,7 @@ def reference(tmp_path_factory):
     return get
 
 
-def wait_for(pred, proc: subprocess.Popen, what: str, timeout: float = 90) -> None:
+def wait_for(pred, proc: subprocess.Popen, what: str, timeout: float = 300) -> None:
     deadline = time.time() + timeout
     while time.time() < deadline:
         if pred():
