@@ -14,8 +14,10 @@ twin track ``f*`` lies below the fitness of the truth (the noise moves the optim
 reference track ``x*`` shows the model-form bias (``bias_range_error``: its largest distance
 from the truth in fractions of range).
 
-``ema-bench targets`` regenerates ``ema_bench/suite_targets.json`` (resumable: entries are
-appended to ``<out>.partial.jsonl`` as they finish).  A test checks that a short rerun does not
+``ema-bench targets`` regenerates ``ema_bench/suite_targets.json`` on the sweep engine
+(:func:`~ema_bench.sweep.loop.run_sweep`: entries are appended to ``<out>.partial.jsonl`` as
+they finish, type-checked when read back; a rerun or a second process runs exactly the
+instances missing).  A test checks that a short rerun does not
 beat a shipped ``f*`` by more than :data:`MARGIN`.
 """
 
@@ -23,15 +25,12 @@ from __future__ import annotations
 
 import json
 import os
-from collections.abc import Iterator
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
 import numpy as np
 
 from .faults import NOMINAL, faults_to_dict
 from .instances import TRACKS, make_problem
-from .progress import progress
 from .registry import run_solver
 from .scoring import range_error
 from .seeding import run_seed
@@ -46,6 +45,10 @@ from .suite import (
     instance_names,
     target_key,
 )
+from .sweep.executors import Job
+from .sweep.loop import run_sweep
+from .sweep.schema import req
+from .sweep.store import Store
 
 #: (solver, budget, start) of the polishing stages; start "truth", "previous" or "nominal"
 STAGES: tuple[tuple[str, int, str], ...] = (
@@ -83,9 +86,19 @@ def polish(case: str, track: str, seed: int) -> dict[str, object]:
             "stages": stages}
 
 
-def _polish_key(key: str) -> dict[str, object]:
-    case, track, seed = key.split("|")
+#: The fields of a best-known entry, by JSON type.
+ENTRY_SCHEMA = {"key": req("str"), "f_star": req("number"), "x_star": req("dict"),
+                "f_nominal": req("number"), "fitness_at_truth": req("number"),
+                "bias_range_error": req("number"), "stages": req("dict")}
+
+
+def _polish_key(job: Job) -> dict[str, object]:
+    case, track, seed = job.key.split("|")
     return polish(case, track, int(seed))
+
+
+def _key(record: dict) -> str:
+    return record["key"]
 
 
 def all_keys() -> list[str]:
@@ -97,28 +110,6 @@ def all_keys() -> list[str]:
             for k in range(TARGET_SEEDS) for c in group for t in TRACKS]
 
 
-def _done(partial: Path) -> dict[str, dict]:
-    if not partial.exists():
-        return {}
-    out = {}
-    for line in partial.read_text().splitlines():
-        try:
-            e = json.loads(line)
-        except json.JSONDecodeError:   # a torn last line of an interrupted run
-            continue
-        out[e["key"]] = e
-    return out
-
-
-def _run(keys: list[str], workers: int) -> Iterator[dict]:
-    if workers <= 1:
-        yield from map(_polish_key, keys)
-        return
-    with ProcessPoolExecutor(workers) as pool:
-        for fut in as_completed([pool.submit(_polish_key, k) for k in keys]):
-            yield fut.result()
-
-
 def compute_targets(out: Path, workers: int | None = None, quiet: bool = False,
                     keys: list[str] | None = None) -> dict:
     """Polish every instance (resuming from ``<out>.partial.jsonl``) and write ``out``."""
@@ -126,22 +117,19 @@ def compute_targets(out: Path, workers: int | None = None, quiet: bool = False,
     out = Path(out)
     partial = out.with_name(out.name + ".partial.jsonl")
     keys = all_keys() if keys is None else keys
-    done = _done(partial)
-    todo = [k for k in keys if k not in done]
-    with open(partial, "a") as fh, progress(len(todo), "best-known optima", "instance",
-                                            quiet=quiet) as bar:
-        for entry in _run(todo, workers or os.cpu_count() or 1):
-            fh.write(json.dumps(entry) + "\n")
-            fh.flush()
-            done[entry["key"]] = entry
-            bar.update(entry["key"])
+    workers = workers or os.cpu_count() or 1
+    with Store(partial, identity=_key, schema=ENTRY_SCHEMA) as store:
+        run_sweep([Job(k, k) for k in keys], _polish_key,
+                  [store], executor="serial" if workers == 1 else "processes",
+                  workers=workers, label="best-known optima", unit="instance", quiet=quiet)
+        done = {r["key"]: r for r in store.records}
     data = {"suite": SUITE_ID, "model_version": SUITE_MODEL_VERSION,
             "method": {"stages": [list(s) for s in STAGES], "root_seed": TARGET_ROOT_SEED,
                        "command": "ema-bench targets"},
             "entries": {k: {f: done[k][f] for f in ("f_star", "f_nominal", "x_star",
                                                     "fitness_at_truth", "bias_range_error")}
                         for k in keys if k in done}}
-    tmp = out.with_name(out.name + ".tmp")
+    tmp = out.with_name(f"{out.name}.{os.getpid()}.tmp")   # two runs on one file both write
     tmp.write_text(json.dumps(data, indent=0, sort_keys=True) + "\n")
     os.replace(tmp, out)
     return data

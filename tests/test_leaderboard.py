@@ -134,8 +134,8 @@ def test_dask_reruns_a_task_whose_worker_dies(quick, tmp_path):
     """The first task to start kills its worker process; the scheduler moves it to another
     worker and the records still equal the serial executor's."""
     pytest.importorskip("dask.distributed")
-    from ema_bench.leaderboard.executors import execute
     from ema_bench.leaderboard.tasks import make_tasks, run_task
+    from ema_bench.sweep.executors import execute
 
     marker = tmp_path / "a-worker-died"
 
@@ -147,7 +147,9 @@ def test_dask_reruns_a_task_whose_worker_dies(quick, tmp_path):
         return run_task(task)
 
     tasks = make_tasks(["random"], ["small"], ["reference", "twin"], 2, 60)
-    records = list(execute(tasks, "dask", workers=2, runner=dies_once))
+    outcomes = list(execute(tasks, dies_once, "dask", workers=2))
+    assert [o.failure for o in outcomes] == [None] * len(tasks)
+    records = [o.records[0] for o in outcomes]
     assert marker.exists()
     want = stable(read_records(quick / "runs.jsonl"))
     got = stable(records)

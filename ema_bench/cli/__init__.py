@@ -72,9 +72,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     from ..progress import configure_logging
 
     configure_logging(quiet=getattr(args, "quiet", False))
+    from ..sweep.loop import SweepError
+
     try:
         return int(args.func(args) or 0)
-    except (CLIError, ValueError, LookupError, OSError, MemoryError) as exc:
+    except (CLIError, ValueError, LookupError, OSError, MemoryError, SweepError) as exc:
         # OSError: a write that fails late (disk full, folder removed) is one line too
         print(f"ema-bench {args.command}: error: {_message(exc)}", file=sys.stderr)
         return 2

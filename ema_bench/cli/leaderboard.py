@@ -47,7 +47,7 @@ def _shard(text: str) -> tuple[int, int]:
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from ..leaderboard.executors import EXECUTORS
+    from ..sweep.executors import EXECUTORS
     from .args import add_json, add_quiet, comma_list
 
     p = sub.add_parser("leaderboard",

@@ -83,16 +83,12 @@ def calibrate(cases: int = 60, workers: int = 1, seed: int = CALIBRATION_SEED,
               path: Path | str = PATH, quiet: bool = True) -> dict:
     """Score the effect cases among the first ``cases`` of the blind suite of root ``seed``
     and write the scores to ``path`` (about 15 CPU-seconds per case)."""
-    from ..progress import progress
     from .blind import draw_cases, run_cases
 
     todo = [c for c in draw_cases(cases, seed) if c.kind == "effect"]
-    settings = Settings()
-    rows = []
-    with progress(len(todo), "interval calibration", "case", quiet=quiet) as bar:
-        for rec in run_cases(todo, seed, settings, workers, case_scores):
-            rows.extend(rec["rows"])
-            bar.update(f"case{rec['index']}")
+    rows = [row for rec in run_cases(todo, seed, Settings(), workers, case_scores,
+                                     label="interval calibration", quiet=quiet)
+            for row in rec["rows"]]
     rows.sort(key=lambda r: (r["case"], r["effect"]))
     data = {"root_seed": seed, "suite_cases": cases, "effect_cases": len(todo),
             "factor_95": max(1.0, conformal_quantile([r["score"] for r in rows], 0.95)),

@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import time
-import traceback
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -15,6 +13,7 @@ from ..records import run_record
 from ..registry import get_solver, run_solver
 from ..seeding import run_seed
 from ..suite import SUITE_ID
+from ..sweep.executors import Failure
 from ..trace_cache import MODEL_VERSION
 from .store import IDENTITY_FIELDS
 
@@ -71,22 +70,16 @@ def run_task(task: Task) -> dict:
                       wall_s=time.perf_counter() - t0, info=get_solver(task.solver).library)
 
 
-def error_record(task: Task, exc: BaseException, wall_s: float = 0.0) -> dict[str, Any]:
-    """The record of a run that raised ``exc`` (or whose worker died): its identity and the
-    error, and no score (scores count it as an unsuccessful run at its budget; a score a
-    record carries is not read)."""
+def failure_record(task: Task, failure: Failure) -> dict[str, Any]:
+    """The record of a run that raised: its identity and the error, and no score (scores
+    count it as an unsuccessful run at its budget; a score a record carries is not read).
+    The ``on_error`` of the leaderboard's sweep."""
     return {"key": task.key, **{f: getattr(task, f) for f in IDENTITY_FIELDS},
             "model_version": MODEL_VERSION, "suite": SUITE_ID, "status": "error",
-            "error_type": type(exc).__name__, "error": str(exc) or repr(exc),
-            "traceback": "".join(traceback.format_exception(exc))[-4000:],
-            "wall_s": wall_s}
+            "error_type": failure.error_type, "error": failure.error,
+            "traceback": failure.traceback, "wall_s": failure.wall_s}
 
 
-def run_guarded(runner: Callable[[Task], dict], task: Task) -> dict:
-    """``runner(task)``, or the :func:`error_record` of what it raised (in the worker, where
-    the traceback is)."""
-    t0 = time.perf_counter()
-    try:
-        return runner(task)
-    except Exception as exc:
-        return error_record(task, exc, time.perf_counter() - t0)
+def error_record(task: Task, exc: BaseException, wall_s: float = 0.0) -> dict[str, Any]:
+    """The :func:`failure_record` of a run that raised ``exc``."""
+    return failure_record(task, Failure.of(exc, wall_s))
