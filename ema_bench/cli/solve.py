@@ -35,6 +35,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 
 from .args import (
+    MAX_BUDGET,
     PLOT_SUFFIXES,
     add_effects,
     add_faults,
@@ -42,8 +43,10 @@ from .args import (
     add_seeds,
     add_test_names,
     check_output,
+    count,
     effects_of,
     faults_of,
+    finite,
     load_measured_files,
     run_node,
 )
@@ -74,14 +77,14 @@ def _register_solve(sub: argparse._SubParsersAction) -> None:
                           "truth)")
     add_faults(src)
     add_test_names(p, "--measured")
-    p.add_argument("--heterogeneity", type=float, default=1.0,
+    p.add_argument("--heterogeneity", type=finite, default=1.0,
                    help="with --case seeded: how far faults may move from nominal, 0..1 "
                         "(default 1)")
     p.add_argument("--track", choices=("reference", "twin"), default="reference",
                    help="where the data come from: reference model or monitor twin "
                         "(default reference)")
     p.add_argument("--solver", default="cmaes", help="registered solver name (default cmaes)")
-    p.add_argument("--budget", type=int, default=2000,
+    p.add_argument("--budget", type=count(1, MAX_BUDGET), default=2000,
                    help="evaluation budget, counted by the problem (default 2000)")
     add_seeds(p, "the instance, the sensor noise and the solver (a leaderboard row, bit for "
                  "bit)")
@@ -92,7 +95,7 @@ def _register_solve(sub: argparse._SubParsersAction) -> None:
                    help="draw measured vs fitted monitor traces to a PNG")
     p.add_argument("--intervals", default=None, choices=("laplace", "profile", "bootstrap"),
                    help="an interval per fault by this method (default: none)")
-    p.add_argument("--level", type=float, default=0.95,
+    p.add_argument("--level", type=finite, default=0.95,
                    help="level of --intervals, in (0, 1) (default 0.95)")
     p.add_argument("--interval-plot", default=None, metavar="PNG",
                    help="with --intervals: draw the Na/Fst plane with the confidence region "
