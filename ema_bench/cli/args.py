@@ -40,6 +40,7 @@ def count(lower: int, upper: int):
         return value
 
     parse.__name__ = "count"
+    parse.lower, parse.upper = lower, upper  # type: ignore[attr-defined]  (for --help, tests)
     return parse
 
 
