@@ -2,9 +2,10 @@
 
 The package ships two calibration tables (the fault intervals' ``uncertainty/calibration.json``
 and the effect intervals' ``diagnosis/interval_calibration.json``).  Shipped data is read-only
-(DESIGN.md section 10): ``--calibrate`` writes a user file where the user puts it, a user file
-is used only when asked for (an environment variable, which the commands' ``--calibration``
-option sets, so worker processes inherit it), and every command that uses one names it.
+(the design notes' integrity rules): ``--calibrate`` writes a user file where the user puts
+it, a user file is used only when asked for (an environment variable, which the commands'
+``--calibration`` option sets, so worker processes inherit it), and every command that uses
+one names it.
 Replacing a shipped table is ``python -m ema_bench.calibration_files FILE``, run in a checkout;
 it refuses an installed package.
 """
