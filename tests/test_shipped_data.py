@@ -37,7 +37,8 @@ def conformal(scores: list[float], level: float = 0.95) -> float:
     return s[min(math.ceil((len(s) + 1) * level), len(s)) - 1]
 
 
-def test_calibrate_writes_user_tables_and_leaves_the_package_byte_identical(tmp_path):
+def test_calibrate_writes_user_tables_and_leaves_the_package_byte_identical(tmp_path,
+                                                                             monkeypatch):
     """Both ``--calibrate`` commands, smallest sizes, real runs (about 25 CPU-s): before this
     rule, 1 instance replaced the shipped 400 (a Gprop factor 1.22 -> 0.54)."""
     before = package_digest()
@@ -65,6 +66,14 @@ def test_calibrate_writes_user_tables_and_leaves_the_package_byte_identical(tmp_
     assert summary["calibration_factor"] == pytest.approx(
         {n: conformal(scores[n]) for n in scores})
     assert summary["calibration_table"] == f"user file {table}, 1 instance"
+    # and set in the environment, solve's intervals name it too
+    r = cli("solve", "--case", "small", "--track", "twin", "--solver", "least-squares",
+            "--budget", "300", "--intervals", "laplace")
+    assert "calibration: twin (shipped, 400 instances)" in r.stdout, r.stderr
+    monkeypatch.setenv("EMA_BENCH_CALIBRATION", str(table))
+    r = cli("solve", "--case", "small", "--track", "twin", "--solver", "least-squares",
+            "--budget", "300", "--intervals", "laplace")
+    assert f"calibration: twin (user file {table}, 1 instance)" in r.stdout, r.stderr
     assert package_digest() == before
 
 

@@ -96,6 +96,10 @@ def run(args: argparse.Namespace) -> int:
     for a in d.acquisition:
         print(f"  {a.name} = {a.value:.4g} (95 % interval {a.interval[0]:.4g} .. "
               f"{a.interval[1]:.4g}): {a.description}{', partial' if a.partial else ''}")
+    if d.effects:
+        from ..diagnosis.interval_table import source
+
+        print(f"  effect intervals calibrated by: {source()}")
     print("faults before -> after: " + ", ".join(
         f"{n} {v['before']:.4g} -> {v['after']:.4g}" for n, v in d.faults.items()))
     if args.report:

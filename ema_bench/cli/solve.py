@@ -286,9 +286,15 @@ def _interval_plots(problem, iv, args: argparse.Namespace) -> list[str]:
 
 def _print_intervals(iv, out: dict) -> None:
     """Estimate and interval per parameter, and what the noise and tests say."""
+    from ..calibration_files import describe
+    from ..uncertainty import calibration as cal
+
+    # the table the factors came from, shipped or the user's (EMA_BENCH_CALIBRATION), named
+    size = cal.calibration_size(iv.calibration, iv.method, iv.model_form)
+    table = "" if iv.calibration == "none" else f" ({describe(cal.TABLE, size)})"
     print(f"{100 * iv.level:g} % {iv.method} intervals around the polished fit (fitness "
-          f"{iv.fitness:.6g}; model form: {iv.model_form}; calibration: {iv.calibration}; "
-          f"{iv.evaluations} extra evaluations)")
+          f"{iv.fitness:.6g}; model form: {iv.model_form}; calibration: {iv.calibration}"
+          f"{table}; {iv.evaluations} extra evaluations)")
     truth = out.get("truth") or {}
     print(f"{'param':<12} {'unit':<5} {'estimate':>12} {'interval':>28} {'width %':>8}"
           + (f" {'truth in':>8}" if truth else ""))
