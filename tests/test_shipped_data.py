@@ -102,7 +102,7 @@ def test_the_active_table_is_the_shipped_one_unless_a_user_file_is_named(tmp_pat
     monkeypatch.setenv("EMA_BENCH_CALIBRATION", str(tmp_path / "missing.json"))
     with pytest.raises(ValueError, match="EMA_BENCH_CALIBRATION=.*missing.json: no such "
                                          "calibration file"):
-        calibration.shipped()
+        calibration.active_table()
 
 
 @pytest.mark.parametrize("argv", [

@@ -167,7 +167,7 @@ def _summary(records: list[dict], method: str, stem: str, out, args: argparse.Na
     # the intervals as the active table (or the one just made) calibrates them now
     # (uncalibrated where it has no scores for this method)
     with using(cal.TABLE, made):
-        data = cal.shipped()
+        data = cal.active_table()
         fac = cal.calibration_factor(kind, method, mode, args.level, data)
         source = describe(cal.TABLE, cal.calibration_size(kind, method, mode, data))
     factors = np.ones(len(FAULT_NAMES)) if fac is None else fac

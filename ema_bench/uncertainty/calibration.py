@@ -63,7 +63,7 @@ def read(path: Path) -> dict[str, object]:
     return data
 
 
-def shipped() -> dict[str, object]:
+def active_table() -> dict[str, object]:
     """The active calibration: the shipped file, or the user file named by
     ``EMA_BENCH_CALIBRATION`` (:mod:`ema_bench.calibration_files`)."""
     return read(active(TABLE)[0])
@@ -73,7 +73,7 @@ def calibration_size(kind: str, method: str, model_form: str,
                      data: Mapping[str, object] | None = None) -> int:
     """How many calibration instances the active table holds for (kind, method, model form)
     (0 where it has none)."""
-    data = data or shipped()
+    data = data or active_table()
     run = data.get("runs", {}).get(calibration_key(kind, method, model_form))
     if run:
         return int(run["instances"])
@@ -95,7 +95,7 @@ def calibration_factor(kind: str, method: str, model_form: str, level: float,
                        data: Mapping[str, object] | None = None) -> np.ndarray | None:
     """Per-fault factors (4,) for ``level``; None where the active table has no scores for
     this (kind, method, model form): such intervals are uncalibrated, and say so."""
-    scores = (data or shipped())["scores"].get(calibration_key(kind, method, model_form))
+    scores = (data or active_table())["scores"].get(calibration_key(kind, method, model_form))
     if not scores:
         return None
     return np.array([conformal_quantile(scores[n], level) for n in FAULT_NAMES])
