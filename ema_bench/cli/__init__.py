@@ -78,7 +78,12 @@ class CLIError(Exception):
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:
+        if exc.code == 2:   # a usage error, printed in one line: its exit code, as any other
+            return 2
+        raise               # --help, --version
     from ..progress import configure_logging
 
     configure_logging(quiet=getattr(args, "quiet", False))
