@@ -12,14 +12,17 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+# already loaded with the package face, which every command imports
+from ..problem import MAX_BUDGET as PROBLEM_MAX_BUDGET
+
 if TYPE_CHECKING:
     from ..traces import Traces
 
 
 #: The most worker processes any command starts (far above the cores of one machine).
 MAX_WORKERS = 256
-#: The largest evaluation budget of one fit or run (2000 times the leaderboard's 5000).
-MAX_BUDGET = 10_000_000
+#: The largest evaluation budget of one fit or run: the problem's own limit.
+MAX_BUDGET = PROBLEM_MAX_BUDGET
 #: Seeds are non-negative and below 2**63 (numpy's SeedSequence takes them as entropy).
 MAX_SEED = 2**63 - 1
 
