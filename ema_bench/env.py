@@ -93,7 +93,7 @@ def _layout_sizes() -> list[int]:
     return [spec.n_samples() for spec in STANDARD_TESTS]
 
 
-def _observation_space(observation: str) -> spaces.Box:
+def observation_box(observation: str) -> spaces.Box:
     """Finite bounds (check_env warns on infinite ones): sensor spans for traces; for residuals
     a box that also holds the traces returned by ``reset``."""
     sizes = _layout_sizes()
@@ -233,7 +233,7 @@ class EMAFaultEnv(_EpisodeMixin, gym.Env):
         self.observation, self.normalise = observation, bool(normalise)
         self.heterogeneity = float(heterogeneity)
         self.render_mode = None
-        self.observation_space = _observation_space(observation)
+        self.observation_space = observation_box(observation)
         self.action_space = _action_space()
         self._problem = None
 
@@ -300,7 +300,7 @@ class EMAFaultVectorEnv(_EpisodeMixin, VectorEnv):
         self.observation, self.normalise = observation, bool(normalise)
         self.heterogeneity = float(heterogeneity)
         self.render_mode = None
-        self.single_observation_space = _observation_space(observation)
+        self.single_observation_space = observation_box(observation)
         self.single_action_space = _action_space()
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)

@@ -30,7 +30,7 @@ from numba import njit, prange
 
 from .effects import N_EFFECTS
 from .faults import F_GPROP
-from .monitor import monitor_consts
+from .monitor_plant import monitor_consts
 from .physics.ace import CtrlConsts, ace_consts, ace_update
 from .physics.averaged_drive import drive_fast, drive_step_general, sector_consts, sector_index
 from .physics.mechanics import mech_fast, mech_step_general

@@ -108,10 +108,10 @@ def test_solvers_json_and_table():
 @pytest.mark.parametrize("args, message", [
     (("--solver", "no-such-solver"), "unknown solver 'no-such-solver'"),
     (("--case", "huge"), "unknown case 'huge'"),
-    (("--budget", "0"), "budget must be a positive integer"),
-    (("--budget", "-5"), "budget must be a positive integer"),
+    (("--budget", "0"), "argument --budget: must be from 1 to"),
+    (("--budget", "-5"), "argument --budget: must be from 1 to"),
     (("--heterogeneity", "2"), "heterogeneity must lie in [0, 1]"),
-    (("--seed", "-1"), "seed must be a non-negative integer"),
+    (("--seed", "-1"), "argument --seed: must be from 0 to"),
     (("--faults", "Na=2"), "Na=2"),
     (("--faults", "Na"), "expected NAME=VALUE"),
     (("--measured", "missing.csv"), "file not found"),

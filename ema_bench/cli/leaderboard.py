@@ -48,7 +48,15 @@ def _shard(text: str) -> tuple[int, int]:
 
 def register(sub: argparse._SubParsersAction) -> None:
     from ..sweep.executors import EXECUTORS
-    from .args import add_json, add_quiet, comma_list
+    from .args import (
+        MAX_BUDGET,
+        add_json,
+        add_quiet,
+        comma_list,
+        count,
+        seed_number,
+        worker_count,
+    )
 
     p = sub.add_parser("leaderboard",
                        help="compare solvers on the suite's instances x tracks x seeds",
@@ -62,19 +70,20 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "and s00..s03, the --quick default)")
     p.add_argument("--tracks", type=comma_list, default=["reference", "twin"],
                    help="comma-separated tracks (default reference,twin)")
-    p.add_argument("--seeds", type=int, default=None,
+    p.add_argument("--seeds", type=count(1, 1000), default=None,
                    help=f"seeds per (solver, case, track) (default {DEFAULT['seeds']}, "
                         f"quick {QUICK['seeds']})")
-    p.add_argument("--budget", type=int, default=None,
+    p.add_argument("--budget", type=count(1, MAX_BUDGET), default=None,
                    help=f"evaluations per run (default {DEFAULT['budget']}, "
                         f"quick {QUICK['budget']})")
-    p.add_argument("--root-seed", type=int, default=0, help="root seed of the sweep")
+    p.add_argument("--root-seed", type=seed_number, default=0, help="root seed of the sweep")
     p.add_argument("--out", default=None, metavar="DIR",
                    help="output folder, required (with --check: a temp folder by default); "
                         "rerun with the same DIR to resume")
     p.add_argument("--executor", choices=EXECUTORS, default="processes",
                    help="serial, processes (local cores, default) or dask")
-    p.add_argument("--workers", type=int, default=None, help="worker processes (default: cores)")
+    p.add_argument("--workers", type=worker_count, default=None,
+                   help="worker processes (default: cores)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="address of an existing Dask scheduler (default: a LocalCluster)")
     p.add_argument("--shard", type=_shard, default=(0, 1), metavar="i/n",

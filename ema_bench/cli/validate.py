@@ -21,7 +21,7 @@ import argparse
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from .args import add_json
+    from .args import add_json, seed_number
 
     p = sub.add_parser("validate", help="check third-party run records (suite, manifest, "
                                         "budget, re-evaluated fitness)",
@@ -37,7 +37,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "registered solver at the record's identity and compare the trace, "
                         "best_at, final vector and trajectory (catches a solver that reads "
                         "what it was not given, and hits moved earlier)")
-    p.add_argument("--replay-seed", type=int, default=None, metavar="S",
+    p.add_argument("--replay-seed", type=seed_number, default=None, metavar="S",
                    help="seed of the replay sample (default 29)")
     p.add_argument("--replay-key", action="append", default=None, metavar="KEY",
                    help="replay the record with this key (solver|case|track|seed; "

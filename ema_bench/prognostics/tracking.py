@@ -357,9 +357,9 @@ def unit_seed(seed: int, k: int) -> np.random.SeedSequence:
 
 
 def _manifest(campaign: Campaign, info: TrackerInfo, seed: int, out: Path) -> dict:
-    from .. import __version__
     from ..registry import library_versions
     from ..trace_cache import MODEL_VERSION
+    from ..version import __version__
 
     return {"format": FORMAT, "version": VERSION, "tracker": info.name,
             "description": info.description, "config": plain(info.config, default=str),

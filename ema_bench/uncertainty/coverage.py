@@ -15,7 +15,6 @@ from __future__ import annotations
 import functools
 import json
 import math
-import os
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -268,9 +267,17 @@ def calibration_scores(records: Sequence[Mapping]) -> dict[str, list[float]]:
                     1e9) for r in records] for n in FAULT_NAMES}
 
 
-def write_calibration(runs: Mapping[str, Sequence[Mapping]], path: Path = cal.PATH) -> dict:
-    """Write the calibration file from calibration runs (key ``kind|method|model_form`` ->
-    records), keeping the entries of other keys already in the file."""
+def write_calibration(runs: Mapping[str, Sequence[Mapping]], path: Path) -> dict:
+    """Write the calibration table ``path`` (``--calibrate --out DIR``: DIR/calibration.json)
+    from calibration runs (key ``kind|method|model_form`` -> records), keeping the entries of
+    other keys already in that file.  Never the shipped table: ValueError for a path inside
+    the package (:mod:`ema_bench.calibration_files` ships a table, in a checkout)."""
+    from ..calibration_files import inside_package, write_atomic
+
+    if inside_package(path):
+        raise ValueError(f"{path}: inside the package, whose data is read-only; write the "
+                         "calibration elsewhere and ship it with 'python -m "
+                         "ema_bench.calibration_files' in a checkout")
     # read from disk, not the cached copy: another calibration run may have written since
     data = json.loads(Path(path).read_text()) if Path(path).exists() else {"scores": {}}
     data = {"faults": list(FAULT_NAMES), "root_seed": cal.CALIBRATION_ROOT_SEED,
@@ -280,8 +287,6 @@ def write_calibration(runs: Mapping[str, Sequence[Mapping]], path: Path = cal.PA
         data["runs"][key] = {"instances": len(records), **{k: records[0]["settings"][k] for k in
                                                           ("solver", "budget", "level",
                                                            "root_seed")}}
-    tmp = Path(path).with_suffix(".tmp")
-    tmp.write_text(json.dumps(data, indent=0, sort_keys=True) + "\n")
-    os.replace(tmp, path)
-    cal.shipped.cache_clear()
+    write_atomic(Path(path), json.dumps(data, indent=0, sort_keys=True) + "\n")
+    cal.read.cache_clear()
     return data
