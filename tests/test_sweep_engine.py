@@ -111,3 +111,14 @@ def test_routed_records_go_to_their_store_and_a_task_is_done_when_all_have_it(tm
     for m in "ab":
         rows = [json.loads(s) for s in (tmp_path / f"{m}.jsonl").read_text().splitlines()]
         assert sorted(r["key"] for r in rows) == ["x", "y"] and {r["m"] for r in rows} == {m}
+
+
+def test_coverage_in_memory_keeps_each_settings_records_apart():
+    """Two settings of one method (a noise-scale study) without files: each gets its own
+    records (one dict for both gave the first settings the second's records)."""
+    from ema_bench.uncertainty.coverage import Settings, run_methods
+
+    one, two = run_methods([Settings(budget=60), Settings(budget=60, noise_scale=2.0)], 1,
+                           [None, None], quiet=True)
+    assert one[0]["settings"]["noise_scale"] == 1.0
+    assert two[0]["settings"]["noise_scale"] == 2.0

@@ -62,7 +62,8 @@ class WorkerDied(RuntimeError):
 class Failure:
     """Why a task gave no records: the exception's type, message and traceback (formatted in
     the worker, where the frames are), the seconds it ran, and whether the cause lies outside
-    the task (its worker died): such a failure is retried, never recorded."""
+    the task (its worker died): such a failure is retried, not recorded as the task's own
+    (:func:`~ema_bench.sweep.loop.run_sweep` says what happens when it recurs)."""
 
     error_type: str
     error: str

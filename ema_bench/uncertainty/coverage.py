@@ -165,12 +165,16 @@ def run_methods(settings: Sequence[Settings], n: int, paths: Sequence[Path | Non
     runner = functools.partial(_run_many, tuple(settings))
     place = {json.dumps(asdict(st), sort_keys=True): k for k, st in enumerate(settings)}
     what = "/".join(st.method for st in settings)
+    def route(record: dict) -> int:
+        return place[json.dumps(record["settings"], sort_keys=True)]
+
     sweep = dict(executor="serial" if workers <= 1 else "processes", workers=workers,
                  label=f"coverage {settings[0].track}/{what}", unit="instance", quiet=quiet,
-                 route=lambda r: place[json.dumps(r["settings"], sort_keys=True)])
+                 route=route)
     if any(p is None for p in paths):
-        got = run_sweep(tasks, runner, **sweep).records
-        by_key = [{r["key"]: r for r in got}] * len(settings)
+        by_key = [{} for _ in settings]
+        for r in run_sweep(tasks, runner, **sweep).records:
+            by_key[route(r)][r["key"]] = r
     else:
         stores = [sweep_store.Store(p, task_of=_of(st), schema=RECORD_SCHEMA)
                   for p, st in zip(paths, settings)]
