@@ -34,7 +34,7 @@ from numba import njit, prange
 from .effects import EFFECT_INDEX, MAX_DELAY_SAMPLES
 from .faults import F_GPROP
 from .monitor import monitor_consts
-from .physics.ace import CtrlConsts, ace_consts, ace_update, delayed_feedback
+from .physics.ace import CtrlConsts, ace_consts, ace_update
 from .physics.averaged_drive import drive_fast, drive_step_general, sector_consts, sector_index
 from .physics.effect_terms import sensor_terms
 from .physics.mechanics import mech_fast, mech_step_general
@@ -42,6 +42,9 @@ from .physics.mechanics import mech_fast, mech_step_general
 LANES = 8   # candidates per group: two AVX2 vectors of doubles, one AVX-512 vector
 #: Effects a lane can carry: they act on the sensors and the controller, not the plant.
 LANE_EFFECTS: tuple[str, ...] = ("sensor_offset", "current_gain", "delay")
+#: Samples in a lane's delay line: a power of two above the longest delay (a mask, not a
+#: division, wraps the index).
+_DBUF = 1 << int(math.ceil(math.log2(MAX_DELAY_SAMPLES + 2)))
 #: Indices of :data:`LANE_EFFECTS` in an effects vector.
 LANE_EFFECT_INDEX = np.array([EFFECT_INDEX[n] for n in LANE_EFFECTS], dtype=np.int64)
 
@@ -96,7 +99,9 @@ def lane_group(p, X, E, idx, cmd, cmd_start, n_out, out_start, ticks_out, steps_
     alive = np.ones(LANES, dtype=np.bool_)
     done = np.ones(LANES, dtype=np.bool_)
     delay = np.zeros(LANES)
-    buf = np.empty((LANES, MAX_DELAY_SAMPLES + 1))   # each lane's delay line, as the scalar's
+    d0 = np.zeros(LANES, dtype=np.int64)   # whole controller samples of each lane's delay
+    frac = np.zeros(LANES)                 # and the fraction of one
+    buf = np.zeros((_DBUF, LANES))         # the lanes' delay lines, one column each
     delayed = False
     for q in range(LANES):
         F[_O_HALF + q] = mcs[q].half
@@ -106,6 +111,8 @@ def lane_group(p, X, E, idx, cmd, cmd_start, n_out, out_start, ticks_out, steps_
         F[_O_OFF + q] = offset
         F[_O_GAIN + q] = gain
         delay[q] = d
+        d0[q] = int(math.floor(d))
+        frac[q] = d - d0[q]
         delayed |= d > 0.0
     h = dc0.h
     scale = 1.0 / (ticks_out * steps_tick)
@@ -123,11 +130,8 @@ def lane_group(p, X, E, idx, cmd, cmd_start, n_out, out_start, ticks_out, steps_
             for _ in range(ticks_out):
                 for q in range(LANES):   # the loop sees the same (offset) position sensor
                     F[_O_FB + q] = F[_O_THU + q] + F[_O_OFF + q]
-                if delayed:   # the scalar kernel's delay line, lane by lane
-                    for q in range(LANES):
-                        if delay[q] > 0.0:
-                            F[_O_FB + q] = delayed_feedback(buf[q], k_ctrl - cmd_start[t],
-                                                            F[_O_FB + q], delay[q])
+                if delayed:
+                    _delay_lines(F, buf, k_ctrl - cmd_start[t], delay, d0, frac)
                 c = cmd[k_ctrl]
                 k_ctrl += 1
                 for j in range(steps_tick):
@@ -148,6 +152,23 @@ def lane_group(p, X, E, idx, cmd, cmd_start, n_out, out_start, ticks_out, steps_
             done[q] &= alive[q]
     for q in range(LANES):
         ok[idx[q]] = done[q]
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _delay_lines(F, buf, k, delay, d0, frac):
+    """The feedback of every lane through its delay line at controller sample ``k`` of the
+    test: :func:`~ema_bench.physics.ace.delayed_feedback` for ``LANES`` lanes at once (the
+    same samples, the same interpolation, so the same bits; its ring of ``_DBUF`` samples is
+    indexed with a mask instead of a division).  A lane without delay keeps its feedback."""
+    slot = k & (_DBUF - 1)
+    for q in range(LANES):
+        fb = F[_O_FB + q]
+        buf[slot, q] = fb
+        k0 = k - d0[q]
+        k1 = k0 - 1
+        a = buf[0 if k0 < 0 else k0 & (_DBUF - 1), q]   # before the record: its first sample
+        b = buf[0 if k1 < 0 else k1 & (_DBUF - 1), q]
+        F[_O_FB + q] = (1.0 - frac[q]) * a + frac[q] * b if delay[q] > 0.0 else fb
 
 
 @njit(cache=True, inline="always", error_model="numpy")
