@@ -122,7 +122,7 @@ def run_record(problem: Problem, result: SolveResult, *, case: str, track: str, 
     hist = problem.history()
     best = hist["best"]
     known = best_known(case, track, seed, root_seed)
-    truth = problem.score(problem.nominal).truth if problem.has_truth else None
+    truth = problem.score(problem.lower).truth if problem.has_truth else None
     keep = trajectory_indices(hist["x"], hist["fitness"],
                               None if truth is None else np.array(list(truth.values())),
                               [] if known is None else

@@ -154,7 +154,7 @@ def run_paper_ga(problem: Problem, budget: int | None = None, seed: SeedLike = 0
 
     # generation 0: uniform over the bounds, the nominal vector as individual 0
     U0 = rng.random((population, problem.dim))
-    if include_nominal:
+    if include_nominal and problem.start is not None:   # without prior: all uniform
         U0[0] = np.clip(problem.to_unit(problem.start), 0.0, 1.0)  # nominal or warm start
     n0 = min(population, left())
     pop = as_population(U0[:n0], toolbox.evaluate(U0[:n0])) if n0 > 0 else []
