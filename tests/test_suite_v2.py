@@ -175,3 +175,36 @@ def test_conditions_are_the_documented_three():
     assert set(CONDITIONS) == {"prior", "no-prior", "step-only"}
     p = make_v2_problem("small", cond="step-only", track="twin", seed=0, budget=1)
     assert p.measured.tests == ("step",) and p.start is not None
+
+
+def test_gymnasium_v2_takes_tier_and_condition_and_hands_out_no_nominal():
+    import gymnasium as gym
+    from gymnasium.utils.env_checker import check_env
+
+    import ema_bench.env  # noqa: F401  (registers both ids)
+
+    assert "EMAFault/Identify-v1" in gym.registry          # v1 kept
+    env = gym.make("EMAFault/Identify-v2", tier=7, condition="no-prior", track="twin",
+                   budget=6)
+    assert env.action_space.shape == (7,)
+    obs, info = env.reset(seed=3)
+    u = env.unwrapped
+    assert u.problem.label == instance_names(7)[3 % 20] and u.problem.nominal is None
+    assert u.problem.view().start is None
+    assert not {"nominal", "start", "truth"} & set(info)
+    obs2, r, term, trunc, info = env.step(np.full(7, 0.5))
+    assert info["tier"] == 7 and info["condition"] == "no-prior" and len(info["best_x"]) == 7
+    assert r == -u.problem.history()["fitness"][0] and not term and not trunc
+    with pytest.raises(ValueError, match="7 finite numbers"):
+        env.step(np.full(4, 0.5))
+    # step-only: a shorter observation; tier 4 with the prior: v1's problem
+    env = gym.make("EMAFault/Identify-v2", tier=4, condition="step-only", track="twin",
+                   budget=3)
+    obs, _ = env.reset(seed=0)
+    assert obs.shape == env.observation_space.shape and env.unwrapped.problem.start is not None
+    check_env(gym.make("EMAFault/Identify-v2", tier=7, condition="no-prior", track="twin",
+                       budget=50).unwrapped, skip_render_check=True)
+    with pytest.raises(ValueError, match="unknown tier"):
+        gym.make("EMAFault/Identify-v2", tier=9)
+    with pytest.raises(ValueError, match="offered on tiers"):
+        gym.make("EMAFault/Identify-v2", tier=12, condition="step-only")
