@@ -48,9 +48,11 @@ Design choices (MATLAB defaults unless said otherwise):
   floored at ``sqrt(eps)`` (about 1.5e-8; steps move about ``sqrt(step)`` per coordinate).
   If no direction fits in the box at the full step we halve the step until one does, as
   MathWorks' patent on the operator (US7660773B1) describes; ``mutation_fallback="copy"``
-  keeps the parent instead (an alternative, which converged prematurely in our runs).  As the best improves in nearly every generation, the step stays at 1 and mutants
-  explore (no mutant produced a new best in the runs we logged; crossover did).
-* Initial population uniform over the bounds, individual 0 = the nominal vector.
+  keeps the parent instead (an alternative, which converged prematurely in our runs).  As
+  the best improves in nearly every generation, the step stays at 1 and mutants explore (no
+  mutant produced a new best in the runs we logged; crossover did).
+* Initial population uniform over the bounds, individual 0 = the nominal vector (on a
+  problem without prior, suite ``emafdi-v2``: all uniform).
 * Stopping: ``max_generations`` (default none: the budget decides), MATLAB's stall test
   (option ``StallTest`` = ``'averageChange'``, its default)
   (change of the best score over ``stall_generations`` = 50 generations, divided by 50 and by
