@@ -239,3 +239,91 @@ def describe() -> dict[str, object]:
                                                           for e in EFFECTS]))}
                                                  for n, i in tier_instances(t.dim).items()}}
                       for t in TIERS.values()}}
+
+
+# --- run keys: a v2 run's case is "<instance>@<condition>" ---------------------------------
+CASE_SEP = "@"
+
+
+def case_key(name: str, cond: str) -> str:
+    """The case of a v2 run record (``t7-s03@no-prior``; ``small@prior`` is tier 4)."""
+    return f"{name}{CASE_SEP}{cond}"
+
+
+def parse_case(case: str) -> tuple[Instance, Condition]:
+    """The instance and condition of a v2 case key; :class:`SuiteError` if it is not one."""
+    name, sep, cond = str(case).partition(CASE_SEP)
+    if not sep:
+        raise SuiteError(f"{case!r} is not a {SUITE_ID} case (instance{CASE_SEP}condition)")
+    return instance(name), condition(cond)
+
+
+def is_v2_case(case: object) -> bool:
+    try:
+        parse_case(case)   # type: ignore[arg-type]
+    except SuiteError:
+        return False
+    return True
+
+
+def suite_of(case: object) -> str:
+    """The suite a run's case belongs to: v2 for a v2 case key, else v1."""
+    from .suite import SUITE_ID as V1
+
+    return SUITE_ID if is_v2_case(case) else V1
+
+
+def cases(tiers: Sequence[int], conditions: Sequence[str],
+          per_tier: int | None = None) -> list[str]:
+    """The v2 case keys of ``tiers`` x ``conditions`` (the first ``per_tier`` instances of
+    each tier; default all), skipping a condition a tier does not offer."""
+    out = []
+    for d in tiers:
+        t = tier(d)
+        for cond in conditions:
+            c = condition(cond)
+            if c.tests is not None and t.dim not in c.tiers:
+                continue
+            out += [case_key(n, c.name) for n in instance_names(t.dim)[:per_tier]]
+    return out
+
+
+def build_problem(case: str, *, track: str, seed: SeedLike, budget: int):
+    """The problem of a run's case: a v2 case key, or anything
+    :func:`~ema_bench.instances.make_problem` takes (v1)."""
+    if is_v2_case(case):
+        inst, c = parse_case(case)
+        problem = make_v2_problem(inst.name, cond=c.name, track=track, seed=seed,
+                                  budget=budget)
+        problem.label = problem.meta["case"] = case
+        return problem
+    from .instances import make_problem
+
+    return make_problem(case, track=track, seed=seed, budget=budget)
+
+
+def scoring_frame(case: str) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
+    """Names, truth and ranges (physical) of every parameter a v2 case's parameter targets
+    judge: every searched parameter of its tier."""
+    inst, _ = parse_case(case)
+    t = tier(inst.tier)
+    lo = np.r_[LOWER, [EFFECTS[EFFECT_INDEX[n]].lower for n in t.effects]]
+    hi = np.r_[UPPER, [EFFECTS[EFFECT_INDEX[n]].upper for n in t.effects]]
+    return t.names, inst.truth, hi - lo
+
+
+def best_known_for(case: str, track: str, seed: int, root_seed: int = 0) -> dict | None:
+    """The best-known entry (``f_star``, ``f_nominal``, ``x_star``) of a run's case, or None.
+
+    A tier-4 case with the standard tests (``prior``, ``no-prior``) is v1's problem, data
+    and all: v1's shipped entry holds (test_suite_v2 checks the fitness to the bit).  Other
+    v2 cases have none until ``suite_targets_v2.json`` ships (issue 33, stage 2); v1 cases:
+    :func:`ema_bench.suite.best_known`."""
+    from .suite import best_known
+
+    if not is_v2_case(case):
+        return best_known(case, track, seed, root_seed)
+    inst, c = parse_case(case)
+    if inst.tier == 4 and c.tests is None:
+        return best_known(inst.name, track, seed, root_seed)
+    return None

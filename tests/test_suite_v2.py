@@ -208,3 +208,37 @@ def test_gymnasium_v2_takes_tier_and_condition_and_hands_out_no_nominal():
         gym.make("EMAFault/Identify-v2", tier=9)
     with pytest.raises(ValueError, match="offered on tiers"):
         gym.make("EMAFault/Identify-v2", tier=12, condition="step-only")
+
+
+def test_a_v2_sweep_runs_end_to_end_and_validate_refuses_a_doctored_effect(tmp_path):
+    """``ema-bench leaderboard --suite emafdi-v2`` (real command line, tier 7, no prior, one
+    instance, tiny budget): records of suite emafdi-v2 with 7-D vectors and the tier's
+    budget, accepted by ``validate`` (every figure re-derived, trajectory re-evaluated) but
+    for the instances it left out; an effect value doctored in the trajectory is refused."""
+    import json
+    import subprocess
+    import sys
+
+    from ema_bench.leaderboard.validate import check_record, validate
+
+    out = tmp_path / "lb"
+    cmd = [sys.executable, "-m", "ema_bench.cli", "leaderboard", "--suite", "emafdi-v2",
+           "--tiers", "7", "--conditions", "no-prior", "--per-tier", "1", "--solvers",
+           "random", "--tracks", "twin", "--seeds", "1", "--budget-per-dim", "4",
+           "--executor", "serial", "--no-plots", "--quiet", "--out", str(out)]
+    subprocess.run(cmd, check=True, capture_output=True, text=True, timeout=300)
+    recs = [json.loads(line) for line in (out / "runs.jsonl").read_text().splitlines()]
+    assert len(recs) == 1
+    r = recs[0]
+    assert (r["suite"], r["case"], r["budget"], r["evaluations"]) == \
+        ("emafdi-v2", "t7-s00@no-prior", 28, 28)
+    assert len(r["trajectory"][0][2]) == 7
+    assert validate(recs, complete=False) == []
+    lacking = validate(recs)          # one of the tier's 20 instances: incomplete
+    assert len(lacking) == 1 and "lacks 19 runs" in lacking[0].problem
+    bad = json.loads(json.dumps(r))
+    bad["trajectory"][-1][2][5] += 0.01   # the current gain of the best point
+    assert any("fitness" in p for p in check_record(bad))
+    with pytest.raises(subprocess.CalledProcessError):
+        subprocess.run(cmd[:5] + ["--cases", "small", "--out", str(out)], check=True,
+                       capture_output=True, timeout=120)
