@@ -133,7 +133,9 @@ def test_every_zoo_solver_runs_without_prior_and_draws_its_start_from_its_seed()
     """With no prior no solver's first evaluation is the nominal vector, the same seed gives
     the same run, another seed another start."""
     firsts = {}
-    for name in available_solvers():
+    zoo = [n for n, i in available_solvers().items()
+           if i.func.__module__.startswith("ema_bench_solvers")]
+    for name in zoo:
         runs = []
         for s in (1, 1, 2):
             p = make_v2_problem("small", cond="no-prior", track="twin", seed=0, budget=40)
@@ -239,6 +241,20 @@ def test_a_v2_sweep_runs_end_to_end_and_validate_refuses_a_doctored_effect(tmp_p
     bad = json.loads(json.dumps(r))
     bad["trajectory"][-1][2][5] += 0.01   # the current gain of the best point
     assert any("fitness" in p for p in check_record(bad))
+    # a solver that starts at the nominal it was not given (importing it) is refused
+    from ema_bench.leaderboard.tasks import Task, run_task
+    from ema_bench.registry import finish, register_solver
+
+    @register_solver("peek-nominal", description="test: starts at the nominal", library="numpy")
+    def _peek(problem, budget, seed):
+        problem.evaluate(np.r_[NOMINAL, np.zeros(problem.dim - 4)])
+        problem.evaluate(problem.from_unit(np.full(problem.dim, 0.5)))
+        return finish(problem, "peek-nominal", "budget", 0.0)
+
+    peek = run_task(Task("peek-nominal", "t7-s00@no-prior", "twin", 0, 2))
+    assert any("nominal vector" in p for p in check_record(peek))
+    honest = run_task(Task("peek-nominal", "t7-s00@prior", "twin", 0, 2))
+    assert check_record(honest) == []
     with pytest.raises(subprocess.CalledProcessError):
         subprocess.run(cmd[:5] + ["--cases", "small", "--out", str(out)], check=True,
                        capture_output=True, timeout=120)

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..faults import FAULT_NAMES, N_FAULTS, faults_to_dict
+from ..faults import FAULT_NAMES, N_FAULTS, NOMINAL, faults_to_dict
 from ..instances import TRACKS
 from ..manifest import REQUIRED_MANIFEST_KEYS
 from ..records import RECORD_SCHEMA, schema
@@ -120,7 +120,7 @@ def check_record(r: dict, reevaluate: bool = True) -> list[str]:
         bad.append(f"manifest lacks {lacking}")
     if not 1 <= r["evaluations"] <= r["budget"]:
         bad.append(f"{r['evaluations']} evaluations with a budget of {r['budget']}")
-    ev = _check_evidence(r)
+    ev = _check_evidence(r) or _check_no_prior(r)
     if ev:
         return bad + ev
     try:
@@ -131,6 +131,20 @@ def check_record(r: dict, reevaluate: bool = True) -> list[str]:
     if reevaluate and not bad:
         bad += _reevaluate(r, d)
     return bad
+
+
+def _check_no_prior(r: dict) -> list[str]:
+    """A v2 run without prior whose evidence holds the nominal vector: the solver was not
+    handed it, so it took it from elsewhere (``ema_bench.faults.NOMINAL``).  The first
+    evaluation is always in the trajectory, so a start there is always caught (a later,
+    non-improving visit is not evidence the record keeps)."""
+    if schema(r) < 2 or not is_v2_case(r["case"]) or parse_case(r["case"])[1].prior:
+        return []
+    for p in r["trajectory"]:
+        if np.array_equal(np.asarray(p[2][:N_FAULTS], dtype=float), NOMINAL):
+            return [f"evaluation {p[0]} is the nominal vector, which a run without prior is "
+                    "not given"]
+    return []
 
 
 def _check_evidence(r: dict) -> list[str]:
