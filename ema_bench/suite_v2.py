@@ -181,7 +181,8 @@ def instance_names(dim: int | str) -> tuple[str, ...]:
 def instance(name: str, dim: int | str | None = None) -> Instance:
     """An instance by name (``t7-s03``; a v1 name is tier 4)."""
     if dim is None:
-        dim = int(name[1:name.index("-")]) if name.startswith("t") and "-" in name else 4
+        head = name.partition("-")[0]
+        dim = head[1:] if name.startswith("t") and "-" in name else 4
     found = tier_instances(tier(dim).dim).get(name)
     if found is None:
         raise SuiteError(f"unknown tier-{dim} instance {name!r}; known: "
