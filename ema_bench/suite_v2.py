@@ -328,4 +328,19 @@ def best_known_for(case: str, track: str, seed: int, root_seed: int = 0) -> dict
     inst, c = parse_case(case)
     if inst.tier == 4 and c.tests is None:
         return best_known(inst.name, track, seed, root_seed)
-    return None
+    return None   # stage 2 ships the others (keys: target_keys())
+
+
+def target_keys(seeds: int = 10, tracks: Sequence[str] = ("reference", "twin")) -> list[str]:
+    """The ``case|track|seed`` keys whose best-known optimum v2 must ship (for
+    :func:`ema_bench.best_known.compute_targets`'s ``keys``): one per instance and data
+    (``prior`` stands for every condition with the standard tests, whose data are the same;
+    ``step-only`` for the step test alone), none for tier 4 with the standard tests (v1's
+    entries hold) nor for the sanity case."""
+    from .suite import target_key
+
+    data_conds = [c for c in CONDITIONS.values() if c.prior]   # one per distinct data
+    return [target_key(case_key(n, c.name), tr, k)
+            for d in TIERS for c in data_conds
+            if not (d == 4 and c.tests is None) and (c.tests is None or d in c.tiers)
+            for n in instance_names(d) for k in range(seeds) for tr in tracks]

@@ -264,3 +264,17 @@ def test_a_v2_sweep_runs_end_to_end_and_validate_refuses_a_doctored_effect(tmp_p
     assert check_record(honest) == []
     assert main(argv[:3] + ["--cases", "small", "--out", str(out)]) != 0   # v2 takes tiers
     assert main(argv[:3] + ["--tiers", "5", "--out", str(out)]) != 0
+
+
+def test_target_keys_cover_each_distinct_data_once_and_leave_v1s_to_v1():
+    from ema_bench.suite_v2 import best_known_for, target_keys
+
+    keys = target_keys(seeds=2, tracks=("twin",))
+    cases_ = {k.split("|")[0] for k in keys}
+    assert len(keys) == 2 * len(cases_) == 2 * (20 + 20 + 23)   # t7, t12 prior; tier-4 step
+    assert not any(c.startswith("small@prior") or "no-prior" in c for c in cases_)
+    assert "t7-s00@prior" in cases_ and "small@step-only" in cases_
+    assert not any(c.startswith("t7") and "step-only" in c for c in cases_)
+    # tier 4 with the standard tests, prior or not: v1's shipped entry
+    assert best_known_for("s02@no-prior", "twin", 3) == best_known("s02", "twin", 3)
+    assert best_known_for("s02@step-only", "twin", 3) is None
