@@ -278,3 +278,22 @@ def test_target_keys_cover_each_distinct_data_once_and_leave_v1s_to_v1():
     # tier 4 with the standard tests, prior or not: v1's shipped entry
     assert best_known_for("s02@no-prior", "twin", 3) == best_known("s02", "twin", 3)
     assert best_known_for("s02@step-only", "twin", 3) is None
+
+
+def test_v1_records_still_validate_against_v1_and_not_as_v2():
+    """A committed v1 board's records are accepted as suite emafdi-v1 (every figure
+    re-derived; no re-evaluation here, test_validate does that); claiming emafdi-v2 for one
+    of them is refused, as is a v2 case claiming v1."""
+    import json
+    from pathlib import Path
+
+    from ema_bench.leaderboard.validate import check_record
+
+    path = Path(__file__).resolve().parent.parent / "leaderboards" / "quick" / "runs.jsonl"
+    recs = [json.loads(line) for line in path.read_text().splitlines()[:12]]
+    assert all(r["suite"] == "emafdi-v1" for r in recs)
+    assert all(check_record(r, reevaluate=False) == [] for r in recs)
+    r = dict(recs[0], suite="emafdi-v2")
+    assert any("suite version" in p for p in check_record(r, reevaluate=False))
+    r = dict(recs[0], case=f"{recs[0]['case']}@prior")
+    assert any("suite version" in p for p in check_record(r, reevaluate=False))
