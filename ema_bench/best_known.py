@@ -45,6 +45,7 @@ from .suite import (
     instance_names,
     target_key,
 )
+from .suite_v2 import is_v2_case, make_v2_problem, parse_case
 from .sweep.executors import Job
 from .sweep.loop import run_sweep
 from .sweep.schema import req
@@ -63,14 +64,22 @@ MARGIN = 1e-4
 
 def polish(case: str, track: str, seed: int) -> dict[str, object]:
     """The best-known entry of one instance: ``f_star``, ``x_star``, ``f_nominal``,
-    ``fitness_at_truth``, ``bias_range_error`` and the fitness each stage reached."""
+    ``fitness_at_truth``, ``bias_range_error`` and the fitness each stage reached.
+
+    ``case`` is a v1 instance or a v2 instance key (``t7-s03@prior``: the polish runs on
+    the tier's search space, from the truth of every searched parameter; the entry then
+    also holds ``bias_range_errors``, per parameter, from which the reference track's
+    parameter targets are chosen, :func:`~ema_bench.suite_v2.judged_parameters`)."""
     node = run_seed(TARGET_ROOT_SEED, seed)
-    truth = instance_faults(case)
+    v2 = is_v2_case(case)
+    truth = parse_case(case)[0].truth if v2 else instance_faults(case)
+    nominal = np.r_[NOMINAL, np.zeros(truth.size - NOMINAL.size)]   # effects off
     best_x, best_f, stages = truth, np.inf, {}
     first = None
     for solver, budget, start in STAGES:
-        x0 = {"truth": truth, "previous": best_x, "nominal": NOMINAL}[start]
-        problem = make_problem(case, track=track, seed=node, budget=budget, start=x0)
+        x0 = {"truth": truth, "previous": best_x, "nominal": nominal}[start]
+        problem = (_v2_problem(case, track, node, budget, x0) if v2 else
+                   make_problem(case, track=track, seed=node, budget=budget, start=x0))
         if first is None:
             first = problem
         run_solver(solver, problem, budget, seed=node)
@@ -78,12 +87,26 @@ def polish(case: str, track: str, seed: int) -> dict[str, object]:
         stages[solver] = f
         if f < best_f:
             best_x, best_f = x, f
-    f_nominal = float(first.objective.evaluate(NOMINAL[None, :])[0][0])
-    return {"key": target_key(case, track, seed), "f_star": float(best_f),
-            "x_star": faults_to_dict(best_x), "f_nominal": f_nominal,
-            "fitness_at_truth": first.fitness_at_truth(),
-            "bias_range_error": float(np.max(range_error(best_x, truth))),
-            "stages": stages}
+    f_nominal = float(first.objective.evaluate(nominal[None, :])[0][0])
+    entry = {"key": target_key(case, track, seed), "f_star": float(best_f),
+             "x_star": faults_to_dict(best_x), "f_nominal": f_nominal,
+             "fitness_at_truth": first.fitness_at_truth(),
+             "bias_range_error": float(np.max(range_error(best_x[:NOMINAL.size],
+                                                          truth[:NOMINAL.size]))),
+             "stages": stages}
+    if v2:
+        errs = np.abs(best_x - truth) / (first.upper - first.lower)
+        entry["x_star"] = dict(zip(first.names, map(float, best_x)))
+        entry["bias_range_errors"] = dict(zip(first.names, map(float, errs)))
+    return entry
+
+
+def _v2_problem(case: str, track: str, node, budget: int, start: np.ndarray):
+    """A v2 instance's problem for the polish: its tier's space and data (the condition's
+    tests), the prior handed in as the warm start."""
+    inst, cond = parse_case(case)
+    return make_v2_problem(inst.name, cond="prior" if cond.tests is None else cond.name,
+                           track=track, seed=node, budget=budget, start=start)
 
 
 #: The fields of a best-known entry, by JSON type.

@@ -8,9 +8,10 @@ same compiled code as in the reference (:mod:`ema_bench.physics.integrator`,
 :mod:`ema_bench.physics.mechanics`).  One call simulates a batch of candidates, all tests, in
 parallel over candidates (numba ``prange``); batches smaller than twice the thread count run on
 the calling thread, where waking the worker threads would cost more than it saves.  Candidates
-with every effect off run in vectorised lock-step groups of eight
+with no effect on the plant run in vectorised lock-step groups of eight
 (:mod:`ema_bench.monitor_lanes`, about twice the candidates per CPU-second, bit-identical
-outputs); a single candidate, and candidates with effects, run in the scalar kernel here.
+outputs; the sensor and controller effects ride along); a single candidate, and candidates
+with effects on the plant, run in the scalar kernel here.
 """
 
 from __future__ import annotations
@@ -113,7 +114,7 @@ def simulate_monitor(
         Run candidates on numba's threads; default: when the batch has at least twice as
         many candidates as threads (for the lanes: at least one group per thread).
     lanes : bool, optional
-        Run the candidates with every effect off in lock-step groups of eight
+        Run the candidates with no effect on the plant in lock-step groups of eight
         (:mod:`ema_bench.monitor_lanes`: vectorised, bit-identical outputs); default: for
         full groups, and for a last group of at least ``LANES_WORTH`` candidates.  False:
         the scalar kernel for all.
@@ -147,7 +148,7 @@ def simulate_monitor(
 
         groups = lane_groups(grouped)
         par = groups.shape[0] >= numba.get_num_threads() if parallel is None else parallel
-        (lanes_parallel if par else lanes_serial)(p, X, groups, *layout, out, ok)
+        (lanes_parallel if par else lanes_serial)(p, X, E, groups, *layout, out, ok)
     if rest.size == n:
         _scalar(p, X, E, layout, out, ok, parallel)
     elif rest.size:
@@ -167,13 +168,16 @@ LANES_WORTH = 5
 
 
 def _lane_split(E: np.ndarray, lanes: bool | None) -> tuple[np.ndarray, np.ndarray]:
-    """Rows for the lanes (every effect off) and rows for the scalar kernel."""
-    from .monitor_lanes import LANES
+    """Rows for the lanes (no effect on but the lane effects) and rows for the scalar
+    kernel."""
+    from .monitor_lanes import LANE_EFFECT_INDEX, LANES
 
     n = E.shape[0]
     if lanes is False:
         return np.empty(0, dtype=np.int64), np.arange(n)
-    plain = ~E.any(axis=1)
+    plant = np.ones(E.shape[1], dtype=bool)
+    plant[LANE_EFFECT_INDEX] = False
+    plain = ~E[:, plant].any(axis=1)
     rows = np.flatnonzero(plain)
     keep = rows.size - rows.size % LANES
     if rows.size - keep >= (1 if lanes else LANES_WORTH):

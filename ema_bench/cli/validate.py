@@ -50,7 +50,7 @@ def run(args: argparse.Namespace) -> int:
     from ..leaderboard.store import is_error, unique
     from ..leaderboard.validate import LEGACY_UNVERIFIABLE, Finding, validate
     from ..records import schema
-    from ..suite import SUITE_ID
+    from ..suite_v2 import suite_of
     from . import CLIError, print_json
     from .args import read_run_files
 
@@ -58,6 +58,7 @@ def run(args: argparse.Namespace) -> int:
     if not records:
         raise CLIError(f"no run records in {', '.join(args.runs)}")
     found = validate(records, reevaluate=not args.no_reevaluate, complete=not args.partial)
+    SUITE_ID = ", ".join(sorted({suite_of(r.get("case")) for r in records}))  # noqa: N806
     legacy = sum(schema(r) < 2 and not is_error(r) for r in records)
     replayed = _replay(records, "all" if args.replay_key and not args.replay else args.replay,
                        args.replay_seed, set(args.replay_key or ()) or None)

@@ -65,7 +65,8 @@ def write_outputs(records: list[dict], out: Path, command: str, plots: bool = Tr
     failed = failures(records)
     errors = (f" {len(failed)} runs failed with an error (counted as unsuccessful at their "
               "budget; summary.json lists them)." if failed else "")
-    header = (f"Produced by `{command}`: {len(records)} runs, suite {SUITE_ID}, model "
+    suites = ", ".join(sorted({str(r.get("suite", SUITE_ID)) for r in records}))
+    header = (f"Produced by `{command}`: {len(records)} runs, suite {suites}, model "
               f"version {MODEL_VERSION}.{partial}{errors}")
     # scores and the ECDF count failed runs as unsuccessful; what needs a fit, finished runs
     finished = [r for r in records if not is_error(r)]
@@ -102,7 +103,7 @@ def write_outputs(records: list[dict], out: Path, command: str, plots: bool = Tr
     written.append(write_page(records, out / "leaderboard.html", header, images))
     summary["files"] = [str(p) for p in written]
     (out / "summary.json").write_text(jsonio.dumps(
-        {"command": command, "runs": len(records), "suite": SUITE_ID,
+        {"command": command, "runs": len(records), "suite": suites,
          "model_version": MODEL_VERSION, **summary,
          "anytime": [s.row() for s in anytime_scores(records)],
          "scores": [s.row() for s in scores]}, indent=1, default=str))
