@@ -7,12 +7,11 @@ Each test is a probe that failed before the fix; the comment says what the old c
 from __future__ import annotations
 
 import os
-import subprocess
-import sys
 import tracemalloc
 
 import numpy as np
 import pytest
+from inprocess import run_cli
 
 from ema_bench import make_problem
 from ema_bench.cli import build_parser, main
@@ -214,9 +213,8 @@ def monitor_traces_file(tmp_path_factory):
 
 @pytest.mark.parametrize("quiet", [False, True])
 def test_diagnose_reports_its_stages_unless_quiet(monitor_traces_file, quiet):
-    cmd = [sys.executable, "-m", "ema_bench.cli", "diagnose", str(monitor_traces_file),
-           "--budget", "100", "--bootstrap", "10", *(["--quiet"] if quiet else [])]
-    res = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    res = run_cli("diagnose", monitor_traces_file, "--budget", "100", "--bootstrap", "10",
+                  *(["--quiet"] if quiet else []))
     assert res.returncode == 0, res.stderr
     assert "verdict:" in res.stdout
     lines = [ln for ln in res.stderr.splitlines() if "diagnose:" in ln]
