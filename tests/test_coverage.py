@@ -1,6 +1,6 @@
 """Coverage of the fault intervals, measured on real fits (ema_bench.uncertainty.coverage),
 and the command lines that produce and print intervals (``ema-bench coverage``,
-``ema-bench solve --intervals``), run as real subprocesses."""
+``ema-bench solve --intervals``), run as a user types them (test_cli_solve's ``cli``)."""
 
 from __future__ import annotations
 
