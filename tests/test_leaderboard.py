@@ -15,6 +15,7 @@ from pathlib import Path
 
 import evidence
 import pytest
+from inprocess import run_cli
 
 from ema_bench.faults import FAULT_NAMES
 from ema_bench.leaderboard.derive import derived
@@ -26,8 +27,9 @@ QUICK = ["--solvers", "random,cmaes", "--cases", "small,full", "--seeds", "2",
 VOLATILE = {"wall_s", "solver_wall_s", "manifest"}
 
 
-def run(args, **kw):
-    return subprocess.run(CLI + args, capture_output=True, text=True, timeout=600, **kw)
+def run(args):
+    """``ema-bench leaderboard ARGS`` in this process (the kill test spawns its own)."""
+    return run_cli("leaderboard", *args)
 
 
 def stable(records):
@@ -256,10 +258,9 @@ def test_leaderboard_row_replays_from_the_command_line(tmp_path):
                "--no-plots", "--out", str(tmp_path / "lb")])
     assert res.returncode == 0, res.stdout + res.stderr
     row = [r for r in read_records(tmp_path / "lb" / "runs.jsonl") if r["seed"] == 1][0]
-    solve = subprocess.run([sys.executable, "-m", "ema_bench.cli", "solve", "--case", "seeded",
-                            "--track", "reference", "--solver", "powell", "--budget", "80",
-                            "--seed", "1", "--root-seed", "3", "--json", "--no-progress"],
-                           capture_output=True, text=True, timeout=120)
+    solve = run_cli("solve", "--case", "seeded", "--track", "reference", "--solver", "powell",
+                    "--budget", "80", "--seed", "1", "--root-seed", "3", "--json",
+                    "--no-progress")
     assert solve.returncode == 0, solve.stderr
     doc = json.loads(solve.stdout)
     assert doc["truth"] == row["truth"]                 # the same seeded instance
