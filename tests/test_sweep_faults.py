@@ -19,6 +19,7 @@ import time
 from pathlib import Path
 
 import pytest
+from inprocess import CliRun, run_cli
 
 from ema_bench.cli import main
 from ema_bench.leaderboard.executors import execute
@@ -32,10 +33,9 @@ TINY = ["--solvers", "random", "--cases", "small", "--tracks", "twin", "--seeds"
 VOLATILE = {"wall_s", "solver_wall_s"}
 
 
-def cli(*args: str, cwd: Path | None = None, timeout: float = 120
-        ) -> subprocess.CompletedProcess:
-    return subprocess.run([*CLI, *args], capture_output=True, text=True, cwd=cwd,
-                          timeout=timeout)
+def cli(*args: str, cwd: Path | None = None) -> CliRun:
+    """In this process (tests/inprocess.py); the kill tests spawn their own subprocesses."""
+    return run_cli(*args, cwd=cwd)
 
 
 def raw_records(path: Path) -> list[dict]:
