@@ -94,7 +94,7 @@ def _run(row: dict) -> Path:
 
 
 # slow: the oracle of each campaign (about 30 CPU-s for the 200-unit twin one); the fast loop
-# scores hand-built runs with the same score_tracking (tests/test_prognostics_scoring.py)
+# pins score_tracking and its oracle on a small real campaign (test_prognostics_scoring.py)
 @pytest.mark.slow
 @pytest.mark.parametrize("committed", SCORES + PARTIAL,
                          ids=lambda r: f"{r['track']}-{r['tracker']}"
