@@ -63,6 +63,9 @@ def run_cli(*args: str | os.PathLike, cwd: str | os.PathLike | None = None,
 
     argv = [os.fspath(a) for a in args]
     out, err = io.StringIO(), io.StringIO()
+    # a subprocess's stdout is a pipe: argparse wraps its help at COLUMNS or else 80, never at
+    # the width of the terminal pytest may run in (pytest -s)
+    env = {"COLUMNS": os.environ.get("COLUMNS", "80"), **(env or {})}
     with _state_kept(cwd, env), warnings.catch_warnings(record=True) as caught:
         warnings.filters[:] = _STARTUP_FILTERS
         with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
