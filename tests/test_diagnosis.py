@@ -81,6 +81,10 @@ def blind_records():
     return [run_case(c, SEED, Settings()) for c in BLIND]
 
 
+# slow: three cases run blind with the default settings (about 80 CPU-s); the fast loop builds
+# and scores cases with a stand-in diagnosis (test_blind_suite.py) and runs the workflow on the
+# monitor's own data below and on a recording's drift (test_diagnosis_acquisition.py)
+@pytest.mark.slow
 def test_small_blind_suite(blind_records):
     assert [c.category for c in BLIND] == ["two_effect", "monitor_null", "single"]
     pair, null, single = blind_records
@@ -97,6 +101,7 @@ def test_small_blind_suite(blind_records):
     assert s["per_category"]["two_effect"]["both_named"] == 1
 
 
+@pytest.mark.slow
 def test_blind_results_reproduce_the_committed_suite(blind_records):
     committed = {r["key"]: r for r in map(json.loads, COMMITTED.read_text().splitlines())}
     for r in blind_records:
@@ -117,6 +122,9 @@ def test_blind_draw_is_seeded_and_covers_the_kinds():
             assert spec.detect <= abs(value) <= max(abs(spec.lower), spec.upper)
 
 
+# slow, the README's two recipes (about 20 and 60 CPU-s): the fast loop runs the same commands
+# on the monitor's own data (test_data_from_the_monitor_itself_raise_no_alarm)
+@pytest.mark.slow
 def test_the_readme_delay_recipe_names_the_delay(tmp_path):
     """README: `simulate --tests step,sine,sine2 --effect delay=6e-4` then `diagnose`.  The
     delay shows only in the training residual statistics (its held-out fitness stays inside
@@ -148,6 +156,7 @@ def test_the_readme_delay_recipe_names_the_delay(tmp_path):
     assert bad.returncode == 2 and "missing.csv" in bad.stderr
 
 
+@pytest.mark.slow
 def test_the_readme_two_effect_recipe_names_both(tmp_path):
     """README: `--effect sensor_offset=1.5e-3,gear_stiffness=0.7` on the nominal case.  Each
     effect alone makes the held-out fit worse (the offset 3x), so only their joint fit
