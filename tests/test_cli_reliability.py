@@ -211,6 +211,9 @@ def monitor_traces_file(tmp_path_factory):
     return path
 
 
+# slow: two diagnoses that fit candidate effects (about 12 CPU-s each); the fast loop runs
+# diagnose on the monitor's own data (test_diagnosis.py)
+@pytest.mark.slow
 @pytest.mark.parametrize("quiet", [False, True])
 def test_diagnose_reports_its_stages_unless_quiet(monitor_traces_file, quiet):
     res = run_cli("diagnose", monitor_traces_file, "--budget", "100", "--bootstrap", "10",

@@ -95,6 +95,9 @@ def test_ecdf_area_and_ert_recomputed_by_hand(quick):
             float(row["ecdf_area_hi"])
 
 
+# slow: a killed sweep in a fresh interpreter (fast loop: the store's torn-line and resume
+# tests in test_sweep_faults.py)
+@pytest.mark.slow
 def test_interrupted_run_resumes_without_duplicates(quick, tmp_path):
     out = tmp_path / "killed"
     proc = subprocess.Popen(CLI + QUICK + ["--executor", "serial", "--no-plots", "--out",
@@ -121,6 +124,8 @@ def test_interrupted_run_resumes_without_duplicates(quick, tmp_path):
     assert strip(out / "leaderboard_twin.csv") == strip(quick / "leaderboard_twin.csv")
 
 
+# slow: starts process pools or a dask cluster (fast loop: the serial executor's tests)
+@pytest.mark.slow
 @pytest.mark.parametrize("executor", ["processes", "dask"])
 def test_executors_give_identical_records(quick, tmp_path, executor):
     pytest.importorskip("dask.distributed")
@@ -132,6 +137,8 @@ def test_executors_give_identical_records(quick, tmp_path, executor):
                                                                           "runs.jsonl"))
 
 
+# slow: starts process pools or a dask cluster (fast loop: the serial executor's tests)
+@pytest.mark.slow
 def test_dask_reruns_a_task_whose_worker_dies(quick, tmp_path):
     """The first task to start kills its worker process; the scheduler moves it to another
     worker and the records still equal the serial executor's."""
