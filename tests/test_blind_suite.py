@@ -661,6 +661,9 @@ def test_the_committed_third_round_suites_are_the_cases_drawn_and_summed(folder,
         json.loads(dumps(summarise(ordered)))
 
 
+# slow (about 120 CPU-s): the fast loop builds these cases' data with a stand-in diagnosis
+# (test_run_case_builds_the_third_round_data_...) and scores them by hand
+@pytest.mark.slow
 def test_the_third_round_categories_end_to_end_reproduce_the_committed_verdicts():
     """The cheapest committed case of each third-round category (root seed 2034: case 8, a
     cogging effect beside an acquisition fault, 42 CPU-s; case 14, three effects at once,

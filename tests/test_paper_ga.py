@@ -287,6 +287,9 @@ def test_same_seed_same_result():
     assert not np.array_equal(h1["x"][1:], h3["x"][1:])
 
 
+# slow, the GA's accuracy at budget 5000 (four runs, about 10 CPU-s; also left out of the
+# mutation runs): the fast loop checks its operators, seeding, budget and loop by hand
+@pytest.mark.slow
 def test_identifies_the_faults_on_the_twin_track_full():
     p = make_problem("full", track="twin", seed=0, budget=5000)
     res = run_solver("paper-ga", p, seed=0)
@@ -295,6 +298,7 @@ def test_identifies_the_faults_on_the_twin_track_full():
     assert score.success, score.range_error
 
 
+@pytest.mark.slow
 def test_approaches_the_optimum_of_the_small_case():
     # the small case's Na/Fst valley is shallow: at budget 5000 the GA ends inside it, near
     # the optimum, and within 1 % of every range on about half the seeds (measured, seeds

@@ -19,6 +19,7 @@ import time
 from pathlib import Path
 
 import pytest
+from inprocess import CliRun, run_cli
 
 from ema_bench.cli import main
 from ema_bench.leaderboard.run import run_tasks
@@ -34,10 +35,9 @@ TINY = ["--solvers", "random", "--cases", "small", "--tracks", "twin", "--seeds"
 VOLATILE = {"wall_s", "solver_wall_s"}
 
 
-def cli(*args: str, cwd: Path | None = None, timeout: float = 120
-        ) -> subprocess.CompletedProcess:
-    return subprocess.run([*CLI, *args], capture_output=True, text=True, cwd=cwd,
-                          timeout=timeout)
+def cli(*args: str, cwd: Path | None = None) -> CliRun:
+    """In this process (tests/inprocess.py); the kill tests spawn their own subprocesses."""
+    return run_cli(*args, cwd=cwd)
 
 
 def raw_records(path: Path) -> list[dict]:
@@ -77,7 +77,9 @@ def exits_on_seed_1(task):
 
 # --- a run that fails --------------------------------------------------------------------
 
-@pytest.mark.parametrize("executor", ["serial", "processes", "dask"])
+@pytest.mark.parametrize("executor", ["serial",
+                                      pytest.param("processes", marks=pytest.mark.slow),
+                                      pytest.param("dask", marks=pytest.mark.slow)])
 def test_a_run_that_raises_is_recorded_and_the_others_go_on(executor):
     if executor == "dask":
         pytest.importorskip("dask.distributed")
@@ -95,6 +97,8 @@ def test_a_run_that_raises_is_recorded_and_the_others_go_on(executor):
     assert all("status" not in records[k] and records[k]["evaluations"] == 30 for k in (0, 2))
 
 
+# slow: starts process pools or a dask cluster (fast loop: the serial executor's tests)
+@pytest.mark.slow
 def test_a_run_whose_worker_always_dies_is_scored_as_failed_and_a_rerun_completes(tmp_path):
     """A run that kills its worker process breaks the whole pool; the runs that were in
     flight with it run again one at a time and are recorded; the culprit is run again twice
@@ -219,6 +223,8 @@ def _cmdline(pid: int) -> str:
         return ""
 
 
+# slow: kills a sweep and its process pool (fast loop: the torn-line repair and full-disk tests)
+@pytest.mark.slow
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc")
 def test_workers_exit_when_the_sweep_is_killed_and_a_rerun_completes(tmp_path):
     out = tmp_path / "lb"
@@ -295,6 +301,8 @@ def test_a_broken_last_line_is_repaired_on_rerun(tmp_path, tail):
     assert stable(assert_each_run_once(runs, 3)) == want
 
 
+# slow: two sweeps in fresh interpreters racing for one folder
+@pytest.mark.slow
 def test_two_sweeps_on_one_folder_run_each_run_once(tmp_path):
     out = tmp_path / "lb"
     args = ["leaderboard", "--solvers", "random", "--cases", "small,full", "--tracks", "twin",
