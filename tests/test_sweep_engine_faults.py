@@ -110,6 +110,8 @@ def workers_of(proc: subprocess.Popen) -> list[int]:
     return [k for k in _children(proc.pid) if "spawn_main" in _cmdline(k)]
 
 
+# slow: starts worker processes (fast loop: the full-disk and torn-line faults, serial)
+@pytest.mark.slow
 @pytest.mark.parametrize("command", COMMANDS)
 def test_a_killed_worker_is_replaced_and_its_task_run_again(tmp_path, command, reference):
     """SIGKILL one of two workers mid-sweep: the sweep goes on, runs the killed worker's task
@@ -128,6 +130,8 @@ def test_a_killed_worker_is_replaced_and_its_task_run_again(tmp_path, command, r
     assert records(command, out) == reference(command)
 
 
+# slow: starts worker processes (fast loop: the full-disk and torn-line faults, serial)
+@pytest.mark.slow
 @pytest.mark.parametrize("command", COMMANDS)
 def test_a_killed_sweep_leaves_no_worker_and_a_rerun_completes(tmp_path, command, reference):
     out = tmp_path / "out"
@@ -193,6 +197,8 @@ def test_a_torn_last_line_is_cut_and_its_task_run_again(tmp_path, command, refer
     assert records(command, out) == reference(command)
 
 
+# slow: starts worker processes (fast loop: the full-disk and torn-line faults, serial)
+@pytest.mark.slow
 @pytest.mark.parametrize("command", COMMANDS)
 def test_two_processes_on_one_folder_run_each_task_once(tmp_path, command, reference):
     out = tmp_path / "out"
@@ -204,6 +210,8 @@ def test_two_processes_on_one_folder_run_each_task_once(tmp_path, command, refer
     assert records(command, out) == reference(command)
 
 
+# slow: starts worker processes (fast loop: the full-disk and torn-line faults, serial)
+@pytest.mark.slow
 def test_a_tracker_that_kills_its_worker_gets_no_failure_line_and_no_pass(tmp_path):
     """A tracker whose worker dies on a unit (every time) is not recorded as failed there
     (that is for a tracker's own error): the unit is left untracked, named in one line
