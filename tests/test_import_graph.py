@@ -165,3 +165,15 @@ def test_consumers_do_not_import_each_other(graph):
     arrows = {(a, b) for a, b, _, _ in edges
               if consumer(a) and consumer(b) and consumer(a) != consumer(b)}
     assert arrows == ALLOWED_CONSUMER_ARROWS
+
+
+def test_every_subpackage_is_installed():
+    """pyproject lists the packages setuptools installs: a new folder missing there imports
+    from a checkout and is absent from a wheel (ema_bench.sweep was, once, for a merge)."""
+    import tomllib
+
+    listed = set(tomllib.loads((PACKAGE.parent / "pyproject.toml").read_text())
+                 ["tool"]["setuptools"]["packages"])
+    on_disk = {".".join(f.parent.relative_to(PACKAGE.parent).parts)
+               for f in PACKAGE.rglob("__init__.py")}
+    assert on_disk - listed == set()
