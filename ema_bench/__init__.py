@@ -13,11 +13,10 @@ it too when gymnasium is already imported.  Gymnasium is not imported otherwise:
 that the command line and the solvers do not need.
 """
 
-__version__ = "0.2.0"
-
 import sys as _sys
 
 from .jit_cache import ensure_fresh as _ensure_fresh  # noqa: E402
+from .version import __version__  # noqa: F401  (the package's version, read here)
 
 _ensure_fresh()   # before any kernel loads: numba alone would miss edits of inlined modules
 if "gymnasium" in _sys.modules:

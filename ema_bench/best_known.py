@@ -14,8 +14,10 @@ twin track ``f*`` lies below the fitness of the truth (the noise moves the optim
 reference track ``x*`` shows the model-form bias (``bias_range_error``: its largest distance
 from the truth in fractions of range).
 
-``ema-bench targets`` regenerates ``ema_bench/suite_targets.json`` (resumable: entries are
-appended to ``<out>.partial.jsonl`` as they finish).  A test checks that a short rerun does not
+``ema-bench targets`` regenerates ``ema_bench/suite_targets.json`` on the sweep engine
+(:func:`~ema_bench.sweep.loop.run_sweep`: entries are appended to ``<out>.partial.jsonl`` as
+they finish, type-checked when read back; a rerun or a second process runs exactly the
+instances missing).  A test checks that a short rerun does not
 beat a shipped ``f*`` by more than :data:`MARGIN`.
 """
 
@@ -23,15 +25,12 @@ from __future__ import annotations
 
 import json
 import os
-from collections.abc import Iterator
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
 import numpy as np
 
 from .faults import NOMINAL, faults_to_dict
 from .instances import TRACKS, make_problem
-from .progress import progress
 from .registry import run_solver
 from .scoring import range_error
 from .seeding import run_seed
@@ -46,6 +45,11 @@ from .suite import (
     instance_names,
     target_key,
 )
+from .suite_v2 import is_v2_case, make_v2_problem, parse_case
+from .sweep.executors import Job
+from .sweep.loop import run_sweep
+from .sweep.schema import req
+from .sweep.store import Store
 
 #: (solver, budget, start) of the polishing stages; start "truth", "previous" or "nominal"
 STAGES: tuple[tuple[str, int, str], ...] = (
@@ -60,14 +64,22 @@ MARGIN = 1e-4
 
 def polish(case: str, track: str, seed: int) -> dict[str, object]:
     """The best-known entry of one instance: ``f_star``, ``x_star``, ``f_nominal``,
-    ``fitness_at_truth``, ``bias_range_error`` and the fitness each stage reached."""
+    ``fitness_at_truth``, ``bias_range_error`` and the fitness each stage reached.
+
+    ``case`` is a v1 instance or a v2 instance key (``t7-s03@prior``: the polish runs on
+    the tier's search space, from the truth of every searched parameter; the entry then
+    also holds ``bias_range_errors``, per parameter, from which the reference track's
+    parameter targets are chosen, :func:`~ema_bench.suite_v2.judged_parameters`)."""
     node = run_seed(TARGET_ROOT_SEED, seed)
-    truth = instance_faults(case)
+    v2 = is_v2_case(case)
+    truth = parse_case(case)[0].truth if v2 else instance_faults(case)
+    nominal = np.r_[NOMINAL, np.zeros(truth.size - NOMINAL.size)]   # effects off
     best_x, best_f, stages = truth, np.inf, {}
     first = None
     for solver, budget, start in STAGES:
-        x0 = {"truth": truth, "previous": best_x, "nominal": NOMINAL}[start]
-        problem = make_problem(case, track=track, seed=node, budget=budget, start=x0)
+        x0 = {"truth": truth, "previous": best_x, "nominal": nominal}[start]
+        problem = (_v2_problem(case, track, node, budget, x0) if v2 else
+                   make_problem(case, track=track, seed=node, budget=budget, start=x0))
         if first is None:
             first = problem
         run_solver(solver, problem, budget, seed=node)
@@ -75,17 +87,41 @@ def polish(case: str, track: str, seed: int) -> dict[str, object]:
         stages[solver] = f
         if f < best_f:
             best_x, best_f = x, f
-    f_nominal = float(first.objective.evaluate(NOMINAL[None, :])[0][0])
-    return {"key": target_key(case, track, seed), "f_star": float(best_f),
-            "x_star": faults_to_dict(best_x), "f_nominal": f_nominal,
-            "fitness_at_truth": first.fitness_at_truth(),
-            "bias_range_error": float(np.max(range_error(best_x, truth))),
-            "stages": stages}
+    f_nominal = float(first.objective.evaluate(nominal[None, :])[0][0])
+    entry = {"key": target_key(case, track, seed), "f_star": float(best_f),
+             "x_star": faults_to_dict(best_x), "f_nominal": f_nominal,
+             "fitness_at_truth": first.fitness_at_truth(),
+             "bias_range_error": float(np.max(range_error(best_x[:NOMINAL.size],
+                                                          truth[:NOMINAL.size]))),
+             "stages": stages}
+    if v2:
+        errs = np.abs(best_x - truth) / (first.upper - first.lower)
+        entry["x_star"] = dict(zip(first.names, map(float, best_x)))
+        entry["bias_range_errors"] = dict(zip(first.names, map(float, errs)))
+    return entry
 
 
-def _polish_key(key: str) -> dict[str, object]:
-    case, track, seed = key.split("|")
+def _v2_problem(case: str, track: str, node, budget: int, start: np.ndarray):
+    """A v2 instance's problem for the polish: its tier's space and data (the condition's
+    tests), the prior handed in as the warm start."""
+    inst, cond = parse_case(case)
+    return make_v2_problem(inst.name, cond="prior" if cond.tests is None else cond.name,
+                           track=track, seed=node, budget=budget, start=start)
+
+
+#: The fields of a best-known entry, by JSON type.
+ENTRY_SCHEMA = {"key": req("str"), "f_star": req("number"), "x_star": req("dict"),
+                "f_nominal": req("number"), "fitness_at_truth": req("number"),
+                "bias_range_error": req("number"), "stages": req("dict")}
+
+
+def _polish_key(job: Job) -> dict[str, object]:
+    case, track, seed = job.key.split("|")
     return polish(case, track, int(seed))
+
+
+def _key(record: dict) -> str:
+    return record["key"]
 
 
 def all_keys() -> list[str]:
@@ -97,28 +133,6 @@ def all_keys() -> list[str]:
             for k in range(TARGET_SEEDS) for c in group for t in TRACKS]
 
 
-def _done(partial: Path) -> dict[str, dict]:
-    if not partial.exists():
-        return {}
-    out = {}
-    for line in partial.read_text().splitlines():
-        try:
-            e = json.loads(line)
-        except json.JSONDecodeError:   # a torn last line of an interrupted run
-            continue
-        out[e["key"]] = e
-    return out
-
-
-def _run(keys: list[str], workers: int) -> Iterator[dict]:
-    if workers <= 1:
-        yield from map(_polish_key, keys)
-        return
-    with ProcessPoolExecutor(workers) as pool:
-        for fut in as_completed([pool.submit(_polish_key, k) for k in keys]):
-            yield fut.result()
-
-
 def compute_targets(out: Path, workers: int | None = None, quiet: bool = False,
                     keys: list[str] | None = None) -> dict:
     """Polish every instance (resuming from ``<out>.partial.jsonl``) and write ``out``."""
@@ -126,22 +140,19 @@ def compute_targets(out: Path, workers: int | None = None, quiet: bool = False,
     out = Path(out)
     partial = out.with_name(out.name + ".partial.jsonl")
     keys = all_keys() if keys is None else keys
-    done = _done(partial)
-    todo = [k for k in keys if k not in done]
-    with open(partial, "a") as fh, progress(len(todo), "best-known optima", "instance",
-                                            quiet=quiet) as bar:
-        for entry in _run(todo, workers or os.cpu_count() or 1):
-            fh.write(json.dumps(entry) + "\n")
-            fh.flush()
-            done[entry["key"]] = entry
-            bar.update(entry["key"])
+    workers = workers or os.cpu_count() or 1
+    with Store(partial, identity=_key, schema=ENTRY_SCHEMA) as store:
+        run_sweep([Job(k, k) for k in keys], _polish_key,
+                  [store], executor="serial" if workers == 1 else "processes",
+                  workers=workers, label="best-known optima", unit="instance", quiet=quiet)
+        done = {r["key"]: r for r in store.records}
     data = {"suite": SUITE_ID, "model_version": SUITE_MODEL_VERSION,
             "method": {"stages": [list(s) for s in STAGES], "root_seed": TARGET_ROOT_SEED,
                        "command": "ema-bench targets"},
             "entries": {k: {f: done[k][f] for f in ("f_star", "f_nominal", "x_star",
                                                     "fitness_at_truth", "bias_range_error")}
                         for k in keys if k in done}}
-    tmp = out.with_name(out.name + ".tmp")
+    tmp = out.with_name(f"{out.name}.{os.getpid()}.tmp")   # two runs on one file both write
     tmp.write_text(json.dumps(data, indent=0, sort_keys=True) + "\n")
     os.replace(tmp, out)
     return data

@@ -42,6 +42,9 @@ are candidates for the *same* problem, and one step evaluates them all in one ba
 Version history (the id's version follows the benchmark suite, :mod:`~ema_bench.suite`; a
 change to the models or the instances is a new version, as with Gymnasium's own ids):
 
+- ``v2`` (suite ``emafdi-v2``, :mod:`ema_bench.env_v2`): tiers of dimension (``tier=4, 7,
+  12``: the faults, then effects fitted with them) and conditions (``condition="prior"``,
+  ``"no-prior"``, ``"step-only"``) as keyword arguments; ``v1`` stays registered unchanged.
 - ``v1`` (suite ``emafdi-v1``, model version 2, ema-bench 0.2.0): the reference model's
   hysteresis is analog, the monitor integrates without its 50 us discretisation bias; cases
   include the suite's seeded instances ``s00`` .. ``s19``.
@@ -93,7 +96,7 @@ def _layout_sizes() -> list[int]:
     return [spec.n_samples() for spec in STANDARD_TESTS]
 
 
-def _observation_space(observation: str) -> spaces.Box:
+def observation_box(observation: str) -> spaces.Box:
     """Finite bounds (check_env warns on infinite ones): sensor spans for traces; for residuals
     a box that also holds the traces returned by ``reset``."""
     sizes = _layout_sizes()
@@ -233,7 +236,7 @@ class EMAFaultEnv(_EpisodeMixin, gym.Env):
         self.observation, self.normalise = observation, bool(normalise)
         self.heterogeneity = float(heterogeneity)
         self.render_mode = None
-        self.observation_space = _observation_space(observation)
+        self.observation_space = observation_box(observation)
         self.action_space = _action_space()
         self._problem = None
 
@@ -300,7 +303,7 @@ class EMAFaultVectorEnv(_EpisodeMixin, VectorEnv):
         self.observation, self.normalise = observation, bool(normalise)
         self.heterogeneity = float(heterogeneity)
         self.render_mode = None
-        self.single_observation_space = _observation_space(observation)
+        self.single_observation_space = observation_box(observation)
         self.single_action_space = _action_space()
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
@@ -349,11 +352,12 @@ class EMAFaultVectorEnv(_EpisodeMixin, VectorEnv):
 
 
 def register() -> None:
-    """Register ``EMAFault/Identify-v1`` with Gymnasium (idempotent)."""
-    if ENV_ID in gym.registry:
-        return
-    gym.register(id=ENV_ID, entry_point="ema_bench.env:EMAFaultEnv",
-                 vector_entry_point="ema_bench.env:EMAFaultVectorEnv")
+    """Register ``EMAFault/Identify-v1`` and ``-v2`` with Gymnasium (idempotent)."""
+    if ENV_ID not in gym.registry:
+        gym.register(id=ENV_ID, entry_point="ema_bench.env:EMAFaultEnv",
+                     vector_entry_point="ema_bench.env:EMAFaultVectorEnv")
+    if "EMAFault/Identify-v2" not in gym.registry:
+        gym.register(id="EMAFault/Identify-v2", entry_point="ema_bench.env_v2:EMAFaultEnvV2")
 
 
 register()

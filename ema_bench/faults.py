@@ -1,7 +1,7 @@
 """Fault parameters, the paper's damage cases, seeded random instances and optional effects.
 
-The fault table is DESIGN.md section 3 / the paper's Table 1.  A fault vector is always a
-``float64`` array in ``FAULT_NAMES`` order, in physical units.
+The fault table is the paper's Table 1 (the project's design notes, section 3).  A fault
+vector is always a ``float64`` array in ``FAULT_NAMES`` order, in physical units.
 """
 
 from __future__ import annotations

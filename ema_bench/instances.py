@@ -8,7 +8,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from .effects import effects_to_dict, effects_vector
+from .effects import EFFECT_INDEX, effects_to_dict, effects_vector
 from .faults import FaultError, check_faults, faults_to_dict, random_faults
 from .monitor import simulate_monitor
 from .objective import KNOWN_TESTS, ProblemError
@@ -92,6 +92,8 @@ def make_problem(
     tests: Sequence[str] | None = None,
     start: np.ndarray | None = None,
     sample_weights: Mapping[str, np.ndarray] | None = None,
+    prior: bool = True,
+    score_effects: bool = False,
 ) -> Problem:
     """Build an identification problem.
 
@@ -128,12 +130,17 @@ def make_problem(
     sample_weights : mapping, optional
         Per test, (n_samples, 4) weight multipliers of ``measured``'s samples (only with
         ``measured``; see :class:`~ema_bench.objective.Objective`).
+    prior : bool
+        False: no nominal vector and no start for the solver (see :class:`Problem`).
+    score_effects : bool
+        The hidden truth holds the ``augment`` effects' true values after the faults, so
+        parameter targets judge them too (suite ``emafdi-v2``'s higher tiers).
     """
     if measured is not None:
         if not isinstance(measured, Traces):
             raise ProblemError("measured must be a Traces (see ema_bench.load_traces)")
         return Problem(measured, budget, normalise=normalise, augment=augment, start=start,
-                       sample_weights=sample_weights,
+                       sample_weights=sample_weights, prior=prior,
                        label=str(measured.meta.get("source", "measured")), track="measured",
                        _meta={"source": measured.meta.get("source")})
     if sample_weights is not None:
@@ -163,5 +170,7 @@ def make_problem(
                       meta={k: v for k, v in measured.meta.items() if k in _PUBLIC_META})
     # public: nothing a solver could use to recover the truth (no seed, no effects)
     meta = {"case": label, "track": track}
+    if score_effects:
+        truth = np.r_[truth, [e[EFFECT_INDEX[n]] for n in augment]]
     return Problem(measured, budget, normalise=normalise, label=label, track=track,
-                   augment=augment, start=start, _truth=truth, _meta=meta)
+                   augment=augment, start=start, prior=prior, _truth=truth, _meta=meta)

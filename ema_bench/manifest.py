@@ -15,7 +15,7 @@ import subprocess
 from collections.abc import Iterable
 from pathlib import Path
 
-from . import __version__
+from .version import __version__
 
 #: The keys a validator may demand of a record's manifest.
 REQUIRED_MANIFEST_KEYS: tuple[str, ...] = (

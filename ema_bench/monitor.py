@@ -8,9 +8,10 @@ same compiled code as in the reference (:mod:`ema_bench.physics.integrator`,
 :mod:`ema_bench.physics.mechanics`).  One call simulates a batch of candidates, all tests, in
 parallel over candidates (numba ``prange``); batches smaller than twice the thread count run on
 the calling thread, where waking the worker threads would cost more than it saves.  Candidates
-with every effect off run in vectorised lock-step groups of eight
+with no effect on the plant run in vectorised lock-step groups of eight
 (:mod:`ema_bench.monitor_lanes`, about twice the candidates per CPU-second, bit-identical
-outputs); a single candidate, and candidates with effects, run in the scalar kernel here.
+outputs; the sensor and controller effects ride along); a single candidate, and candidates
+with effects on the plant, run in the scalar kernel here.
 """
 
 from __future__ import annotations
@@ -23,50 +24,16 @@ import numpy as np
 from numba import njit, prange
 
 from .effects import N_EFFECTS, effects_to_dict
-from .faults import F_BLK, F_FST, F_NA, check_faults, faults_to_dict
-from .params import DEFAULT_PARAMS, P_PP, EMAParams
-from .physics.averaged_drive import drive_consts, drive_step, sector_index
-from .physics.effect_terms import cogging_torque, plant_terms
+from .faults import check_faults, faults_to_dict
+from .monitor_plant import monitor_consts, monitor_init, monitor_step
+from .params import DEFAULT_PARAMS, EMAParams
 from .physics.integrator import integrate
-from .physics.load import hinge_extra
-from .physics.mechanics import mech_consts, mech_step
 from .protocol import STANDARD_TESTS, TestSpec, steps_per
 from .reference import SimulationError
 from .threads import configure_threads
 from .traces import OUTPUT_DT, Traces
 
 configure_threads()
-
-
-# --- the monitor plant --------------------------------------------------------------------
-@njit(cache=True, error_model="numpy")
-def monitor_consts(p, x, e, dt):
-    """Per-candidate constants of the monitor plant (drive, mechanics, effects)."""
-    zeta, v_dc, r_scale, ks_scale, c_visc, k_aero, cog, quad, hfric = plant_terms(e, p)
-    dc = drive_consts(p, x[F_NA], zeta, r_scale, v_dc, dt)
-    mc = mech_consts(p, x[F_FST], x[F_BLK], c_visc, k_aero, ks_scale, dt)
-    return dc, mc, cog, p[P_PP], quad, hfric
-
-
-@njit(cache=True, error_model="numpy")
-def monitor_init(pc):
-    """Drive state at rest: no current, the sector of angle 0, no commutation in progress."""
-    return 0.0, sector_index(0.0, pc[3]), -1.0, 0.0, 0.0, 0.0, 0.0
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def monitor_step(th_m, w_m, th_u, w_u, ps, i_ref, pc):
-    """One 50 microsecond step of the monitor plant (see :mod:`ema_bench.physics.integrator`)."""
-    dc, mc, cog, pp, quad, hfric = pc
-    cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr = ps
-    (cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr, t_mean, t_start, t_end, t_rip,
-     i_eq) = drive_step(cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr, i_ref, th_m, w_m, dc)
-    t_cog = cogging_torque(cog, th_m + 0.5 * dc.h * w_m, pp)
-    th_m, w_m, th_u, w_u, m_thm, m_wm, m_thu = mech_step(
-        th_m, w_m, th_u, w_u, t_mean + t_cog, t_start + t_cog, t_end + t_cog, t_rip,
-        hinge_extra(w_u, quad, hfric), mc)
-    return (th_m, w_m, th_u, w_u, (cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr), m_thu, m_thm,
-            m_wm, i_eq)
 
 
 # --- batched kernels ----------------------------------------------------------------------
@@ -147,7 +114,7 @@ def simulate_monitor(
         Run candidates on numba's threads; default: when the batch has at least twice as
         many candidates as threads (for the lanes: at least one group per thread).
     lanes : bool, optional
-        Run the candidates with every effect off in lock-step groups of eight
+        Run the candidates with no effect on the plant in lock-step groups of eight
         (:mod:`ema_bench.monitor_lanes`: vectorised, bit-identical outputs); default: for
         full groups, and for a last group of at least ``LANES_WORTH`` candidates.  False:
         the scalar kernel for all.
@@ -181,7 +148,7 @@ def simulate_monitor(
 
         groups = lane_groups(grouped)
         par = groups.shape[0] >= numba.get_num_threads() if parallel is None else parallel
-        (lanes_parallel if par else lanes_serial)(p, X, groups, *layout, out, ok)
+        (lanes_parallel if par else lanes_serial)(p, X, E, groups, *layout, out, ok)
     if rest.size == n:
         _scalar(p, X, E, layout, out, ok, parallel)
     elif rest.size:
@@ -201,13 +168,16 @@ LANES_WORTH = 5
 
 
 def _lane_split(E: np.ndarray, lanes: bool | None) -> tuple[np.ndarray, np.ndarray]:
-    """Rows for the lanes (every effect off) and rows for the scalar kernel."""
-    from .monitor_lanes import LANES
+    """Rows for the lanes (no effect on but the lane effects) and rows for the scalar
+    kernel."""
+    from .monitor_lanes import LANE_EFFECT_INDEX, LANES
 
     n = E.shape[0]
     if lanes is False:
         return np.empty(0, dtype=np.int64), np.arange(n)
-    plain = ~E.any(axis=1)
+    plant = np.ones(E.shape[1], dtype=bool)
+    plant[LANE_EFFECT_INDEX] = False
+    plain = ~E[:, plant].any(axis=1)
     rows = np.flatnonzero(plain)
     keep = rows.size - rows.size % LANES
     if rows.size - keep >= (1 if lanes else LANES_WORTH):

@@ -16,9 +16,12 @@ array at fixed offsets (``_O_*``).  With it the compiler proves the lanes indepe
 vectorises; with one array per quantity it needs a runtime alias check per pair of arrays,
 gives up beyond a handful and the loop stays scalar (``benchmarks/vectorisation_probe.py``).
 
-Only candidates with every effect off take the lanes: eccentricity, cogging, the feedback delay
-and the decoy hinge terms live in the general code (:mod:`ema_bench.monitor` routes the others
-to the scalar kernel).
+Candidates whose only effects are the sensor and controller ones (:data:`LANE_EFFECTS`: the
+position-sensor offset, the current-channel gain and the feedback delay, which act outside the
+plant) take the lanes: the offset and gain per lane in the vector loops, the delay's ring
+buffer lane by lane once per controller sample.  Effects on the plant (eccentricity, cogging,
+friction, springs, the decoys) change constants the vector loops share between lanes, so
+:mod:`ema_bench.monitor` routes those candidates to the scalar kernel.
 """
 
 from __future__ import annotations
@@ -28,22 +31,30 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .effects import N_EFFECTS
+from .effects import EFFECT_INDEX, MAX_DELAY_SAMPLES
 from .faults import F_GPROP
-from .monitor import monitor_consts
+from .monitor_plant import monitor_consts
 from .physics.ace import CtrlConsts, ace_consts, ace_update
 from .physics.averaged_drive import drive_fast, drive_step_general, sector_consts, sector_index
+from .physics.effect_terms import sensor_terms
 from .physics.mechanics import mech_fast, mech_step_general
 
 LANES = 8   # candidates per group: two AVX2 vectors of doubles, one AVX-512 vector
+#: Effects a lane can carry: they act on the sensors and the controller, not the plant.
+LANE_EFFECTS: tuple[str, ...] = ("sensor_offset", "current_gain", "delay")
+#: Samples in a lane's delay line: a power of two above the longest delay (a mask, not a
+#: division, wraps the index).
+_DBUF = 1 << int(math.ceil(math.log2(MAX_DELAY_SAMPLES + 2)))
+#: Indices of :data:`LANE_EFFECTS` in an effects vector.
+LANE_EFFECT_INDEX = np.array([EFFECT_INDEX[n] for n in LANE_EFFECTS], dtype=np.int64)
 
 # Offsets (in blocks of LANES) of the lanes' quantities in the flat array: state, then the
 # fault-dependent constants, then per-step values handed from the vector loops to the
 # scalar fall-backs.
 (_O_THM, _O_WM, _O_THU, _O_WU, _O_CUR, _O_TRT0, _O_TRLEN, _O_KTF, _O_KTT, _O_TRCR, _O_INTEG,
  _O_THLO, _O_KT, _O_RP, _O_IL, _O_HALF, _O_FDYN, _O_KPOS, _O_IREF, _O_TM, _O_TM0, _O_TM1,
- _O_TRIP, _O_IEQ, _O_DSLOW, _O_MSLOW, _O_A0, _O_A1, _O_A2, _O_A3, _N_BLOCKS) = \
-    [LANES * i for i in range(31)]
+ _O_TRIP, _O_IEQ, _O_DSLOW, _O_MSLOW, _O_A0, _O_A1, _O_A2, _O_A3, _O_OFF, _O_GAIN, _O_FB,
+ _N_BLOCKS) = [LANES * i for i in range(34)]
 
 
 @njit(cache=True, error_model="numpy")
@@ -63,33 +74,46 @@ def _rest(F, M, dc, q):
 
 
 @njit(cache=True, error_model="numpy")
-def lane_group(p, X, idx, cmd, cmd_start, n_out, out_start, ticks_out, steps_tick, dt, out,
+def lane_group(p, X, E, idx, cmd, cmd_start, n_out, out_start, ticks_out, steps_tick, dt, out,
                ok):
-    """Every test of the ``LANES`` candidates ``X[idx]`` in lock-step (effects off).
+    """Every test of the ``LANES`` candidates ``X[idx]`` in lock-step (effects ``E[idx]``:
+    only :data:`LANE_EFFECTS` may be on).
 
     Lane ``q`` simulates ``X[idx[q]]`` and writes ``out[idx[q]]`` and ``ok[idx[q]]``; a group
     with fewer candidates repeats one (the copies write the same values).  Arguments as
     :func:`ema_bench.monitor.monitor_batch_serial`.
     """
     # Lane 0's constants serve every lane where they do not depend on the faults (drive_fast
-    # and mech_fast read only those); the fault-dependent ones are per lane.
-    e0 = np.zeros(N_EFFECTS)
-    dc0, mc0 = monitor_consts(p, X[idx[0]], e0, dt)[:2]
+    # and mech_fast read only those); the fault-dependent ones are per lane.  The lane
+    # effects do not enter the plant's constants.
+    dc0, mc0 = monitor_consts(p, X[idx[0]], E[idx[0]], dt)[:2]
     cc0 = ace_consts(p, X[idx[0], F_GPROP])
     dcs = [dc0]
     mcs = [mc0]
     for q in range(1, LANES):
-        dc, mc = monitor_consts(p, X[idx[q]], e0, dt)[:2]
+        dc, mc = monitor_consts(p, X[idx[q]], E[idx[q]], dt)[:2]
         dcs.append(dc)
         mcs.append(mc)
     F = np.zeros(_N_BLOCKS)
     M = np.zeros(LANES, dtype=np.int64)
     alive = np.ones(LANES, dtype=np.bool_)
     done = np.ones(LANES, dtype=np.bool_)
+    delay = np.zeros(LANES)
+    d0 = np.zeros(LANES, dtype=np.int64)   # whole controller samples of each lane's delay
+    frac = np.zeros(LANES)                 # and the fraction of one
+    buf = np.zeros((_DBUF, LANES))         # the lanes' delay lines, one column each
+    delayed = False
     for q in range(LANES):
         F[_O_HALF + q] = mcs[q].half
         F[_O_FDYN + q] = mcs[q].fdyn
         F[_O_KPOS + q] = cc0.k_pos if q == 0 else ace_consts(p, X[idx[q], F_GPROP]).k_pos
+        offset, gain, d = sensor_terms(E[idx[q]], p)
+        F[_O_OFF + q] = offset
+        F[_O_GAIN + q] = gain
+        delay[q] = d
+        d0[q] = int(math.floor(d))
+        frac[q] = d - d0[q]
+        delayed |= d > 0.0
     h = dc0.h
     scale = 1.0 / (ticks_out * steps_tick)
     for t in range(n_out.shape[0]):
@@ -104,6 +128,10 @@ def lane_group(p, X, idx, cmd, cmd_start, n_out, out_start, ticks_out, steps_tic
                 F[_O_A2 + q] = 0.0
                 F[_O_A3 + q] = 0.0
             for _ in range(ticks_out):
+                for q in range(LANES):   # the loop sees the same (offset) position sensor
+                    F[_O_FB + q] = F[_O_THU + q] + F[_O_OFF + q]
+                if delayed:
+                    _delay_lines(F, buf, k_ctrl - cmd_start[t], delay, d0, frac)
                 c = cmd[k_ctrl]
                 k_ctrl += 1
                 for j in range(steps_tick):
@@ -112,10 +140,10 @@ def lane_group(p, X, idx, cmd, cmd_start, n_out, out_start, ticks_out, steps_tic
             for q in range(LANES):
                 a0, a1, a2, a3 = F[_O_A0 + q], F[_O_A1 + q], F[_O_A2 + q], F[_O_A3 + q]
                 o = out[idx[q], row]
-                o[0] = a0 * scale + 0.0   # + the sensor offset, 0 with effects off
+                o[0] = a0 * scale + F[_O_OFF + q]
                 o[1] = a1 * scale
                 o[2] = a2 * scale
-                o[3] = 1.0 * a3 * scale   # the current channel's gain, 1 with effects off
+                o[3] = F[_O_GAIN + q] * a3 * scale
                 if alive[q] and not (math.isfinite(a0) and math.isfinite(a1)
                                      and math.isfinite(a2) and math.isfinite(a3)):
                     alive[q] = False   # as the scalar kernel: this test failed
@@ -124,6 +152,23 @@ def lane_group(p, X, idx, cmd, cmd_start, n_out, out_start, ticks_out, steps_tic
             done[q] &= alive[q]
     for q in range(LANES):
         ok[idx[q]] = done[q]
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _delay_lines(F, buf, k, delay, d0, frac):
+    """The feedback of every lane through its delay line at controller sample ``k`` of the
+    test: :func:`~ema_bench.physics.ace.delayed_feedback` for ``LANES`` lanes at once (the
+    same samples, the same interpolation, so the same bits; its ring of ``_DBUF`` samples is
+    indexed with a mask instead of a division).  A lane without delay keeps its feedback."""
+    slot = k & (_DBUF - 1)
+    for q in range(LANES):
+        fb = F[_O_FB + q]
+        buf[slot, q] = fb
+        k0 = k - d0[q]
+        k1 = k0 - 1
+        a = buf[0 if k0 < 0 else k0 & (_DBUF - 1), q]   # before the record: its first sample
+        b = buf[0 if k1 < 0 else k1 & (_DBUF - 1), q]
+        F[_O_FB + q] = (1.0 - frac[q]) * a + frac[q] * b if delay[q] > 0.0 else fb
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -136,8 +181,7 @@ def _step(F, M, dc0, mc0, cc0, dcs, mcs, h, c, tick):
         if tick:
             cc = CtrlConsts(F[_O_KPOS + q], cc0.w_max, cc0.kpv, cc0.kiv, cc0.t_max, cc0.dtc,
                             cc0.amps_per_nm)
-            i_ref, integ = ace_update(c, F[_O_THU + q] + 0.0, F[_O_WM + q], F[_O_INTEG + q],
-                                      cc)
+            i_ref, integ = ace_update(c, F[_O_FB + q], F[_O_WM + q], F[_O_INTEG + q], cc)
             F[_O_IREF + q] = i_ref
             F[_O_INTEG + q] = integ
         else:
@@ -208,20 +252,20 @@ def _step(F, M, dc0, mc0, cc0, dcs, mcs, h, c, tick):
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
-def lanes_parallel(p, X, groups, cmd, cmd_start, n_out, out_start, ticks_out, steps_tick, dt,
-                   out, ok):
+def lanes_parallel(p, X, E, groups, cmd, cmd_start, n_out, out_start, ticks_out, steps_tick,
+                   dt, out, ok):
     """:func:`lane_group` over the rows of ``groups`` (n_groups, LANES), in parallel."""
     for g in prange(groups.shape[0]):
-        lane_group(p, X, groups[g], cmd, cmd_start, n_out, out_start, ticks_out, steps_tick,
+        lane_group(p, X, E, groups[g], cmd, cmd_start, n_out, out_start, ticks_out, steps_tick,
                    dt, out, ok)
 
 
 @njit(cache=True, error_model="numpy")
-def lanes_serial(p, X, groups, cmd, cmd_start, n_out, out_start, ticks_out, steps_tick, dt,
-                 out, ok):
+def lanes_serial(p, X, E, groups, cmd, cmd_start, n_out, out_start, ticks_out, steps_tick,
+                 dt, out, ok):
     """As :func:`lanes_parallel`, on the calling thread."""
     for g in range(groups.shape[0]):
-        lane_group(p, X, groups[g], cmd, cmd_start, n_out, out_start, ticks_out, steps_tick,
+        lane_group(p, X, E, groups[g], cmd, cmd_start, n_out, out_start, ticks_out, steps_tick,
                    dt, out, ok)
 
 

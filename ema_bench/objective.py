@@ -81,13 +81,14 @@ class SearchSpace:
     """The searched parameters: the faults, then the ``augment`` library effects.
 
     Build it with :meth:`of`.  ``lower``, ``upper`` and ``nominal`` are read-only arrays in
-    ``names`` order; ``units`` maps each name to its unit."""
+    ``names`` order (``nominal`` is None in a space :meth:`without_prior`); ``units`` maps
+    each name to its unit."""
 
     names: tuple[str, ...]
     units: dict[str, str]
     lower: np.ndarray
     upper: np.ndarray
-    nominal: np.ndarray
+    nominal: np.ndarray | None
     augment: tuple[str, ...]
 
     @classmethod
@@ -106,6 +107,12 @@ class SearchSpace:
             a.flags.writeable = False
         return cls(FAULT_NAMES + augment, {**FAULT_UNITS, **{e.name: e.unit for e in specs}},
                    *arrays, augment)
+
+    def without_prior(self) -> SearchSpace:
+        """The same space with bounds only: no nominal vector (the no-prior condition of
+        suite ``emafdi-v2``)."""
+        return SearchSpace(self.names, dict(self.units), self.lower, self.upper, None,
+                           self.augment)
 
     @property
     def dim(self) -> int:

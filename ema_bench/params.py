@@ -1,9 +1,9 @@
 """The one parameter set of the simulated actuator.
 
 Every physical constant of the reference and monitor models lives here, with its unit and a
-one-line source or reason.  The values follow the validated starting point of DESIGN.md
-section 8 (a flight-control EMA of the Dalla Vedova / Borello family: 270 V HVDC bus, BLDC motor
-with trapezoidal back-EMF, 300:1 reducer, aileron-class surface inertia).
+one-line source or reason.  The values follow the validated starting point of the project's
+design notes, section 8: a flight-control EMA of the Dalla Vedova / Borello family (270 V
+HVDC bus, BLDC motor with trapezoidal back-EMF, 300:1 reducer, aileron-class surface inertia).
 
 The compiled kernels take the parameters as one flat ``float64`` array; the position of each
 entry is looked up by name (``PARAM_INDEX``) into the module-level ``P_*`` integers below, which

@@ -128,9 +128,10 @@ class EvaluationLog:
         return {"index": np.arange(n), "x": self.X[:n].copy(), "fitness": f,
                 "best": np.minimum.accumulate(f) if n else f, "wall_s": self.t[:n].copy()}
 
-    def best(self, nominal: np.ndarray) -> tuple[np.ndarray, float]:
-        if self.count == 0:
-            return nominal.copy(), float("inf")
+    def best(self, nominal: np.ndarray | None) -> tuple[np.ndarray, float]:
+        if self.count == 0:   # nothing evaluated: the nominal, or the box centre without one
+            mid = 0.5 * (self.space.lower + self.space.upper)
+            return (mid if nominal is None else nominal.copy()), float("inf")
         i = int(np.argmin(self.f[:self.count]))
         return self.X[i].copy(), float(self.f[i])
 
@@ -220,7 +221,8 @@ class _Counted:
 
     @property
     def best(self) -> tuple[np.ndarray, float]:
-        """Best vector and fitness evaluated so far (``nominal, inf`` before any)."""
+        """Best vector and fitness evaluated so far (``nominal, inf`` before any; the centre
+        of the box on a problem without prior)."""
         return self._log.best(self.space.nominal)
 
 
@@ -231,8 +233,10 @@ class SolverView(_Counted):
     search space, the observation (``measured``, whose metadata names no fault) and the
     problem's :class:`EvaluationLog`, never the :class:`Problem`: no attribute, method or
     object reachable from it yields the true faults, a score, a success flag or the fitness
-    at the truth.  Evaluations through it count against the same budget and land in the same
-    log as the problem's, which the scorer reads after the solver returns.
+    at the truth.  On a problem without prior (``prior=False``) ``nominal`` and ``start`` are
+    None and its search space holds bounds only: a solver draws its own start.  Evaluations
+    through it count against the same budget and land in the same log as the problem's,
+    which the scorer reads after the solver returns.
     """
 
     __slots__ = ("_log", "space", "names", "units", "lower", "upper", "nominal", "dim",
@@ -249,6 +253,18 @@ class SolverView(_Counted):
     def __repr__(self) -> str:
         return (f"SolverView(evaluations={self.evaluations}/{self.budget}, "
                 f"dim={self.dim})")
+
+
+def _check_truth(truth: np.ndarray, space: SearchSpace) -> np.ndarray:
+    """The hidden truth: the four faults, or (suite ``emafdi-v2``'s higher tiers) every
+    searched parameter, faults then the augmented effects' true values."""
+    truth = np.asarray(truth, dtype=float)
+    if truth.shape == (N_FAULTS,):
+        return check_faults(truth).copy()
+    if truth.shape != (space.dim,):
+        raise ProblemError(f"the truth must have {N_FAULTS} or {space.dim} values, got "
+                           f"shape {truth.shape}")
+    return space.check(truth[None, :])[0]
 
 
 class Problem(_Counted):
@@ -279,17 +295,25 @@ class Problem(_Counted):
         Default: the nominal (healthy) vector.
     sample_weights : mapping, optional
         Per-sample weight multipliers of the fitness (:class:`~ema_bench.objective.Objective`).
+    prior : bool
+        False: the no-prior condition of suite ``emafdi-v2``: ``nominal`` and ``start`` are
+        None here and in the solver's view, whose search space has bounds only (solvers
+        that need a start draw it from their own seeded stream).
     """
 
     def __init__(self, measured: Traces, budget: int, *, normalise: bool = True,
                  monitor_effects: np.ndarray | None = None, augment: Sequence[str] = (),
                  start: np.ndarray | None = None,
                  sample_weights: Mapping[str, np.ndarray] | None = None,
-                 label: str = "measured",
+                 prior: bool = True, label: str = "measured",
                  track: str = "measured", _truth: np.ndarray | None = None,
                  _meta: Mapping[str, object] | None = None) -> None:
         budget = check_budget(budget)
         self.space = SearchSpace.of(augment)
+        if not prior:
+            if start is not None:
+                raise ProblemError("a problem without prior takes no start")
+            self.space = self.space.without_prior()
         self.objective = Objective(measured, self.space, normalise=normalise,
                                    effects=monitor_effects, sample_weights=sample_weights)
         self.names: tuple[str, ...] = self.space.names
@@ -300,13 +324,15 @@ class Problem(_Counted):
         self.augment = self.space.augment
         self.start = self.nominal if start is None else self.space.check(
             np.asarray(start, dtype=float)[None, :])[0]
-        self.start.flags.writeable = False
+        if self.start is not None:
+            self.start.flags.writeable = False
+        self.prior = bool(prior)
         self.normalise = bool(normalise)
         self.label = label
         self.track = track
         self.measured = measured
         self.meta = dict(_meta or {})
-        self.__truth = None if _truth is None else check_faults(_truth).copy()
+        self.__truth = None if _truth is None else _check_truth(_truth, self.space)
         self._log = EvaluationLog(self.objective, self.space, budget)
 
     def __repr__(self) -> str:
@@ -367,7 +393,7 @@ class Problem(_Counted):
             est = check_faults(np.asarray(x, dtype=float)[:N_FAULTS])
         except FaultError as exc:
             raise ProblemError(str(exc)) from None
-        return score(est, self.__truth)
+        return score(est, self.__truth[:N_FAULTS])
 
     def first_success(self) -> int | None:
         """Evaluations spent until the best-so-far point first succeeded (1-based), or None.
@@ -377,13 +403,21 @@ class Problem(_Counted):
         far), not at any evaluated point (scorer-only, like :meth:`score`)."""
         return self.parameter_hits((SUCCESS_RANGE_ERROR,))[0]
 
-    def parameter_hits(self, levels: Sequence[float]) -> list[int | None]:
+    def parameter_hits(self, levels: Sequence[float],
+                       judged: np.ndarray | None = None) -> list[int | None]:
         """Per level, the evaluation (1-based) from which the best-so-far point first lies
-        within ``level`` of every fault's range of the truth, or None (scorer-only)."""
+        within ``level`` of every judged parameter's range of the truth, or None
+        (scorer-only).  The truth holds the faults, or every searched parameter (suite
+        ``emafdi-v2``); ``judged`` masks the parameters without a parameter target."""
         if self.__truth is None:
             raise ProblemError("the true faults of measured data are unknown")
         n = self._log.count
-        return parameter_hits(self._log.X[:n], self._log.f[:n], self.__truth, levels)
+        return parameter_hits(self._log.X[:n], self._log.f[:n], self.__truth, levels,
+                              ranges=self.space.upper - self.space.lower, judged=judged)
+
+    def truth_size(self) -> int:
+        """How many values the hidden truth has: 4 (the faults) or ``dim`` (scorer-only)."""
+        return 0 if self.__truth is None else len(self.__truth)
 
     def first_success_wall_s(self) -> float | None:
         """Wall seconds from building the problem to its first successful evaluation, or None
@@ -402,7 +436,7 @@ class Problem(_Counted):
         """Fitness of the true vector (not counted; for reports of the model-form bias)."""
         if self.__truth is None:
             raise ProblemError("the true faults of measured data are unknown")
-        x = np.r_[self.__truth, np.zeros(self.dim - len(self.__truth))]
+        x = np.r_[self.__truth, np.zeros(self.dim - len(self.__truth))]  # effects off
         f, _ = self._log.fitness(x[None, :])
         return float(f[0])
 

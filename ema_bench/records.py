@@ -32,16 +32,15 @@ import numpy as np
 
 from .faults import N_FAULTS, faults_to_dict
 from .manifest import manifest
-from .scoring import first_hits, improvements, range_error
+from .scoring import SUCCESS_RANGE_ERROR, first_hits, improvements, range_error
 from .suite import (
     BUDGET_CHECKPOINTS,
     FITNESS_PRECISIONS,
     PARAMETER_TARGETS,
-    SUITE_ID,
-    best_known,
     fitness_targets,
     precision_key,
 )
+from .suite_v2 import best_known_for, is_v2_case, scoring_frame, suite_of
 from .trace_cache import MODEL_VERSION
 
 if TYPE_CHECKING:
@@ -64,11 +63,13 @@ def schema(record: dict) -> int:
 
 
 def trajectory_indices(X: np.ndarray, f: np.ndarray, truth: np.ndarray | None,
-                       f_levels: list[float]) -> np.ndarray:
+                       f_levels: list[float], ranges: np.ndarray | None = None) -> np.ndarray:
     """0-based evaluations kept in the trajectory: the improvements, thinned geometrically to
     :data:`MAX_TRAJECTORY_POINTS`, plus every improvement no thinning may drop (the first hit
     of each fitness level in ``f_levels`` and of each parameter target against ``truth``, the
-    last improvement at or before each ``best_at`` checkpoint, the first and the last)."""
+    last improvement at or before each ``best_at`` checkpoint, the first and the last).
+    ``truth`` holds the faults, or (suite emafdi-v2) every judged parameter, whose
+    ``ranges`` are then given."""
     idx = improvements(f)
     if idx.size <= MAX_TRAJECTORY_POINTS:
         return idx
@@ -79,7 +80,8 @@ def trajectory_indices(X: np.ndarray, f: np.ndarray, truth: np.ndarray | None,
         hit = np.flatnonzero(fi <= level)
         pos |= set(hit[:1].tolist())
     if truth is not None:
-        err = np.max(range_error(X[idx, :len(truth)], truth), axis=-1)
+        err = np.max(range_error(X[idx, :len(truth)], truth) if ranges is None else
+                     np.abs(X[idx, :len(truth)] - truth) / ranges, axis=-1)
         for level in PARAMETER_TARGETS:
             pos |= set(np.flatnonzero(err <= level)[:1].tolist())
     for b in BUDGET_CHECKPOINTS:
@@ -104,7 +106,7 @@ def run_record(problem: Problem, result: SolveResult, *, case: str, track: str, 
         "key": f"{result.solver}|{case}|{track}|{seed}",
         "solver": result.solver, "case": case, "track": track, "seed": int(seed),
         "budget": int(budget), "root_seed": int(root_seed), "model_version": MODEL_VERSION,
-        "suite": SUITE_ID, "manifest": manifest(sorted(result.library or {})),
+        "suite": suite_of(case), "manifest": manifest(sorted(result.library or {})),
         "x": faults_to_dict(result.x[:N_FAULTS]),
         "fitness": result.fitness,
         "evaluations": result.evaluations,
@@ -121,12 +123,16 @@ def run_record(problem: Problem, result: SolveResult, *, case: str, track: str, 
                                          map(float, result.x[N_FAULTS:])))
     hist = problem.history()
     best = hist["best"]
-    known = best_known(case, track, seed, root_seed)
-    truth = problem.score(problem.nominal).truth if problem.has_truth else None
-    keep = trajectory_indices(hist["x"], hist["fitness"],
-                              None if truth is None else np.array(list(truth.values())),
+    known = best_known_for(case, track, seed, root_seed)
+    truth = problem.score(problem.lower).truth if problem.has_truth else None
+    every = ranges = None   # what the parameter targets judge: the faults, or a v2 tier's all
+    if truth is not None:
+        every = np.array(list(truth.values()))
+        if is_v2_case(case):
+            _, every, ranges = scoring_frame(case)
+    keep = trajectory_indices(hist["x"], hist["fitness"], every,
                               [] if known is None else
-                              fitness_targets(known["f_star"], known["f_nominal"]))
+                              fitness_targets(known["f_star"], known["f_nominal"]), ranges)
     rec["trajectory"] = trajectory(hist["x"], hist["fitness"], keep)
     # the trace is the trajectory without vectors, and the last evaluation
     rec["trace"] = [[p[0], p[1]] for p in rec["trajectory"]]
@@ -136,9 +142,11 @@ def run_record(problem: Problem, result: SolveResult, *, case: str, track: str, 
     if problem.has_truth:
         score = problem.score(result.x)
         hits = problem.parameter_hits(PARAMETER_TARGETS)
+        success = score.success if ranges is None else bool(
+            np.all(np.abs(result.x[:every.size] - every) / ranges <= SUCCESS_RANGE_ERROR))
         rec.update(x=score.x, truth=score.truth, fitness_at_truth=problem.fitness_at_truth(),
-                   success=score.success,
-                   evals_to_success=problem.first_success() if score.success else None,
+                   success=success,
+                   evals_to_success=problem.first_success() if success else None,
                    accuracy=score.accuracy, range_error=score.range_error,
                    targets=anytime_targets(best, hits, known))
     return rec

@@ -83,13 +83,23 @@ def improvements(f: np.ndarray) -> np.ndarray:
 
 
 def parameter_hits(X: np.ndarray, f: np.ndarray, true: np.ndarray,
-                   levels: Sequence[float]) -> list[int | None]:
+                   levels: Sequence[float], ranges: np.ndarray | None = None,
+                   judged: np.ndarray | None = None) -> list[int | None]:
     """For each level, the evaluation (1-based) from which the best-so-far point (the point
     a solver would report: lowest fitness so far) first has every fault within ``level`` of
     its range of ``true``, or None.  Judged at the best-so-far point, not at any evaluated
-    point: a solver that passes near the truth without noticing is not credited."""
+    point: a solver that passes near the truth without noticing is not credited.
+
+    ``true`` holds the four faults, or every searched parameter (then ``ranges`` gives their
+    ranges, physical units); ``judged`` (bool, one per value of ``true``) leaves out the
+    parameters that carry no parameter target (default: all judged)."""
+    true = np.asarray(true, dtype=float)
+    rng = (UPPER - LOWER) if ranges is None else np.asarray(ranges, dtype=float)[:len(true)]
+    keep = np.ones(len(true), dtype=bool) if judged is None else np.asarray(judged, bool)
+    if not keep.any():
+        return [None for _ in levels]
     idx = improvements(f)
-    err = np.max(range_error(np.asarray(X)[idx, :len(true)], true), axis=-1) \
+    err = np.max((np.abs(np.asarray(X)[idx, :len(true)] - true) / rng)[:, keep], axis=-1) \
         if idx.size else np.empty(0)
     out: list[int | None] = []
     for level in levels:

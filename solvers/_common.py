@@ -35,9 +35,19 @@ def int_seed(seed: np.random.SeedSequence) -> int:
     return int(seed.generate_state(1, dtype=np.uint32)[0] % (2**31 - 2)) + 1
 
 
-def start_unit(problem: Problem) -> np.ndarray:
+#: Child index of a solver's seed that draws its start on a problem without prior (far from
+#: the small indices the solvers use for their own streams).
+NO_PRIOR_START = 1 << 20
+
+
+def start_unit(problem: Problem, seed: np.random.SeedSequence | None = None) -> np.ndarray:
     """The first point to try, in the normalised box: the problem's start (the nominal,
-    healthy vector unless the caller gave a warm start)."""
+    healthy vector unless the caller gave a warm start); on a problem without prior
+    (``start`` None, suite ``emafdi-v2``) a uniform point drawn from the solver's ``seed``."""
+    if problem.start is None:
+        if seed is None:
+            raise ValueError("a problem without prior has no start: give the solver's seed")
+        return np.random.default_rng(child(seed, NO_PRIOR_START)).random(problem.dim)
     return np.clip(problem.to_unit(problem.start), 0.0, 1.0)
 
 
@@ -102,9 +112,10 @@ def lhs(seed: np.random.SeedSequence, n: int, dim: int) -> np.ndarray:
 
 def start_points(problem: Problem, seed: np.random.SeedSequence,
                  batch: int = 32) -> Iterator[np.ndarray]:
-    """Multi-start points: the problem's start, then Latin-hypercube points (batches of
-    ``batch``, each a fresh Latin hypercube), without end."""
-    yield start_unit(problem)
+    """Multi-start points: the problem's start (drawn from ``seed`` without prior), then
+    Latin-hypercube points (batches of ``batch``, each a fresh Latin hypercube), without
+    end."""
+    yield start_unit(problem, seed)
     for i in range(1_000_000):
         yield from lhs(child(seed, i), batch, problem.dim)
 

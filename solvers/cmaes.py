@@ -46,7 +46,7 @@ def solve(problem, budget: int, seed: np.random.SeedSequence) -> SolveResult:
     s_x0, *s_runs = children(seed, MAX_RESTARTS + 2)
     rng = np.random.default_rng(s_x0)
     popsize = POPSIZE or 4 + int(3 * np.log(problem.dim))
-    x0 = start_unit(problem)
+    x0 = start_unit(problem, seed)   # drawn from the seed on a problem without prior
     stops: list[str] = []
     stop_reason = "budget"
     evaluate_unit(problem, x0[None, :])  # CMA-ES samples around x0 but never scores it

@@ -4,7 +4,7 @@
 Each function reproduces one of MATLAB's Global Optimization Toolbox operators used by the
 paper (Dalla Vedova et al. 2016): the population split of ``stepGA``, ``fitscalingrank``,
 ``selectionstochunif``, ``crossoverheuristic``, the step-size rule and the direction set of
-``mutationadaptfeasible``, and the default ``'totalChange'`` stall test.  They work on numpy
+``mutationadaptfeasible``, and the default ``'averageChange'`` stall test.  They work on numpy
 arrays in a box (the solver uses the normalised box ``[0, 1]^4``: the fault scales differ by
 five orders of magnitude, so the box-relative steps of ``mutationadaptfeasible`` only make
 sense there) and take the random generator as an argument, so each one can be tested against
@@ -234,8 +234,9 @@ def adaptive_feasible_mutation(parents: np.ndarray, step: float, rng: np.random.
     full step when ``step`` = 1, MATLAB's starting value):
 
     * ``"shrink"`` (default): halve the step, trying the same random order of directions
-      again, until one fits (at most ``max_halvings`` times), so that a mutant always moves;
-    * ``"copy"`` (MATLAB's): the mutant is a copy of its parent.
+      again, until one fits (at most ``max_halvings`` times), so that a mutant always moves
+      (what MathWorks' patent on the operator, US7660773B1, describes);
+    * ``"copy"``: the mutant is a copy of its parent (an alternative kept for comparison).
 
     Children are inside ``[lower, upper]`` (clipped against round-off).
     """
@@ -262,7 +263,7 @@ def adaptive_feasible_mutation(parents: np.ndarray, step: float, rng: np.random.
     return np.clip(out, lo, hi)
 
 
-# --- stopping (ga's default StallTest 'totalChange') ------------------------------------------
+# --- stopping (ga's default StallTest 'averageChange') ----------------------------------------
 def stalled(best_history: np.ndarray, stall_generations: int = 50,
             function_tolerance: float = 1e-6, floor: float = 0.0) -> bool:
     """``ga``'s stall test: the average relative change of the best score over the last
@@ -273,7 +274,7 @@ def stalled(best_history: np.ndarray, stall_generations: int = 50,
 
         |best[g - W] - best[g]| / (W * max(floor, |best[g]|)) <= function_tolerance
 
-    MATLAB (``StallTest = 'totalChange'``, the default since R2014a) uses ``floor = 1``, which
+    MATLAB (option ``StallTest = 'averageChange'``, its default) uses ``floor = 1``, which
     turns the test into an *absolute* change for scores below 1.  Our fitness (a sum of
     normalised mean squared errors) is about 1e-4 near the optimum, where that absolute test
     (5e-5 over 50 generations, the size of the noise floor itself) stops runs that are still

@@ -74,7 +74,8 @@ def solve(problem, budget: int, seed: np.random.SeedSequence, *, optimizer: str,
         param.random_state = np.random.RandomState(int_seed(child(seed, 0)))
         opt = ng.optimizers.registry[optimizer](parametrization=param, budget=problem.remaining,
                                                 num_workers=NUM_WORKERS)
-        opt.suggest(start_unit(problem))
+        if problem.start is not None:   # without prior: nevergrad's own initialisation
+            opt.suggest(start_unit(problem))
         while problem.remaining > 0:
             k = min(NUM_WORKERS, problem.remaining)
             cands = [opt.ask() for _ in range(k)]

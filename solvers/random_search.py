@@ -26,7 +26,7 @@ def solve(problem, budget: int, seed: np.random.SeedSequence) -> SolveResult:
     while problem.remaining > 0:
         k = min(BATCH, problem.remaining)
         U = lhs(child(seed, batches), k, problem.dim)
-        if batches == 0:
+        if batches == 0 and problem.start is not None:   # without prior: all random
             U[0] = start_unit(problem)
         evaluate_unit(problem, U)
         batches += 1

@@ -53,11 +53,12 @@ def solve(problem, budget: int, seed: np.random.SeedSequence) -> SolveResult:
         return f
 
     stop_reason = "budget"
+    x0 = None if problem.start is None else start_unit(problem)   # without prior: pure LHS
     with quiet(RuntimeWarning):
         try:
             res = differential_evolution(
                 objective, [(0.0, 1.0)] * dim, popsize=mult, maxiter=maxiter, tol=TOL,
-                polish=False, init="latinhypercube", x0=start_unit(problem),
+                polish=False, init="latinhypercube", x0=x0,
                 vectorized=True, updating="deferred", rng=np.random.default_rng(child(seed, 0)))
             if res.success:
                 stop_reason = "converged"

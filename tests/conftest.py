@@ -24,6 +24,9 @@ import sys
 import tempfile
 from pathlib import Path
 
+import pytest
+from inprocess import run_cli
+
 if "EMA_BENCH_CACHE" not in os.environ:
     # removed when the session that made it ends (a fork, e.g. a mutmut child, inherits the
     # exit hook but not the ownership); each run used to leave its traces behind (11 GB
@@ -46,3 +49,11 @@ def _under_mutmut() -> None:
 
 if "mutmut" in sys.modules:
     _under_mutmut()
+
+
+@pytest.fixture(scope="session")
+def cli():
+    """``ema-bench`` in the test process: ``cli(*args, cwd=, env=, check=)`` returns the exit
+    code, stdout and stderr a subprocess would (tests/inprocess.py says when a real subprocess
+    is still needed)."""
+    return run_cli

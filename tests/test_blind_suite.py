@@ -15,7 +15,7 @@ import pytest
 
 import ema_bench.diagnosis.blind as blind
 from ema_bench.cli import main
-from ema_bench.diagnosis import decoys
+from ema_bench.diagnosis import decoys, interval_table
 from ema_bench.diagnosis.blind import (
     DRAWABLE,
     PAIRS,
@@ -470,6 +470,16 @@ def test_cli_prints_one_line_per_category_and_the_truth_of_each_case(tmp_path, m
     assert f"{acq.decoy}({acq.decoy_params['signal']})" in line
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["per_category"]["two_effect"]["both_named_rate"] == 1.0
+    # the effect intervals' calibration table is named, shipped here, the user's when given
+    shipped = json.loads(interval_table.PATH.read_text())["effect_cases"]
+    assert f"effect intervals calibrated by: shipped, {shipped} effect cases" in out
+    assert summary["interval_calibration"] == f"shipped, {shipped} effect cases"
+    user = tmp_path / "mine.json"
+    user.write_text(json.dumps({"effect_cases": 2, "scores": [{"score": 1.5}]}))
+    assert main(["blind", "--cases", "30", "--seed", "0", "--out", str(tmp_path), "-q",
+                 "--calibration", str(user)]) == 0
+    assert f"effect intervals calibrated by: user file {user.resolve()}, 2 effect cases" in \
+        capsys.readouterr().out
     assert main(["blind", "--cases", "3", "--workers", "0"]) == 2
 
 
@@ -651,6 +661,9 @@ def test_the_committed_third_round_suites_are_the_cases_drawn_and_summed(folder,
         json.loads(dumps(summarise(ordered)))
 
 
+# slow (about 120 CPU-s): the fast loop builds these cases' data with a stand-in diagnosis
+# (test_run_case_builds_the_third_round_data_...) and scores them by hand
+@pytest.mark.slow
 def test_the_third_round_categories_end_to_end_reproduce_the_committed_verdicts():
     """The cheapest committed case of each third-round category (root seed 2034: case 8, a
     cogging effect beside an acquisition fault, 42 CPU-s; case 14, three effects at once,

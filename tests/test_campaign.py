@@ -198,8 +198,8 @@ def test_cli_make_writes_a_campaign_and_reports_errors(tmp_path, capsys):
     (tmp_path / "junk").mkdir()
     (tmp_path / "junk" / "a.txt").write_text("x")
     for argv, message in [(["nope"], "unknown campaign"),
-                          ([MINI.name, "--units", "0"], "--units must be >= 1"),
-                          ([MINI.name, "--every", "0"], "--every must be >= 1"),
+                          ([MINI.name, "--units", "0"], "argument --units: must be from 1"),
+                          ([MINI.name, "--every", "0"], "argument --every: must be from 1"),
                           ([MINI.name, "--out", str(tmp_path / "junk")], "not a campaign")]:
         assert main(["campaign", "make", *argv, "--quiet"]) == 2
         assert message in capsys.readouterr().err

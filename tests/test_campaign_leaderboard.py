@@ -93,6 +93,9 @@ def _run(row: dict) -> Path:
     return ROOT / row["track"] / row["tracker"]
 
 
+# slow: the oracle of each campaign (about 30 CPU-s for the 200-unit twin one); the fast loop
+# pins score_tracking and its oracle on a small real campaign (test_prognostics_scoring.py)
+@pytest.mark.slow
 @pytest.mark.parametrize("committed", SCORES + PARTIAL,
                          ids=lambda r: f"{r['track']}-{r['tracker']}"
                          + ("-partial" if r.get("tracked_only") else ""))

@@ -8,12 +8,11 @@ from __future__ import annotations
 
 import argparse
 import os
-import subprocess
-import sys
 import tracemalloc
 
 import numpy as np
 import pytest
+from inprocess import run_cli
 
 from ema_bench import make_problem
 from ema_bench.cli import build_parser, main
@@ -112,7 +111,8 @@ def test_a_late_write_error_is_one_line(capsys, tmp_path, monkeypatch):
 def test_budget_beyond_the_maximum_is_refused(capsys):
     with pytest.raises(ProblemError, match="maximum"):
         make_problem("small", track="twin", budget=MAX_BUDGET + 1)
-    assert "maximum" in _fail(capsys, ["solve", "--budget", str(10**12)])
+    assert f"--budget: must be from 1 to {MAX_BUDGET}" in \
+        _fail(capsys, ["solve", "--budget", str(10**12)])
     for bad in (0, -1, True, 2.5):
         with pytest.raises(ProblemError, match="positive integer"):
             make_problem("small", track="twin", budget=bad)
@@ -219,11 +219,13 @@ def monitor_traces_file(tmp_path_factory):
     return path
 
 
+# slow: two diagnoses that fit candidate effects (about 12 CPU-s each); the fast loop runs
+# diagnose on the monitor's own data (test_diagnosis.py)
+@pytest.mark.slow
 @pytest.mark.parametrize("quiet", [False, True])
 def test_diagnose_reports_its_stages_unless_quiet(monitor_traces_file, quiet):
-    cmd = [sys.executable, "-m", "ema_bench.cli", "diagnose", str(monitor_traces_file),
-           "--budget", "100", "--bootstrap", "10", *(["--quiet"] if quiet else [])]
-    res = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    res = run_cli("diagnose", monitor_traces_file, "--budget", "100", "--bootstrap", "10",
+                  *(["--quiet"] if quiet else []))
     assert res.returncode == 0, res.stderr
     assert "verdict:" in res.stdout
     lines = [ln for ln in res.stderr.splitlines() if "diagnose:" in ln]

@@ -1,9 +1,9 @@
-"""Real command-line runs of ``ema-bench`` (subprocesses, as a user types them)."""
+"""Real command-line runs of ``ema-bench`` as a user types them (in the test process,
+tests/inprocess.py; the console script itself once, as a subprocess)."""
 
 from __future__ import annotations
 
 import json
-import os
 import shutil
 import subprocess
 import sys
@@ -11,21 +11,19 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from inprocess import CliRun, run_cli
 
 from ema_bench.faults import FAULT_NAMES
 from ema_bench.traces import load_traces
 
-CLI = [sys.executable, "-m", "ema_bench.cli"]
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
 
-def run(*args: str, cwd: Path | None = None, timeout: float = 120) -> subprocess.CompletedProcess:
-    env = {**os.environ, "MPLBACKEND": "Agg"}
-    return subprocess.run([*CLI, *args], capture_output=True, text=True, cwd=cwd, env=env,
-                          timeout=timeout)
+def run(*args: str, cwd: Path | None = None) -> CliRun:
+    return run_cli(*args, cwd=cwd)
 
 
-def one_line_error(proc: subprocess.CompletedProcess) -> str:
+def one_line_error(proc: CliRun) -> str:
     assert proc.returncode == 2, proc.stderr
     lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
     assert len(lines) == 1, proc.stderr
@@ -172,8 +170,7 @@ def test_simulate_bad_choice_is_argparse_error():
 
 
 def test_bench_json():
-    proc = run("bench", "--json", "--quick", "--batch", "8", "--repeat", "1", "--naive", "1",
-               timeout=300)
+    proc = run("bench", "--json", "--quick", "--batch", "8", "--repeat", "1", "--naive", "1")
     assert proc.returncode == 0, proc.stderr
     doc = json.loads(proc.stdout)
     for key in ("monitor_evals_per_s", "monitor_evals_per_cpu_s", "single_call_ms",

@@ -1,4 +1,6 @@
-"""``ema-bench solve`` and ``ema-bench solvers``, run as real subprocesses."""
+"""``ema-bench solve`` and ``ema-bench solvers`` as a user types them: in the test process
+(tests/inprocess.py), and once in a fresh interpreter, where a library's first import would
+print its chatter."""
 
 from __future__ import annotations
 
@@ -8,6 +10,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from inprocess import CliRun, run_cli
 
 ZOO = ("random", "cmaes", "de", "ngopt", "ng-de", "ng-pso", "least-squares", "nelder-mead",
        "lbfgsb", "powell")
@@ -18,14 +21,18 @@ TRUTH_KEYS = {"accuracy", "range_error", "success", "truth", "fitness_at_truth",
 FAULTS = {"Na", "Fst", "BLK", "Gprop"}
 
 
-def cli(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
+def cli(*args: str, cwd: Path | None = None, fresh: bool = False
+        ) -> CliRun | subprocess.CompletedProcess:
+    """``ema-bench ARGS``; ``fresh``: the console script in a new interpreter."""
+    if not fresh:
+        return run_cli(*args, cwd=cwd)
     script = Path(sys.executable).with_name("ema-bench")
     cmd = [str(script)] if script.exists() else [sys.executable, "-m", "ema_bench.cli"]
     return subprocess.run([*cmd, *args], capture_output=True, text=True, cwd=cwd, timeout=300)
 
 
-def solve_json(*args: str) -> dict:
-    r = cli("solve", *args, "--json")
+def solve_json(*args: str, fresh: bool = False) -> dict:
+    r = cli("solve", *args, "--json", fresh=fresh)
     assert r.returncode == 0, r.stderr
     assert r.stderr == ""  # no progress bar with --json, no library chatter
     return json.loads(r.stdout)
@@ -49,7 +56,7 @@ def test_solve_json_twin():
 
 def test_solve_json_reference_with_effect_and_raw():
     out = solve_json("--case", "full", "--solver", "cmaes", "--budget", "30", "--seed", "2",
-                     "--effect", "eccentricity=0.05", "--raw")
+                     "--effect", "eccentricity=0.05", "--raw", fresh=True)
     assert out["track"] == "reference" and out["case"] == "full"
     assert out["evaluations"] <= 30
     assert out["normalised"] is False
@@ -108,10 +115,10 @@ def test_solvers_json_and_table():
 @pytest.mark.parametrize("args, message", [
     (("--solver", "no-such-solver"), "unknown solver 'no-such-solver'"),
     (("--case", "huge"), "unknown case 'huge'"),
-    (("--budget", "0"), "budget must be a positive integer"),
-    (("--budget", "-5"), "budget must be a positive integer"),
+    (("--budget", "0"), "argument --budget: must be from 1 to"),
+    (("--budget", "-5"), "argument --budget: must be from 1 to"),
     (("--heterogeneity", "2"), "heterogeneity must lie in [0, 1]"),
-    (("--seed", "-1"), "seed must be a non-negative integer"),
+    (("--seed", "-1"), "argument --seed: must be from 0 to"),
     (("--faults", "Na=2"), "Na=2"),
     (("--faults", "Na"), "expected NAME=VALUE"),
     (("--measured", "missing.csv"), "file not found"),

@@ -1,6 +1,6 @@
 """Coverage of the fault intervals, measured on real fits (ema_bench.uncertainty.coverage),
 and the command lines that produce and print intervals (``ema-bench coverage``,
-``ema-bench solve --intervals``), run as real subprocesses."""
+``ema-bench solve --intervals``), run as a user types them (test_cli_solve's ``cli``)."""
 
 from __future__ import annotations
 
@@ -45,6 +45,9 @@ def small_runs(tmp_path_factory):
     return honest, wrong
 
 
+# slow (20 twin fits with intervals, about 30 CPU-s): the fast loop runs the same run() on 3
+# instances (test_an_instance_without_interval_...) and through the CLI (..._and_resume)
+@pytest.mark.slow
 def test_small_run_reproduces_the_committed_coverage(small_runs):
     committed = json.loads((COMMITTED / "twin_laplace.json").read_text())
     assert committed["instances"] >= 100 and committed["method"] == "laplace"
@@ -54,6 +57,7 @@ def test_small_run_reproduces_the_committed_coverage(small_runs):
     assert _rejects(summary, committed) == []
 
 
+@pytest.mark.slow
 def test_a_mis_scaled_noise_level_fails_the_check(small_runs):
     committed = json.loads((COMMITTED / "twin_laplace.json").read_text())
     honest, wrong = small_runs

@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from inprocess import run_cli
 
 from ema_bench.diagnosis.blind import draw_cases, run_case, summarise
 from ema_bench.diagnosis.envelopes import Envelope
@@ -82,6 +81,10 @@ def blind_records():
     return [run_case(c, SEED, Settings()) for c in BLIND]
 
 
+# slow: three cases run blind with the default settings (about 80 CPU-s); the fast loop builds
+# and scores cases with a stand-in diagnosis (test_blind_suite.py) and runs the workflow on the
+# monitor's own data below and on a recording's drift (test_diagnosis_acquisition.py)
+@pytest.mark.slow
 def test_small_blind_suite(blind_records):
     assert [c.category for c in BLIND] == ["two_effect", "monitor_null", "single"]
     pair, null, single = blind_records
@@ -98,6 +101,7 @@ def test_small_blind_suite(blind_records):
     assert s["per_category"]["two_effect"]["both_named"] == 1
 
 
+@pytest.mark.slow
 def test_blind_results_reproduce_the_committed_suite(blind_records):
     committed = {r["key"]: r for r in map(json.loads, COMMITTED.read_text().splitlines())}
     for r in blind_records:
@@ -118,20 +122,18 @@ def test_blind_draw_is_seeded_and_covers_the_kinds():
             assert spec.detect <= abs(value) <= max(abs(spec.lower), spec.upper)
 
 
-CLI = [sys.executable, "-m", "ema_bench.cli"]
-
-
+# slow, the README's two recipes (about 20 and 60 CPU-s): the fast loop runs the same commands
+# on the monitor's own data (test_data_from_the_monitor_itself_raise_no_alarm)
+@pytest.mark.slow
 def test_the_readme_delay_recipe_names_the_delay(tmp_path):
     """README: `simulate --tests step,sine,sine2 --effect delay=6e-4` then `diagnose`.  The
     delay shows only in the training residual statistics (its held-out fitness stays inside
     the noise band), which the first workflow could not name ("unexplained ... nearest:
     delay (partial, closes 100 %)", with "closed 0 %" in the report's header)."""
     path = tmp_path / "d.csv"
-    subprocess.run(CLI + ["simulate", "--tests", "step,sine,sine2", "--effect", "delay=6e-4",
-                          "--out", str(path)], check=True, capture_output=True)
-    res = subprocess.run(CLI + ["diagnose", str(path), "--json", "--report",
-                                str(tmp_path / "rep")],
-                         capture_output=True, text=True, timeout=600)
+    run_cli("simulate", "--tests", "step,sine,sine2", "--effect", "delay=6e-4", "--out", path,
+            check=True)
+    res = run_cli("diagnose", path, "--json", "--report", tmp_path / "rep")
     assert res.returncode == 0, res.stderr
     out = json.loads(res.stdout)
     assert out["verdict"] == "effect" and [e["name"] for e in out["effects"]] == ["delay"]
@@ -150,21 +152,19 @@ def test_the_readme_delay_recipe_names_the_delay(tmp_path):
     assert row.endswith(f"| {closed} % |")
     assert f"| {out['gap']['flagged_before']} | {out['gap']['flagged_after']} |" in report
     assert (tmp_path / "rep" / "residuals.png").is_file()
-    bad = subprocess.run(CLI + ["diagnose", str(tmp_path / "missing.csv")],
-                         capture_output=True, text=True)
+    bad = run_cli("diagnose", tmp_path / "missing.csv")
     assert bad.returncode == 2 and "missing.csv" in bad.stderr
 
 
+@pytest.mark.slow
 def test_the_readme_two_effect_recipe_names_both(tmp_path):
     """README: `--effect sensor_offset=1.5e-3,gear_stiffness=0.7` on the nominal case.  Each
     effect alone makes the held-out fit worse (the offset 3x), so only their joint fit
     explains the traces."""
     path = tmp_path / "two.csv"
-    subprocess.run(CLI + ["simulate", "--tests", "step,sine,sine2", "--effect",
-                          "sensor_offset=1.5e-3,gear_stiffness=0.7", "--out", str(path)],
-                   check=True, capture_output=True)
-    res = subprocess.run(CLI + ["diagnose", str(path), "--json"], capture_output=True,
-                         text=True, timeout=900)
+    run_cli("simulate", "--tests", "step,sine,sine2", "--effect",
+            "sensor_offset=1.5e-3,gear_stiffness=0.7", "--out", path, check=True)
+    res = run_cli("diagnose", path, "--json")
     assert res.returncode == 0, res.stderr
     out = json.loads(res.stdout)
     named = {e["name"]: e for e in out["effects"]}
@@ -181,11 +181,9 @@ def test_data_from_the_monitor_itself_raise_no_alarm(tmp_path, seed):
     """`simulate --model monitor --case small` then `diagnose`: the first workflow said
     "unexplained" on 3 of 3 seeds (a residual statistic over one sample of reverse speed)."""
     path = tmp_path / "m.csv"
-    subprocess.run(CLI + ["simulate", "--model", "monitor", "--case", "small", "--tests",
-                          "step,sine,sine2", "--seed", str(seed), "--out", str(path)],
-                   check=True, capture_output=True)
-    res = subprocess.run(CLI + ["diagnose", str(path), "--json"], capture_output=True,
-                         text=True, timeout=600)
+    run_cli("simulate", "--model", "monitor", "--case", "small", "--tests", "step,sine,sine2",
+            "--seed", str(seed), "--out", path, check=True)
+    res = run_cli("diagnose", path, "--json")
     assert res.returncode == 0, res.stderr
     out = json.loads(res.stdout)
     assert out["verdict"] == "none" and out["effects"] == [] and out["flagged"] == []

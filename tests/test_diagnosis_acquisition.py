@@ -15,9 +15,9 @@ from ema_bench.diagnosis.workflow import (
     TRAIN,
     Settings,
     _simulate,
-    _subset,
     diagnose,
     fit,
+    subset_traces,
 )
 from ema_bench.faults import CASES
 from ema_bench.objective import Objective, SearchSpace
@@ -65,7 +65,7 @@ def test_the_fitted_model_carries_each_kind_beside_an_effect(with_effect, kind, 
     out = acq.carry(f.raw, f.acquisition)
     assert all(np.array_equal(out[t], f.outputs[t]) for t in NAMES)
     # and it fits the data better than the same physics without the fault
-    train = _subset(measured, TRAIN)
+    train = subset_traces(measured, TRAIN)
     bare = Objective(train, SearchSpace.of((EFFECT,)), sample_weights=stick_weights(train))
     assert f.fitness < 0.5 * float(bare.evaluate(f.x[None, :])[0][0])
 

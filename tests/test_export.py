@@ -4,11 +4,10 @@ from __future__ import annotations
 
 import json
 import logging
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
+from inprocess import run_cli
 
 from ema_bench.cli import main
 from ema_bench.leaderboard.ioh import export_ioh, read_ioh
@@ -17,7 +16,6 @@ REPO = Path(__file__).resolve().parents[1]
 # the suite's shipped optima, read here from the file rather than through the package
 SHIPPED = json.loads((REPO / "ema_bench" / "suite_targets.json").read_text())["entries"]
 QUICK_RUNS = REPO / "leaderboards" / "quick" / "runs.jsonl"
-CLI = [sys.executable, "-m", "ema_bench.cli"]
 
 SOLVERS = ("alpha", "beta")
 CASES = ("small", "full")
@@ -233,8 +231,7 @@ def _committed_runs() -> list[dict]:
 
 def test_cli_exports_the_committed_quick_leaderboard(tmp_path):
     out = tmp_path / "ioh"
-    res = subprocess.run([*CLI, "export", "--format", "ioh", str(QUICK_RUNS), "--out",
-                          str(out), "--json"], capture_output=True, text=True, timeout=300)
+    res = run_cli("export", "--format", "ioh", QUICK_RUNS, "--out", out, "--json")
     assert res.returncode == 0, res.stderr
     summary = json.loads(res.stdout)
     recs = _committed_runs()
@@ -263,8 +260,7 @@ def test_cli_refuses_a_broken_file_in_one_line(tmp_path):
     lines = QUICK_RUNS.read_text().splitlines(keepends=True)
     broken = tmp_path / "runs.jsonl"
     broken.write_text("".join(lines[:3]) + "{garbage\nnot json at all\n" + "".join(lines[3:6]))
-    res = subprocess.run([*CLI, "export", "--format", "ioh", str(broken), "--out",
-                          str(tmp_path / "o")], capture_output=True, text=True, timeout=300)
+    res = run_cli("export", "--format", "ioh", broken, "--out", tmp_path / "o")
     assert res.returncode == 2
     err = res.stderr.strip()
     assert err.count("\n") == 0 and "Traceback" not in err, err

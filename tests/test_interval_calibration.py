@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from ema_bench.diagnosis import interval_calibration as ic
-from ema_bench.diagnosis import workflow
+from ema_bench.diagnosis import interval_table, workflow
 from ema_bench.diagnosis.blind import draw_cases
 from ema_bench.faults import CASES
 from ema_bench.reference import simulate_reference
@@ -25,9 +25,9 @@ def test_the_factor_is_the_conformal_quantile_of_the_shipped_scores():
     assert n >= 60, "too few calibration intervals for a 95 % quantile"
     # the ceil((n + 1) * 0.95)-th smallest score, never below 1
     k = math.ceil((n + 1) * 0.95)
-    assert ic.factor(0.95) == pytest.approx(max(1.0, scores[k - 1]))
-    assert SHIPPED["factor_95"] == pytest.approx(ic.factor(0.95))
-    assert ic.factor(0.5) <= ic.factor(0.95)
+    assert interval_table.factor(0.95) == pytest.approx(max(1.0, scores[k - 1]))
+    assert SHIPPED["factor_95"] == pytest.approx(interval_table.factor(0.95))
+    assert interval_table.factor(0.5) <= interval_table.factor(0.95)
 
 
 def test_calibration_cases_are_not_those_coverage_is_reported_on():
@@ -59,7 +59,7 @@ def test_interval_widens_each_side_about_the_profile_centre(monkeypatch):
     iv = workflow.profile(f, tr, ("delay",))
     c, lo, hi = iv.estimate[4], iv.low[4], iv.high[4]
     assert lo < c < hi
-    monkeypatch.setattr(ic, "factor", lambda level: 2.5)
+    monkeypatch.setattr(interval_table, "factor", lambda level: 2.5)
     low, high = workflow.interval(f, tr, ("delay",))["delay"]
     assert low == pytest.approx(c - 2.5 * (c - lo)) and high == pytest.approx(c + 2.5 * (hi - c))
     assert workflow.interval(f, tr, ("delay",), calibrate=False)["delay"] == \

@@ -107,6 +107,38 @@ def test_lanes_equal_the_scalar_kernel_bit_for_bit(parallel):
         assert np.array_equal(a[t], b[t]), t
 
 
+@pytest.mark.parametrize("dt", [None, 2.5e-5])
+def test_lanes_carrying_sensor_effects_equal_the_scalar_kernel_bit_for_bit(dt):
+    """Suite emafdi-v2's tier-7 candidates: the sensor offset, current gain and feedback delay
+    on (each lane its own values, some lanes with no delay, one with an integer delay) run
+    in the lanes, against the scalar kernel; a plant effect still sends its row to the
+    scalar kernel.  (A lane reading another lane's offset, gain or delay line, or the delay
+    line indexed from the start of the command rather than of the test, fails this.)"""
+    from ema_bench.effects import EFFECT_INDEX
+    from ema_bench.monitor_lanes import LANE_EFFECTS
+
+    n = 2 * LANES + 1
+    X = _lane_batch(n, 31)
+    E = np.zeros((n, N_EFFECTS))
+    rng = np.random.default_rng(32)
+    for name in LANE_EFFECTS:
+        eff = EFFECTS[EFFECT_INDEX[name]]
+        E[:, EFFECT_INDEX[name]] = rng.uniform(eff.lower, eff.upper, n)
+    E[::3, EFFECT_INDEX["delay"]] = 0.0            # lanes with and without a delay line
+    E[1, EFFECT_INDEX["delay"]] = 2e-4             # exactly 4 controller samples
+    E[5, EFFECT_INDEX["viscous_friction"]] = 1e-4  # a plant effect: the scalar kernel
+    grouped, rest = _lane_split(E, True)
+    assert rest.tolist() == [5] and grouped.size == n - 1
+    a, ok_a = simulate_monitor(X, E, lanes=False, dt=dt)
+    b, ok_b = simulate_monitor(X, E, lanes=True, dt=dt)
+    assert ok_a.all() and ok_b.all()
+    for t in a:
+        assert np.array_equal(a[t], b[t]), t
+    # and the effects do act: the same candidates without them differ
+    c, _ = simulate_monitor(X, None, lanes=True, dt=dt)
+    assert not np.array_equal(c["step"][:, :, 0], b["step"][:, :, 0])
+
+
 def test_lanes_equal_the_scalar_kernel_with_several_steps_per_controller_sample():
     """At a 25 us step the controller samples every other step (the lanes' ``tick``)."""
     X = _lane_batch(LANES + 1, 24)

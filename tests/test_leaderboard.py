@@ -15,6 +15,7 @@ from pathlib import Path
 
 import evidence
 import pytest
+from inprocess import run_cli
 
 from ema_bench.faults import FAULT_NAMES
 from ema_bench.leaderboard.derive import derived
@@ -26,8 +27,9 @@ QUICK = ["--solvers", "random,cmaes", "--cases", "small,full", "--seeds", "2",
 VOLATILE = {"wall_s", "solver_wall_s", "manifest"}
 
 
-def run(args, **kw):
-    return subprocess.run(CLI + args, capture_output=True, text=True, timeout=600, **kw)
+def run(args):
+    """``ema-bench leaderboard ARGS`` in this process (the kill test spawns its own)."""
+    return run_cli("leaderboard", *args)
 
 
 def stable(records):
@@ -93,6 +95,9 @@ def test_ecdf_area_and_ert_recomputed_by_hand(quick):
             float(row["ecdf_area_hi"])
 
 
+# slow: a killed sweep in a fresh interpreter (fast loop: the store's torn-line and resume
+# tests in test_sweep_faults.py)
+@pytest.mark.slow
 def test_interrupted_run_resumes_without_duplicates(quick, tmp_path):
     out = tmp_path / "killed"
     proc = subprocess.Popen(CLI + QUICK + ["--executor", "serial", "--no-plots", "--out",
@@ -119,6 +124,8 @@ def test_interrupted_run_resumes_without_duplicates(quick, tmp_path):
     assert strip(out / "leaderboard_twin.csv") == strip(quick / "leaderboard_twin.csv")
 
 
+# slow: starts process pools or a dask cluster (fast loop: the serial executor's tests)
+@pytest.mark.slow
 @pytest.mark.parametrize("executor", ["processes", "dask"])
 def test_executors_give_identical_records(quick, tmp_path, executor):
     pytest.importorskip("dask.distributed")
@@ -130,12 +137,14 @@ def test_executors_give_identical_records(quick, tmp_path, executor):
                                                                           "runs.jsonl"))
 
 
+# slow: starts process pools or a dask cluster (fast loop: the serial executor's tests)
+@pytest.mark.slow
 def test_dask_reruns_a_task_whose_worker_dies(quick, tmp_path):
     """The first task to start kills its worker process; the scheduler moves it to another
     worker and the records still equal the serial executor's."""
     pytest.importorskip("dask.distributed")
-    from ema_bench.leaderboard.executors import execute
     from ema_bench.leaderboard.tasks import make_tasks, run_task
+    from ema_bench.sweep.executors import execute
 
     marker = tmp_path / "a-worker-died"
 
@@ -147,7 +156,9 @@ def test_dask_reruns_a_task_whose_worker_dies(quick, tmp_path):
         return run_task(task)
 
     tasks = make_tasks(["random"], ["small"], ["reference", "twin"], 2, 60)
-    records = list(execute(tasks, "dask", workers=2, runner=dies_once))
+    outcomes = list(execute(tasks, dies_once, "dask", workers=2))
+    assert [o.failure for o in outcomes] == [None] * len(tasks)
+    records = [o.records[0] for o in outcomes]
     assert marker.exists()
     want = stable(read_records(quick / "runs.jsonl"))
     got = stable(records)
@@ -256,10 +267,9 @@ def test_leaderboard_row_replays_from_the_command_line(tmp_path):
                "--no-plots", "--out", str(tmp_path / "lb")])
     assert res.returncode == 0, res.stdout + res.stderr
     row = [r for r in read_records(tmp_path / "lb" / "runs.jsonl") if r["seed"] == 1][0]
-    solve = subprocess.run([sys.executable, "-m", "ema_bench.cli", "solve", "--case", "seeded",
-                            "--track", "reference", "--solver", "powell", "--budget", "80",
-                            "--seed", "1", "--root-seed", "3", "--json", "--no-progress"],
-                           capture_output=True, text=True, timeout=120)
+    solve = run_cli("solve", "--case", "seeded", "--track", "reference", "--solver", "powell",
+                    "--budget", "80", "--seed", "1", "--root-seed", "3", "--json",
+                    "--no-progress")
     assert solve.returncode == 0, solve.stderr
     doc = json.loads(solve.stdout)
     assert doc["truth"] == row["truth"]                 # the same seeded instance

@@ -95,3 +95,18 @@ def test_bad_action_and_step_before_reset():
     for bad in (3, -1, 1.5):
         with pytest.raises(ValueError, match="continue"):
             env.step(bad)
+
+
+def test_a_step_after_truncation_raises_like_identify_v1():
+    """Flying on past the horizon would add flights, costs and failures to an episode that
+    has ended: refused until reset, and reset starts a whole new horizon."""
+    env = _make(horizon=30, every=10)
+    env.reset(seed=2)
+    truncs = [env.step(0)[3] for _ in range(3)]
+    assert truncs == [False, False, True]
+    flights = env.unwrapped._flight
+    with pytest.raises(gym.error.ResetNeeded, match="horizon of 30 flights"):
+        env.unwrapped.step(0)
+    assert env.unwrapped._flight == flights == 30    # the refused step changed nothing
+    env.reset(seed=2)
+    assert not env.step(0)[3]

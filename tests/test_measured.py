@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 import math
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 import scipy.io
+from inprocess import run_cli
 
 from ema_bench.faults import CASES, LOWER, NOMINAL, UPPER
 from ema_bench.instances import make_problem
@@ -24,9 +23,7 @@ X = LOWER + np.random.default_rng(0).random((4, 4)) * (UPPER - LOWER)
 def cli_csv(tmp_path_factory):
     """Traces of the small case, seed 1, written by the real command line."""
     path = tmp_path_factory.mktemp("measured") / "small_seed1.csv"
-    done = subprocess.run(
-        [sys.executable, "-m", "ema_bench.cli", "simulate", "--case", "small", "--seed", "1",
-         "--out", str(path)], capture_output=True, text=True, timeout=300)
+    done = run_cli("simulate", "--case", "small", "--seed", "1", "--out", path)
     assert done.returncode == 0, done.stderr
     assert path.is_file()
     return path

@@ -287,6 +287,9 @@ def test_same_seed_same_result():
     assert not np.array_equal(h1["x"][1:], h3["x"][1:])
 
 
+# slow, the GA's accuracy at budget 5000 (four runs, about 10 CPU-s; also left out of the
+# mutation runs): the fast loop checks its operators, seeding, budget and loop by hand
+@pytest.mark.slow
 def test_identifies_the_faults_on_the_twin_track_full():
     p = make_problem("full", track="twin", seed=0, budget=5000)
     res = run_solver("paper-ga", p, seed=0)
@@ -295,6 +298,7 @@ def test_identifies_the_faults_on_the_twin_track_full():
     assert score.success, score.range_error
 
 
+@pytest.mark.slow
 def test_approaches_the_optimum_of_the_small_case():
     # the small case's Na/Fst valley is shallow: at budget 5000 the GA ends inside it, near
     # the optimum, and within 1 % of every range on about half the seeds (measured, seeds
@@ -629,3 +633,35 @@ def test_deap_types_are_created_once_and_minimise(monkeypatch):
     assert good == [0.1, 0.2]
     good.fitness.values, bad.fitness.values = (1.0,), (2.0,)
     assert good.fitness > bad.fitness  # the lower score is the fitter one
+
+
+def test_paper_ga_units_mutates_in_the_problems_units():
+    """``paper-ga-units`` (MATLAB's mutation, in physical units) and ``paper-ga`` (the unit
+    box) are both registered and say which is which.  In units, a step of size 1 is 1 /s of
+    a gain whose range is 1e5 /s: the gain hardly moves (under 1e-3 of its range) while Na,
+    whose range is 0.2, moves a lot; in the box both move alike."""
+    from ema_bench_solvers.ga_operators import adaptive_feasible_mutation
+    from ema_bench_solvers.paper_ga import _mutate_in_units
+
+    infos = available_solvers()
+    assert "problem's units" in infos["paper-ga-units"].description
+    assert "[0, 1] box" in infos["paper-ga"].description
+    assert infos["paper-ga-units"].config == {"mutation_space": "units"}
+    p = make_problem("small", track="twin", seed=0, budget=1)
+    U = np.random.default_rng(0).uniform(0.2, 0.8, (50, 4))
+    kids_units = _mutate_in_units(p, U, 1.0, rng=np.random.default_rng(1))
+    kids_box = adaptive_feasible_mutation(U, 1.0, np.random.default_rng(1))
+    d_units, d_box = np.abs(kids_units - U), np.abs(kids_box - U)
+    moved = (d_units > 1e-9).mean(axis=0)
+    assert moved[0] < 0.2 and moved[2] < 0.2 and moved[3] > 0.5
+    assert d_units[:, 3].max() < 1e-4
+    assert np.all(d_box.mean(axis=0) > 0.1)
+    assert np.all((kids_units >= 0.0) & (kids_units <= 1.0))
+    # end to end: a run is counted by the problem and reproducible
+    runs = []
+    for _ in range(2):
+        q = make_problem("small", track="twin", seed=0, budget=200)
+        res = run_solver("paper-ga-units", q, seed=3)
+        assert q.evaluations == 200 and res.solver == "paper-ga-units"
+        runs.append(q.history()["x"])
+    assert np.array_equal(*runs)

@@ -29,3 +29,21 @@ def test_readme_links_are_absolute():
     for link in re.findall(r"\]\(https://github.com/ema-bench/ema-bench/blob/main/([^)#]+)",
                            readme):
         assert (ROOT / link).exists(), link   # and each names a file of the repository
+
+
+def test_the_fast_loop_is_documented_and_ci_runs_every_test():
+    """`pytest -m "not slow"` is the documented fast loop; the marker is registered (an
+    unregistered one only warns, and a typo would keep a slow test in the loop unseen), and
+    CI's pytest line selects nothing away: the slow tests run there."""
+    import tomllib
+
+    readme = (ROOT / "README.md").read_text()
+    assert 'pytest -q -m "not slow"' in readme
+    assert 'pytest -q -m "not slow"' in (ROOT / "CONTRIBUTING.md").read_text()
+    ini = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["pytest"]["ini_options"]
+    assert [m for m in ini["markers"] if m.startswith("slow:")]
+    assert not {"-m", "-k", "--deselect", "--ignore"} & set(ini.get("addopts", "").split())
+    # what follows "-m pytest" on CI's lines: no selection
+    ci_args = [ln.split("-m pytest", 1)[1].split() for ln in
+               (ROOT / ".ci" / "run").read_text().splitlines() if "-m pytest" in ln]
+    assert ci_args and all(not {"-m", "-k"} & set(a) for a in ci_args), ci_args

@@ -67,6 +67,9 @@ def test_blind_traces_replay_with_simulate(case_file):
     assert load_traces(path).allclose(measured_traces(case, 4), rtol=1e-12, atol=0.0)
 
 
+# slow: three diagnoses of a blind case (about 25 CPU-s); the fast loop checks the blind
+# case's stream through simulate above and runs diagnose --json on the monitor's own data
+@pytest.mark.slow
 def test_diagnose_seed_is_the_diagnosis_stream_of_the_run(case_file, capsys):
     _, path = case_file
     assert main(["diagnose", str(path), "--root-seed", "4", "--seed", "2", "--budget", "100",

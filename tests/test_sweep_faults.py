@@ -19,11 +19,14 @@ import time
 from pathlib import Path
 
 import pytest
+from inprocess import CliRun, run_cli
 
 from ema_bench.cli import main
-from ema_bench.leaderboard.executors import execute
-from ema_bench.leaderboard.store import RunStore, read_records, run_identity
-from ema_bench.leaderboard.tasks import make_tasks, run_task
+from ema_bench.leaderboard.run import run_tasks
+from ema_bench.leaderboard.store import read_records, run_identity
+from ema_bench.leaderboard.tasks import failure_record, make_tasks, run_task
+from ema_bench.sweep.executors import execute
+from ema_bench.sweep.store import Store
 from ema_bench.trace_cache import MODEL_VERSION
 
 CLI = [sys.executable, "-m", "ema_bench.cli"]
@@ -32,10 +35,9 @@ TINY = ["--solvers", "random", "--cases", "small", "--tracks", "twin", "--seeds"
 VOLATILE = {"wall_s", "solver_wall_s"}
 
 
-def cli(*args: str, cwd: Path | None = None, timeout: float = 120
-        ) -> subprocess.CompletedProcess:
-    return subprocess.run([*CLI, *args], capture_output=True, text=True, cwd=cwd,
-                          timeout=timeout)
+def cli(*args: str, cwd: Path | None = None) -> CliRun:
+    """In this process (tests/inprocess.py); the kill tests spawn their own subprocesses."""
+    return run_cli(*args, cwd=cwd)
 
 
 def raw_records(path: Path) -> list[dict]:
@@ -75,13 +77,16 @@ def exits_on_seed_1(task):
 
 # --- a run that fails --------------------------------------------------------------------
 
-@pytest.mark.parametrize("executor", ["serial", "processes", "dask"])
+@pytest.mark.parametrize("executor", ["serial",
+                                      pytest.param("processes", marks=pytest.mark.slow),
+                                      pytest.param("dask", marks=pytest.mark.slow)])
 def test_a_run_that_raises_is_recorded_and_the_others_go_on(executor):
     if executor == "dask":
         pytest.importorskip("dask.distributed")
     tasks = make_tasks(["random"], ["small"], ["twin"], 3, 30)
-    records = {r["seed"]: r for r in execute(tasks, executor, workers=2,
-                                              runner=raises_on_seed_1)}
+    outcomes = list(execute(tasks, raises_on_seed_1, executor, workers=2))
+    records = {o.task.seed: failure_record(o.task, o.failure) if o.failure else o.records[0]
+               for o in outcomes}
     assert sorted(records) == [0, 1, 2]
     bad = records[1]
     assert bad["status"] == "error" and bad["error_type"] == "ValueError"
@@ -92,19 +97,22 @@ def test_a_run_that_raises_is_recorded_and_the_others_go_on(executor):
     assert all("status" not in records[k] and records[k]["evaluations"] == 30 for k in (0, 2))
 
 
-def test_a_worker_that_dies_fails_its_run_only_and_a_rerun_completes(tmp_path):
+# slow: starts process pools or a dask cluster (fast loop: the serial executor's tests)
+@pytest.mark.slow
+def test_a_run_whose_worker_always_dies_is_scored_as_failed_and_a_rerun_completes(tmp_path):
     """A run that kills its worker process breaks the whole pool; the runs that were in
-    flight with it run again one at a time, so only the culprit is recorded as failed."""
+    flight with it run again one at a time and are recorded; the culprit is run again twice
+    more (a worker killed from outside is not the run's doing), then recorded as a
+    ``WorkerDied`` error: scored as a failure (a solver cannot drop its hard runs from the
+    board by killing its worker) and run again by a resume."""
     out = tmp_path / "lb"
     tasks = make_tasks(["random"], ["small"], ["twin"], 3, 30)
-    with RunStore(out / "runs.jsonl") as store:
-        for rec in execute(tasks, "processes", workers=2, runner=exits_on_seed_1):
-            store.append(rec)
-    records = {r["seed"]: r for r in read_records(out / "runs.jsonl")}
-    assert sorted(records) == [0, 1, 2]
+    assert run_tasks(tasks, out, "processes", workers=2, quiet=True,
+                     runner=exits_on_seed_1) == 3
+    records = {r["seed"]: r for r in raw_records(out / "runs.jsonl")}
+    assert sorted(records) == [0, 1, 2] and len(raw_records(out / "runs.jsonl")) == 3
     assert records[1]["status"] == "error" and records[1]["error_type"] == "WorkerDied"
     assert all("status" not in records[k] for k in (0, 2))
-    # resume: the failed run is tried again, its success supersedes the error record
     res = cli("leaderboard", *TINY, "--executor", "serial", "--out", str(out), "--json")
     assert res.returncode == 0, res.stderr
     summary = json.loads(res.stdout)
@@ -215,6 +223,8 @@ def _cmdline(pid: int) -> str:
         return ""
 
 
+# slow: kills a sweep and its process pool (fast loop: the torn-line repair and full-disk tests)
+@pytest.mark.slow
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc")
 def test_workers_exit_when_the_sweep_is_killed_and_a_rerun_completes(tmp_path):
     out = tmp_path / "lb"
@@ -254,7 +264,7 @@ def test_a_full_disk_stops_the_sweep_with_one_line_and_a_rerun_completes(
         tmp_path, capsys, monkeypatch):
     out = tmp_path / "lb"
     args = ["leaderboard", *TINY, "--executor", "serial", "--quiet", "--out", str(out)]
-    real_write = RunStore._write
+    real_write = Store._write
     writes = []
 
     def full_disk(self, data):
@@ -264,7 +274,7 @@ def test_a_full_disk_stops_the_sweep_with_one_line_and_a_rerun_completes(
             raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
         real_write(self, data)
 
-    monkeypatch.setattr(RunStore, "_write", full_disk)
+    monkeypatch.setattr(Store, "_write", full_disk)
     assert main(args) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "No space left on device" in err[0] and "runs.jsonl" in err[0]
@@ -291,6 +301,8 @@ def test_a_broken_last_line_is_repaired_on_rerun(tmp_path, tail):
     assert stable(assert_each_run_once(runs, 3)) == want
 
 
+# slow: two sweeps in fresh interpreters racing for one folder
+@pytest.mark.slow
 def test_two_sweeps_on_one_folder_run_each_run_once(tmp_path):
     out = tmp_path / "lb"
     args = ["leaderboard", "--solvers", "random", "--cases", "small,full", "--tracks", "twin",

@@ -6,7 +6,9 @@ import copy
 import io
 import json
 import math
+import re
 import struct
+import tracemalloc
 import zipfile
 
 import numpy as np
@@ -443,6 +445,93 @@ def test_npz_member_that_is_not_npy_or_is_corrupt(tmp_path):
     path.write_bytes(bytes(blob))
     with pytest.raises(TracesError, match=r"deflated\.npz: corrupt \.npz archive"):
         load_traces(path)
+
+
+# ---- the limits of a whole file: names, count and total size before any member is read --------
+
+MIB = 2**20
+
+
+def loaded_peak(path, **kw) -> tuple[BaseException, int]:
+    """The error of loading ``path`` and the peak of memory allocated meanwhile (bytes)."""
+    tracemalloc.start()
+    try:
+        with pytest.raises(TracesError) as info:
+            load_traces(path, **kw)
+        return info.value, tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+
+
+def test_npz_members_under_the_member_limit_but_past_the_file_limit(tmp_path):
+    """Five 16 MiB members, each far under the 256 MiB a member may hold, 80 MiB together:
+    refused from the archive's directory before one member is read (before the file limit,
+    a 2 MB archive of such members filled 2.4 GB)."""
+    big = npy(np.zeros(2 * MIB))                                  # 16 MiB of float64
+    members = npz_members() | {f"t{i}/theta_m.npy": big for i in range(5)}
+    path = write_zip(tmp_path / "many.npz", members, zipfile.ZIP_DEFLATED)
+    assert path.stat().st_size < MIB
+    err, peak = loaded_peak(path)
+    assert re.search(r"many\.npz: its members hold \d+ bytes in all, more than the limit of "
+                     r"67108864 bytes per file", str(err))
+    assert peak < 4 * MIB                 # not one 16 MiB member was inflated
+
+
+def test_npz_bomb_member_is_refused_before_it_is_inflated(tmp_path):
+    """One member of 200 MiB of zeros, under the 256 MiB member limit, deflated to a few
+    hundred kB: refused from its listed size, never inflated."""
+    path = tmp_path / "bomb.npz"
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as z:
+        for name, data in npz_members().items():
+            z.writestr(name, data)
+        with z.open("t2/theta_m.npy", "w") as fh:
+            n = 200 * MIB // 8
+            fh.write(npy_claiming((n,), b""))
+            chunk = bytes(MIB)
+            for _ in range(200):
+                fh.write(chunk)
+    assert path.stat().st_size < 2 * MIB
+    err, peak = loaded_peak(path)
+    assert "more than the limit of 67108864 bytes per file" in str(err)
+    assert peak < 4 * MIB
+
+
+def test_npz_member_names_are_checked_before_any_member_is_read(tmp_path):
+    big = npy(np.zeros(2 * MIB))
+    members = {"step/theta_m.npy": big} | npz_members() | {"step/bogus.npy": npy(np.zeros(20))}
+    err, peak = loaded_peak(write_zip(tmp_path / "names.npz", members, zipfile.ZIP_DEFLATED))
+    assert "unknown key 'step/bogus'" in str(err)
+    assert peak < 4 * MIB                 # the 16 MiB member before it was not read
+    members = npz_members() | {"../x/theta_m.npy": npy(np.zeros(20))}
+    err, _ = loaded_peak(write_zip(tmp_path / "path.npz", members))
+    assert "key '../x/theta_m': invalid test name '../x'" in str(err)
+
+
+def test_npz_with_too_many_members_is_refused(tmp_path):
+    tiny = npy(np.zeros(1))
+    members = npz_members() | {f"t{i}/theta_m.npy": tiny for i in range(520)}
+    err, _ = loaded_peak(write_zip(tmp_path / "crowd.npz", members))
+    assert len(members) == 6 + 520
+    assert "526 keys, more than the limit of 512 per file" in str(err)
+
+
+def test_mat_variables_past_the_file_limit_are_refused(tmp_path, monkeypatch):
+    """Compressed variables each under the per-array limit, together over the file's (the
+    limit lowered so that a small file shows it), and a file larger than the limit itself."""
+    monkeypatch.setattr(mat_format, "MAX_FILE_BYTES", 8000)
+    variables = {"time": np.arange(200) * OUTPUT_DT, "units": UNIT_STRINGS}
+    variables |= {s: np.zeros(200) for s in SIGNALS}
+    scipy.io.savemat(tmp_path / "z.mat", variables, do_compression=True)
+    assert (tmp_path / "z.mat").stat().st_size < 8000
+    with pytest.raises(TracesError, match="its variables hold more than the limit of 8000 "
+                                          "bytes per file"):
+        load_traces(tmp_path / "z.mat", test="step")
+    scipy.io.savemat(tmp_path / "plain.mat", variables)
+    with pytest.raises(TracesError, match=r"the file holds \d+ bytes, more than the limit of "
+                                          "8000 bytes per file"):
+        load_traces(tmp_path / "plain.mat", test="step")
+    monkeypatch.setattr(mat_format, "MAX_FILE_BYTES", 2**26)
+    assert load_traces(tmp_path / "z.mat", test="step").tests == ("step",)
 
 
 def plain_mat_bytes(n: int = 20) -> bytes:

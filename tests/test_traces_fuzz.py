@@ -28,6 +28,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from ema_bench.traces import UNITS, Traces, TracesError, load_traces
 
@@ -507,6 +508,9 @@ def test_base_files_load(tmp_path):
         assert "step" in load_traces(path, test="step" if needs_test else None).tests
 
 
+# slow (about 7 CPU-s): hundreds of mutated files in a child interpreter; the fast loop loads
+# the unmutated base files (test_base_files_load)
+@pytest.mark.slow
 def test_load_traces_fuzz(tmp_path):
     t0 = time.perf_counter()
     done = subprocess.run(

@@ -5,12 +5,11 @@ tests/test_integrity.py holds the forgeries."""
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import evidence
 import pytest
+from inprocess import CliRun, run_cli
 
 from ema_bench.leaderboard.tasks import Task, error_record, run_task
 from ema_bench.leaderboard.validate import check_complete, check_record, validate
@@ -25,9 +24,8 @@ def records() -> list[dict]:
             for t in ("twin", "reference")]
 
 
-def cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "ema_bench.cli", *args], capture_output=True,
-                          text=True, cwd=ROOT, timeout=600)
+def cli(*args: str) -> CliRun:
+    return run_cli(*args, cwd=ROOT)
 
 
 def write(path: Path, recs: list[dict]) -> Path:

@@ -18,6 +18,9 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
+# a wheel build, a venv and a pip install: the fast loop runs the same commands from the
+# checkout (test_cli_simulate, test_leaderboard's --check)
+pytestmark = pytest.mark.slow
 
 
 def _run(cmd: list[str], cwd: Path, timeout: int = 600) -> subprocess.CompletedProcess:

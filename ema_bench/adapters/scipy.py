@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 from scipy import optimize
 
-from ..problem import BudgetExhausted, SolverView
+from ..problem import BudgetExhausted, ProblemError, SolverView
 from .run import evaluate_unit
 
 #: the option that caps a method's function evaluations, by method (lower case)
@@ -62,10 +62,19 @@ def _scalar(problem: SolverView) -> Callable[[np.ndarray], float]:
     return f
 
 
+def _start(problem: SolverView, x0: np.ndarray | None) -> np.ndarray:
+    """``x0``, or the problem's start; a problem without prior has none to default to."""
+    if x0 is not None:
+        return np.asarray(x0, dtype=float)
+    if problem.start is None:
+        raise ProblemError("this problem has no prior (no nominal, no start): pass x0")
+    return problem.start
+
+
 def simplex(problem: SolverView, edge: float = 0.1, x0: np.ndarray | None = None) -> np.ndarray:
     """A Nelder-Mead ``initial_simplex`` in the unit box: the start and one step of ``edge``
     along each axis, pointing into the box."""
-    u0 = np.clip(problem.to_unit(problem.start if x0 is None else np.asarray(x0, float)), 0, 1)
+    u0 = np.clip(problem.to_unit(_start(problem, x0)), 0, 1)
     step = np.where(u0 + edge <= 1.0, edge, -edge)
     return np.vstack([u0, u0 + np.diag(step)])
 
@@ -94,7 +103,7 @@ def minimize(problem: SolverView, method: str = "Nelder-Mead", x0: np.ndarray | 
         ``stop_reason`` ``budget``, ``converged`` or ``stalled`` (for the run record).
     """
     start = problem.evaluations
-    u0 = problem.to_unit(problem.start if x0 is None else np.asarray(x0, dtype=float))
+    u0 = problem.to_unit(_start(problem, x0))
     opts = dict(options or {})
     cap = _MAXFEV.get(method.lower())
     if cap:

@@ -13,7 +13,7 @@ import re
 import sys
 from collections.abc import Sequence
 
-from .. import __version__
+from ..version import __version__
 
 # subcommand name -> module in this package (the registry the parser is built from)
 COMMANDS: dict[str, str] = {
@@ -33,6 +33,14 @@ COMMANDS: dict[str, str] = {
 }
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """A command's parser whose usage errors are one line (``ema-bench CMD: error: ...``) and
+    exit code 2, like every other error of the command line; ``--help`` shows the usage."""
+
+    def error(self, message: str):  # type: ignore[override]
+        self.exit(2, f"{self.prog}: error: {message} (see '{self.prog} --help')\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="ema-bench",
@@ -41,7 +49,9 @@ def build_parser() -> argparse.ArgumentParser:
         epilog="Run 'ema-bench COMMAND --help' for the options of a command.",
     )
     parser.add_argument("--version", action="version", version=f"ema-bench {__version__}")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    # each command's usage errors are one line, exit code 2 (its sub-commands inherit it)
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True,
+                                parser_class=OneLineParser)
     for module in dict.fromkeys(COMMANDS.values()):  # a module may add two commands
         importlib.import_module(f"{__name__}.{module}").register(sub)
     for p in sub.choices.values():  # descriptions are module docstrings: show plain text
@@ -68,13 +78,20 @@ class CLIError(Exception):
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:
+        if exc.code == 2:   # a usage error, printed in one line: its exit code, as any other
+            return 2
+        raise               # --help, --version
     from ..progress import configure_logging
 
     configure_logging(quiet=getattr(args, "quiet", False))
+    from ..sweep.loop import SweepError
+
     try:
         return int(args.func(args) or 0)
-    except (CLIError, ValueError, LookupError, OSError, MemoryError) as exc:
+    except (CLIError, ValueError, LookupError, OSError, MemoryError, SweepError) as exc:
         # OSError: a write that fails late (disk full, folder removed) is one line too
         print(f"ema-bench {args.command}: error: {_message(exc)}", file=sys.stderr)
         return 2

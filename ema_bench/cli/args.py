@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import tempfile
 from collections.abc import Sequence
@@ -11,8 +12,56 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+# already loaded with the package face, which every command imports
+from ..problem import MAX_BUDGET as PROBLEM_MAX_BUDGET
+
 if TYPE_CHECKING:
     from ..traces import Traces
+
+
+#: The most worker processes any command starts (far above the cores of one machine).
+MAX_WORKERS = 256
+#: The largest evaluation budget of one fit or run: the problem's own limit.
+MAX_BUDGET = PROBLEM_MAX_BUDGET
+#: Seeds are non-negative and below 2**63 (numpy's SeedSequence takes them as entropy).
+MAX_SEED = 2**63 - 1
+
+
+def count(lower: int, upper: int):
+    """An argparse ``type``: a whole number in ``[lower, upper]``.
+
+    Every count option of every command has an upper bound, so a mistyped ``--cases 10**9``
+    is refused at once rather than filling the memory or the disk."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a whole number, got {text[:40]!r}"
+                                              ) from None
+        if not lower <= value <= upper:
+            raise argparse.ArgumentTypeError(f"must be from {lower} to {upper}, got {value}")
+        return value
+
+    parse.__name__ = "count"
+    parse.lower, parse.upper = lower, upper  # type: ignore[attr-defined]  (for --help, tests)
+    return parse
+
+
+#: ``--seed``, ``--root-seed`` and the like.
+seed_number = count(0, MAX_SEED)
+#: ``--workers``.
+worker_count = count(1, MAX_WORKERS)
+
+
+def finite(text: str) -> float:
+    """An argparse ``type``: a finite float (``inf`` and ``nan`` are refused)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text[:40]!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"must be a finite number, got {text[:40]!r}")
+    return value
 
 
 def parse_assignments(text: str, option: str = "--faults") -> dict[str, float]:
@@ -30,10 +79,10 @@ def parse_assignments(text: str, option: str = "--faults") -> dict[str, float]:
             raise ValueError(f"{option}: {name} is given twice ({name}={out[name]:g} and "
                              f"{item!r}); give each name once")
         try:
-            out[name] = float(value)
-        except ValueError:
-            raise ValueError(f"{option}: value of {name!r} is not a number: "
-                             f"{value.strip()!r}") from None
+            out[name] = finite(value)
+        except argparse.ArgumentTypeError:
+            raise ValueError(f"{option}: value of {name!r} is not a finite number: "
+                             f"{value.strip()[:40]!r}") from None
     if not out:
         raise ValueError(f"{option}: empty; expected NAME=VALUE[,NAME=VALUE...]")
     return out
@@ -41,10 +90,10 @@ def parse_assignments(text: str, option: str = "--faults") -> dict[str, float]:
 
 def add_seeds(p: argparse.ArgumentParser, what: str) -> None:
     """``--seed k`` and ``--root-seed R``: the run node (root seed, k) of the seed tree."""
-    p.add_argument("--seed", type=int, default=0,
+    p.add_argument("--seed", type=seed_number, default=0,
                    help=f"run seed k: {what} come from the run node (root seed, k) "
                         "(default 0)")
-    p.add_argument("--root-seed", type=int, default=0,
+    p.add_argument("--root-seed", type=seed_number, default=0,
                    help="root seed R (default 0); --root-seed R --seed k is row k of "
                         "'ema-bench leaderboard --root-seed R'")
 

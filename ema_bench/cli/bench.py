@@ -16,23 +16,24 @@ from __future__ import annotations
 import argparse
 import sys
 
-from .args import add_json
+from .args import add_json, count, seed_number
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("bench", help="measure model speed and time to a solution",
                        description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--batch", type=int, default=256, help="candidates per batch (default 256)")
-    p.add_argument("--repeat", type=int, default=7,
+    p.add_argument("--batch", type=count(1, 65_536), default=256,
+                   help="candidates per batch (default 256)")
+    p.add_argument("--repeat", type=count(1, 1000), default=7,
                    help="interleaved rounds, medians reported (default 7)")
-    p.add_argument("--naive", type=int, default=2, metavar="N",
+    p.add_argument("--naive", type=count(1, 1000), default=2, metavar="N",
                    help="evaluations of the plain-Python baseline (default 2, ~0.5 s each)")
-    p.add_argument("--tts-seeds", type=int, default=3, metavar="N",
+    p.add_argument("--tts-seeds", type=count(1, 1000), default=3, metavar="N",
                    help="seeds per case for the time to success (default 3)")
     p.add_argument("--quick", action="store_true",
                    help="skip the start-up and time-to-success figures")
-    p.add_argument("--seed", type=int, default=0, help="root seed (default 0)")
+    p.add_argument("--seed", type=seed_number, default=0, help="root seed (default 0)")
     add_json(p)
     p.set_defaults(func=run)
 

@@ -15,9 +15,13 @@ command resumes (OUT defaults to ema-bench-blind-seed<S>-n<N> in the current fol
 Progress: a bar in a terminal, one line per finished case otherwise (--quiet: none).
 
 --calibrate fits the true effect sets of the effect cases of the suite of root seed 1 (never
-a reported seed) and writes the nonconformity scores of their intervals into the package's
-calibration file, from which the factor widening every named effect's interval comes
-(ema_bench/diagnosis/interval_calibration.py); about 15 CPU-seconds per effect case.
+a reported seed) and writes the nonconformity scores of their intervals to
+OUT/interval_calibration.json (--out is required; the shipped table is never written); about
+15 CPU-seconds per effect case.  The factor widening every named effect's interval comes from
+the shipped table (ema_bench/diagnosis/interval_calibration.py) unless --calibration FILE (or
+EMA_BENCH_INTERVAL_CALIBRATION) names a user table; the summary names the table and its size.
+Replacing the shipped table is 'python -m ema_bench.calibration_files
+OUT/interval_calibration.json', in a checkout (docs/diagnosis.md).
 """
 
 from __future__ import annotations
@@ -27,18 +31,18 @@ import sys
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from .args import add_json, add_quiet
+    from .args import add_json, add_quiet, count, seed_number, worker_count
 
     p = sub.add_parser("blind", help="blind test of the missing-physics workflow",
                        description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--cases", type=int, default=30, help="hidden cases (default 30)")
-    p.add_argument("--seed", type=int, default=0,
+    p.add_argument("--cases", type=count(0, 10_000), default=30, help="hidden cases (default 30)")
+    p.add_argument("--seed", type=seed_number, default=0,
                    help="root seed R of the suite (default 0); case i is run i of it: the "
                         "traces of 'ema-bench simulate --root-seed R --seed i' (reference-model "
                         "cases, before any acquisition decoy), the diagnosis of 'ema-bench "
                         "diagnose --root-seed R --seed i'")
-    p.add_argument("--extra", type=int, default=0, metavar="K",
+    p.add_argument("--extra", type=count(0, 1000), default=0, metavar="K",
                    help="K more cases of each third-round category (an effect beside an "
                         "acquisition-chain fault, three effects at once), after the --cases "
                         "cases, which they leave as they were (default 0)")
@@ -48,11 +52,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", default=None, metavar="DIR",
                    help="write blind.jsonl and summary.json here, resumable (default "
                         "ema-bench-blind-seed<S>-n<N>)")
-    p.add_argument("--workers", type=int, default=1,
+    p.add_argument("--workers", type=worker_count, default=1,
                    help="processes running cases at once (default 1; each takes one core)")
     p.add_argument("--calibrate", action="store_true",
                    help="recompute the effect intervals' calibration on the effect cases of "
-                        "--cases cases of root seed 1, into the package's calibration file")
+                        "--cases cases of root seed 1, into OUT/interval_calibration.json "
+                        "(requires --out)")
+    p.add_argument("--calibration", default=None, metavar="FILE",
+                   help="widen the effect intervals with this user table (as --calibrate "
+                        "wrote it) instead of the shipped one (default: "
+                        "$EMA_BENCH_INTERVAL_CALIBRATION, else shipped)")
     add_json(p, "the summary and the cases")
     add_quiet(p)
     p.set_defaults(func=run)
@@ -65,12 +74,7 @@ def default_out(seed: int, cases: int, extra: int = 0) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
-    from ..diagnosis.blind import run_blind
-    from ..jsonio import dumps
-    from . import CLIError, print_json
-    from .args import check_output
+    from . import CLIError
 
     if args.cases < 0 or args.extra < 0 or args.cases + args.extra < 1 or args.workers < 1:
         raise CLIError("--cases and --extra must be >= 0 (not both 0), --workers >= 1")
@@ -84,6 +88,22 @@ def run(args: argparse.Namespace) -> int:
             raise CLIError(f"--only: unknown categories {unknown}; known: {', '.join(KINDS)}")
     if args.calibrate:
         return _calibrate(args)
+    from ..calibration_files import using
+    from ..diagnosis.interval_table import TABLE
+
+    with using(TABLE, args.calibration):
+        return _run(args, only)
+
+
+def _run(args: argparse.Namespace, only: list[str] | None) -> int:
+    from pathlib import Path
+
+    from ..diagnosis.blind import run_blind
+    from ..diagnosis.interval_table import source
+    from ..jsonio import dumps
+    from . import print_json
+    from .args import check_output
+
     # before any work: the suite takes minutes per case
     out = check_output(args.out or default_out(args.seed, args.cases, args.extra), "--out",
                        folder=True)
@@ -91,6 +111,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"writing to {out}/ (rerun the same command to resume)", file=sys.stderr)
     res = run_blind(args.cases, args.seed, out, quiet=args.quiet, workers=args.workers,
                     extra=args.extra, only=only)
+    res["summary"]["interval_calibration"] = source()
     (Path(out) / "summary.json").write_text(dumps(
         {"command": "ema-bench " + " ".join(sys.argv[1:]), **res["summary"]}, indent=1))
     if args.json:
@@ -104,18 +125,28 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _calibrate(args: argparse.Namespace) -> int:
+    from ..calibration_files import inside_package
     from ..diagnosis import interval_calibration as ic
     from . import CLIError, print_json
+    from .args import check_output
 
-    if args.seed not in (0, ic.CALIBRATION_SEED) or args.out:
-        raise CLIError(f"--calibrate runs the cases of root seed {ic.CALIBRATION_SEED} and "
-                       f"writes {ic.PATH}; drop --seed and --out")
-    data = ic.calibrate(args.cases, workers=args.workers, quiet=args.quiet)
+    if args.seed not in (0, ic.CALIBRATION_SEED) or args.calibration or args.extra or \
+            args.only:
+        raise CLIError(f"--calibrate runs the cases of root seed {ic.CALIBRATION_SEED}; drop "
+                       "--seed, --calibration, --extra and --only")
+    if args.out is None:
+        raise CLIError("--calibrate writes OUT/interval_calibration.json: give --out DIR (the "
+                       "shipped table is read-only)")
+    if inside_package(args.out):
+        raise CLIError(f"--out {args.out}: inside the package, whose data is read-only")
+    path = check_output(args.out, "--out", folder=True) / ic.TABLE.name
+    data = ic.calibrate(path, args.cases, workers=args.workers, quiet=args.quiet)
     if args.json:
         print_json(data)
     else:
         print(f"{len(data['scores'])} effect intervals of {data['effect_cases']} cases scored; "
-              f"95 % factor {data['factor_95']:.3g}; written to {ic.PATH}")
+              f"95 % factor {data['factor_95']:.3g}; written to {path} (use it with "
+              f"--calibration {path})")
     return 0
 
 
@@ -170,6 +201,8 @@ def summary_lines(s: dict, seed: int) -> list[str]:
              f"{s.get('confident_misnames', '-')}",
              f"  median held-out gap closed: {_pct(s['median_heldout_gap_closed'])}; median "
              f"parameter error: {_pct(s['median_param_error'], 2)}"]
+    if s.get("interval_calibration"):
+        lines.append(f"  effect intervals calibrated by: {s['interval_calibration']}")
     if s.get("interval_coverage"):
         lines.append("  named true effects whose 95 % profile interval contains the truth: "
                      f"{s['interval_coverage']}")

@@ -31,7 +31,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 # --- make (campaign drawing and files) -------------------------------------------------------
 
 def _register_make(actions: argparse._SubParsersAction) -> None:
-    from .args import add_json, add_quiet
+    from .args import add_json, add_quiet, count, seed_number
 
     p = actions.add_parser(
         "make", help="draw a campaign and write its inspection traces, manifest and truth",
@@ -41,15 +41,16 @@ def _register_make(actions: argparse._SubParsersAction) -> None:
                     "DIR/truth.json (hidden: faults, end of life, true RUL).  Same seed, same "
                     "files.  An existing campaign in DIR is replaced.")
     p.add_argument("name", metavar="NAME", help="campaign name (e.g. fleet-v1)")
-    p.add_argument("--units", type=int, default=20, help="units of the fleet (default 20)")
+    p.add_argument("--units", type=count(1, 10_000), default=20,
+                   help="units of the fleet (default 20)")
     p.add_argument("--track", choices=("twin", "reference"), default="twin",
                    help="inspection traces from the monitor model plus noise (twin, default) "
                         "or from the reference model (about 0.18 s per inspection)")
-    p.add_argument("--seed", type=int, default=0, help="root seed (default 0)")
+    p.add_argument("--seed", type=seed_number, default=0, help="root seed (default 0)")
     p.add_argument("--split", choices=("test", "train"), default="test",
                    help="test: units stop at 50-95 %% of life, RUL hidden (default); train: "
                         "units run to failure")
-    p.add_argument("--every", type=int, default=None, metavar="K",
+    p.add_argument("--every", type=count(1, 10_000), default=None, metavar="K",
                    help="flights between inspections (default: the campaign's, 10 for "
                         "fleet-v1)")
     p.add_argument("--out", default=None, metavar="DIR",
@@ -108,7 +109,7 @@ def _run_make(args: argparse.Namespace) -> int:
 # --- track (trackers) ------------------------------------------------------------------------
 
 def _register_track(actions: argparse._SubParsersAction) -> None:
-    from .args import add_json, add_quiet
+    from .args import add_json, add_quiet, seed_number, worker_count
 
     p = actions.add_parser(
         "track", help="run a tracker over a campaign: fault estimates and RUL per inspection",
@@ -125,9 +126,9 @@ def _register_track(actions: argparse._SubParsersAction) -> None:
     p.add_argument("--tracker", metavar="NAME", help="registered tracker (see --list)")
     p.add_argument("--out", metavar="DIR2", help="output folder (created; resumed if it "
                                                  "holds this same run)")
-    p.add_argument("--seed", type=int, default=0,
+    p.add_argument("--seed", type=seed_number, default=0,
                    help="root seed: unit k's tracker gets run node (S, k) (default 0)")
-    p.add_argument("--workers", type=int, default=1, metavar="N",
+    p.add_argument("--workers", type=worker_count, default=1, metavar="N",
                    help="units tracked at once in worker processes (default 1)")
     p.add_argument("--list", action="store_true", help="list the registered trackers and exit")
     add_json(p, "the summary (or the list)")
@@ -202,7 +203,7 @@ def _run_track(args: argparse.Namespace) -> int:
 # --- score (metrics) -------------------------------------------------------------------------
 
 def _register_score(actions: argparse._SubParsersAction) -> None:
-    from .args import add_json
+    from .args import add_json, finite
 
     p = actions.add_parser(
         "score", help="score tracking runs against the campaign's hidden truth",
@@ -221,7 +222,7 @@ def _register_score(actions: argparse._SubParsersAction) -> None:
     p.add_argument("--truth", metavar="FILE",
                    help="the campaign's truth file (default: truth.json in the campaign folder "
                         "the run names); with several runs, all must be of that campaign")
-    p.add_argument("--alpha", type=float, default=0.2,
+    p.add_argument("--alpha", type=finite, default=0.2,
                    help="relative half-width of the headline's accuracy (default 0.2)")
     p.add_argument("--no-oracle", action="store_true",
                    help="skip the oracle (about 0.3 s per failing unit) and the ratios to it")

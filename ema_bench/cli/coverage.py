@@ -8,14 +8,20 @@ interrupted run resumes), the summary to OUT/TRACK_METHOD.json, the caterpillar 
 OUT/TRACK_METHOD.png.
 
 --calibrate runs the calibration instances (root seed 1, disjoint from the reported ones) and
-writes their nonconformity scores into the package's calibration file, from which every
-interval's calibration factors come (ema_bench/uncertainty/calibration.py).
+writes their nonconformity scores to OUT/calibration.json (--out is required; the shipped
+table is never written).  Intervals take their calibration factors from the shipped table
+(ema_bench/uncertainty/calibration.py) unless --calibration FILE (or the environment variable
+EMA_BENCH_CALIBRATION) names a user table; the output names the table used and its size.
+Replacing the shipped table is 'python -m ema_bench.calibration_files OUT/calibration.json',
+in a checkout (docs/uncertainty.md).
 
 Examples::
 
     ema-bench coverage --track twin --instances 100 --level 0.95 --out leaderboards/coverage
     ema-bench coverage --track reference --instances 50 --method profile --json
-    ema-bench coverage --track twin --instances 200 --method laplace,profile --calibrate
+    ema-bench coverage --track twin --instances 200 --method laplace,profile --calibrate \
+        --out my-calibration
+    ema-bench coverage --track twin --instances 50 --calibration my-calibration/calibration.json
 """
 
 from __future__ import annotations
@@ -26,37 +32,50 @@ import argparse
 def register(sub: argparse._SubParsersAction) -> None:
     from ..uncertainty.coverage import BUDGET, SOLVER
     from ..uncertainty.methods import METHODS, MODEL_FORM_MODES
-    from .args import add_json, add_quiet, comma_list
+    from .args import (
+        MAX_BUDGET,
+        add_json,
+        add_quiet,
+        comma_list,
+        count,
+        finite,
+        seed_number,
+        worker_count,
+    )
 
     p = sub.add_parser("coverage", help="measure the coverage of the fault intervals",
                        description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--track", choices=("twin", "reference"), default="twin",
                    help="where the data come from (default twin)")
-    p.add_argument("--instances", type=int, default=100,
+    p.add_argument("--instances", type=count(1, 100_000), default=100,
                    help="seeded instances 0..N-1 (default 100)")
-    p.add_argument("--level", type=float, default=0.95,
+    p.add_argument("--level", type=finite, default=0.95,
                    help="interval level in (0, 1) (default 0.95)")
     p.add_argument("--method", type=comma_list, default=["laplace"],
                    metavar="METHOD[,METHOD...]",
                    help=f"interval method(s), of {', '.join(METHODS)} (default laplace); "
                         "several share each instance's fit")
     p.add_argument("--solver", default=SOLVER, help=f"solver of the fits (default {SOLVER})")
-    p.add_argument("--budget", type=int, default=BUDGET,
+    p.add_argument("--budget", type=count(1, MAX_BUDGET), default=BUDGET,
                    help=f"evaluation budget of each fit (default {BUDGET})")
-    p.add_argument("--root-seed", type=int, default=0,
+    p.add_argument("--root-seed", type=seed_number, default=0,
                    help="root of the instances' seeds (default 0; the calibration uses 1)")
-    p.add_argument("--noise-scale", type=float, default=1.0,
+    p.add_argument("--noise-scale", type=finite, default=1.0,
                    help="multiply the estimated noise level (sensitivity studies; default 1)")
     p.add_argument("--model-form", choices=list(MODEL_FORM_MODES), default="auto",
                    help="model-form allowance (default auto: none on twin, discrepancy "
                         "otherwise)")
     p.add_argument("--calibrate", action="store_true",
                    help="run the calibration instances (root seed 1) and write their scores "
-                        "into the package's calibration file")
+                        "to OUT/calibration.json (requires --out)")
+    p.add_argument("--calibration", default=None, metavar="FILE",
+                   help="calibrate the intervals with this user table (as --calibrate wrote "
+                        "it) instead of the shipped one (default: $EMA_BENCH_CALIBRATION, "
+                        "else shipped)")
     p.add_argument("--out", default=None, metavar="DIR",
                    help="folder for records (resumable), summary and plot")
-    p.add_argument("--workers", type=int, default=1, help="processes (default 1)")
+    p.add_argument("--workers", type=worker_count, default=1, help="processes (default 1)")
     add_json(p, "the summary")
     add_quiet(p)
     p.set_defaults(func=run)
@@ -65,11 +84,11 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
 
 
+    from ..calibration_files import inside_package, using
     from ..registry import SolverError, get_solver
     from ..uncertainty import calibration as cal
-    from ..uncertainty.coverage import Settings, run_methods
     from ..uncertainty.methods import METHODS
-    from . import CLIError, print_json
+    from . import CLIError
     from .args import check_output
 
     if args.instances < 1:
@@ -91,7 +110,22 @@ def run(args: argparse.Namespace) -> int:
     root = cal.CALIBRATION_ROOT_SEED if args.calibrate else args.root_seed
     if args.calibrate and args.root_seed not in (0, root):
         raise CLIError("--calibrate runs at the calibration root seed; drop --root-seed")
+    if args.calibrate and args.out is None:
+        raise CLIError("--calibrate writes OUT/calibration.json: give --out DIR (the shipped "
+                       "table is read-only)")
+    if args.calibrate and args.calibration:
+        raise CLIError("--calibrate makes a calibration table; drop --calibration")
+    if args.calibrate and inside_package(args.out):
+        raise CLIError(f"--out {args.out}: inside the package, whose data is read-only")
     out = check_output(args.out, "--out", folder=True)
+    with using(cal.TABLE, args.calibration):
+        return _run(args, root, out)
+
+
+def _run(args: argparse.Namespace, root: int, out) -> int:
+    from ..uncertainty.coverage import Settings, run_methods
+    from . import CLIError, print_json
+
     all_settings = [Settings(track=args.track, method=m, level=args.level, solver=args.solver,
                              budget=args.budget, root_seed=root, noise_scale=args.noise_scale,
                              model_form=args.model_form) for m in args.method]
@@ -118,22 +152,29 @@ def _summary(records: list[dict], method: str, stem: str, out, args: argparse.Na
     """Write calibration scores (with --calibrate), the summary and the plot of one method."""
     import numpy as np
 
+    from ..calibration_files import describe, using
     from ..faults import FAULT_NAMES
     from ..jsonio import dumps
     from ..uncertainty import calibration as cal
     from ..uncertainty.coverage import recalibrated, summarise, write_calibration
 
     kind = cal.calibration_kind(args.track)
+    mode = records[0]["model_form"]
+    made = None
     if args.calibrate:
-        write_calibration({cal.calibration_key(kind, method, records[0]["model_form"]):
-                           records})
-    # the intervals as the shipped calibration makes them now (uncalibrated where it has no
-    # scores for this method)
-    fac = cal.calibration_factor(kind, method, records[0]["model_form"], args.level)
+        made = out / cal.TABLE.name
+        write_calibration({cal.calibration_key(kind, method, mode): records}, made)
+    # the intervals as the active table (or the one just made) calibrates them now
+    # (uncalibrated where it has no scores for this method)
+    with using(cal.TABLE, made):
+        data = cal.active_table()
+        fac = cal.calibration_factor(kind, method, mode, args.level, data)
+        source = describe(cal.TABLE, cal.calibration_size(kind, method, mode, data))
     factors = np.ones(len(FAULT_NAMES)) if fac is None else fac
     records = recalibrated(records, dict(zip(FAULT_NAMES, factors)))
     summary = summarise(records)
     summary["calibration"] = "none" if fac is None else kind
+    summary["calibration_table"] = source
     summary["calibration_factor"] = dict(zip(FAULT_NAMES, map(float, factors)))
     if out is not None:
         from ..uncertainty.plots import plot_coverage
@@ -147,10 +188,11 @@ def _summary(records: list[dict], method: str, stem: str, out, args: argparse.Na
 def _print(summary: dict, root: int, args: argparse.Namespace) -> None:
     from ..faults import FAULT_NAMES
 
+    table = "" if summary["calibration"] == "none" else f" ({summary['calibration_table']})"
     print(f"coverage of {100 * args.level:g} % {summary['method']} intervals, {args.track} "
           f"track, {summary['instances']} seeded instances (root seed {root}; fits: "
           f"{args.solver}, budget {args.budget}; model form: {summary['model_form']}; "
-          f"calibration: {summary['calibration']})")
+          f"calibration: {summary['calibration']}{table})")
     print(f"{'fault':<6} {'coverage':>9} {'95 % interval':>16} {'median width':>13} "
           f"{'factor':>7} {'noise only':>10}")
     for n in FAULT_NAMES:

@@ -25,11 +25,13 @@ from __future__ import annotations
 import argparse
 
 from .args import (
+    MAX_BUDGET,
     add_json,
     add_quiet,
     add_seeds,
     add_test_names,
     check_output,
+    count,
     load_measured_files,
     run_node,
 )
@@ -49,9 +51,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--report", default=None, metavar="DIR",
                    help="write report.md, diagnosis.json and plots to DIR")
     p.add_argument("--solver", default=d.solver, help=f"fitting solver (default {d.solver})")
-    p.add_argument("--budget", type=int, default=d.budget,
+    p.add_argument("--budget", type=count(100, MAX_BUDGET), default=d.budget,
                    help=f"evaluations per fit (default {d.budget})")
-    p.add_argument("--bootstrap", type=int, default=d.n_boot,
+    p.add_argument("--bootstrap", type=count(10, 10_000), default=d.n_boot,
                    help=f"bootstrap replicates (default {d.n_boot})")
     add_seeds(p, "the fits and the bootstrap")
     add_json(p, "the diagnosis")
@@ -94,6 +96,10 @@ def run(args: argparse.Namespace) -> int:
     for a in d.acquisition:
         print(f"  {a.name} = {a.value:.4g} (95 % interval {a.interval[0]:.4g} .. "
               f"{a.interval[1]:.4g}): {a.description}{', partial' if a.partial else ''}")
+    if d.effects:
+        from ..diagnosis.interval_table import source
+
+        print(f"  effect intervals calibrated by: {source()}")
     print("faults before -> after: " + ", ".join(
         f"{n} {v['before']:.4g} -> {v['after']:.4g}" for n, v in d.faults.items()))
     if args.report:

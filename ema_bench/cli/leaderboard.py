@@ -47,8 +47,16 @@ def _shard(text: str) -> tuple[int, int]:
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from ..leaderboard.executors import EXECUTORS
-    from .args import add_json, add_quiet, comma_list
+    from ..sweep.executors import EXECUTORS
+    from .args import (
+        MAX_BUDGET,
+        add_json,
+        add_quiet,
+        comma_list,
+        count,
+        seed_number,
+        worker_count,
+    )
 
     p = sub.add_parser("leaderboard",
                        help="compare solvers on the suite's instances x tracks x seeds",
@@ -60,21 +68,34 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="comma-separated instances or groups: all (the suite, default), "
                         "paper (nominal,small,full,random), lhs (s00..s19), quick (paper "
                         "and s00..s03, the --quick default)")
+    p.add_argument("--suite", choices=("emafdi-v1", "emafdi-v2"), default="emafdi-v1",
+                   help="emafdi-v1 (default: the four faults, --cases) or emafdi-v2 (tiers "
+                        "x conditions, docs/suite-v2.md)")
+    p.add_argument("--tiers", type=comma_list, default=None,
+                   help="emafdi-v2: comma-separated tiers (default 4,7,12)")
+    p.add_argument("--conditions", type=comma_list, default=None,
+                   help="emafdi-v2: comma-separated conditions (default prior,no-prior,"
+                        "step-only)")
+    p.add_argument("--per-tier", type=int, default=None,
+                   help="emafdi-v2: the first N instances of each tier (default all)")
+    p.add_argument("--budget-per-dim", type=int, default=None,
+                   help="emafdi-v2: evaluations per searched dimension (default 1250)")
     p.add_argument("--tracks", type=comma_list, default=["reference", "twin"],
                    help="comma-separated tracks (default reference,twin)")
-    p.add_argument("--seeds", type=int, default=None,
+    p.add_argument("--seeds", type=count(1, 1000), default=None,
                    help=f"seeds per (solver, case, track) (default {DEFAULT['seeds']}, "
                         f"quick {QUICK['seeds']})")
-    p.add_argument("--budget", type=int, default=None,
+    p.add_argument("--budget", type=count(1, MAX_BUDGET), default=None,
                    help=f"evaluations per run (default {DEFAULT['budget']}, "
                         f"quick {QUICK['budget']})")
-    p.add_argument("--root-seed", type=int, default=0, help="root seed of the sweep")
+    p.add_argument("--root-seed", type=seed_number, default=0, help="root seed of the sweep")
     p.add_argument("--out", default=None, metavar="DIR",
                    help="output folder, required (with --check: a temp folder by default); "
                         "rerun with the same DIR to resume")
     p.add_argument("--executor", choices=EXECUTORS, default="processes",
                    help="serial, processes (local cores, default) or dask")
-    p.add_argument("--workers", type=int, default=None, help="worker processes (default: cores)")
+    p.add_argument("--workers", type=worker_count, default=None,
+                   help="worker processes (default: cores)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="address of an existing Dask scheduler (default: a LocalCluster)")
     p.add_argument("--shard", type=_shard, default=(0, 1), metavar="i/n",
@@ -119,9 +140,15 @@ def run(args: argparse.Namespace) -> int:
         args.check = str(require_baseline(folder))
     preset = QUICK if args.quick else DEFAULT
     seeds = args.seeds if args.seeds is not None else preset["seeds"]
-    cases = expand_cases(args.cases or preset["cases"])
-    budget = args.budget if args.budget is not None else preset["budget"]
-    if seeds < 1 or budget < 1:
+    if args.suite == "emafdi-v2":
+        cases, budget = _v2_sweep(args)
+    else:
+        if args.tiers or args.conditions or args.per_tier or args.budget_per_dim:
+            raise CLIError("--tiers, --conditions, --per-tier and --budget-per-dim need "
+                           "--suite emafdi-v2")
+        cases = expand_cases(args.cases or preset["cases"])
+        budget = args.budget if args.budget is not None else preset["budget"]
+    if seeds < 1 or (not callable(budget) and budget < 1):
         raise CLIError("--seeds and --budget must be >= 1")
     if args.out is None and args.check is None:
         # no default: a sweep written into the committed leaderboards/ by accident would
@@ -180,6 +207,32 @@ def run(args: argparse.Namespace) -> int:
             print(f"  {f}")
         _print_failures(summary["errors"])
     return status
+
+
+def _v2_sweep(args: argparse.Namespace):
+    """Cases and per-case budget of an emafdi-v2 sweep (budget: per-dimension x the tier's
+    dimension, or one fixed --budget)."""
+    from .. import suite_v2
+    from . import CLIError
+
+    if args.cases:
+        raise CLIError("--suite emafdi-v2 picks its instances with --tiers, --conditions and "
+                       "--per-tier, not --cases")
+    if args.check is not None:
+        raise CLIError("--check compares emafdi-v1 boards only")
+    try:
+        tiers = [int(t) for t in (args.tiers or suite_v2.TIERS)]
+        cases = suite_v2.cases(tiers, args.conditions or list(suite_v2.CONDITIONS),
+                               args.per_tier)
+    except ValueError as exc:   # SuiteError, or a tier that is not a number
+        raise CLIError(str(exc)) from None
+    if args.per_tier is not None and args.per_tier < 1 or \
+            args.budget_per_dim is not None and args.budget_per_dim < 1:
+        raise CLIError("--per-tier and --budget-per-dim must be >= 1")
+    if args.budget is not None:
+        return cases, args.budget
+    per_dim = args.budget_per_dim or suite_v2.BUDGET_PER_DIM
+    return cases, lambda case: per_dim * suite_v2.parse_case(case)[0].tier
 
 
 def _print_failures(errors: list[dict]) -> None:

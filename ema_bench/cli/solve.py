@@ -35,6 +35,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 
 from .args import (
+    MAX_BUDGET,
     PLOT_SUFFIXES,
     add_effects,
     add_faults,
@@ -42,8 +43,10 @@ from .args import (
     add_seeds,
     add_test_names,
     check_output,
+    count,
     effects_of,
     faults_of,
+    finite,
     load_measured_files,
     run_node,
 )
@@ -74,14 +77,14 @@ def _register_solve(sub: argparse._SubParsersAction) -> None:
                           "truth)")
     add_faults(src)
     add_test_names(p, "--measured")
-    p.add_argument("--heterogeneity", type=float, default=1.0,
+    p.add_argument("--heterogeneity", type=finite, default=1.0,
                    help="with --case seeded: how far faults may move from nominal, 0..1 "
                         "(default 1)")
     p.add_argument("--track", choices=("reference", "twin"), default="reference",
                    help="where the data come from: reference model or monitor twin "
                         "(default reference)")
     p.add_argument("--solver", default="cmaes", help="registered solver name (default cmaes)")
-    p.add_argument("--budget", type=int, default=2000,
+    p.add_argument("--budget", type=count(1, MAX_BUDGET), default=2000,
                    help="evaluation budget, counted by the problem (default 2000)")
     add_seeds(p, "the instance, the sensor noise and the solver (a leaderboard row, bit for "
                  "bit)")
@@ -92,7 +95,7 @@ def _register_solve(sub: argparse._SubParsersAction) -> None:
                    help="draw measured vs fitted monitor traces to a PNG")
     p.add_argument("--intervals", default=None, choices=("laplace", "profile", "bootstrap"),
                    help="an interval per fault by this method (default: none)")
-    p.add_argument("--level", type=float, default=0.95,
+    p.add_argument("--level", type=finite, default=0.95,
                    help="level of --intervals, in (0, 1) (default 0.95)")
     p.add_argument("--interval-plot", default=None, metavar="PNG",
                    help="with --intervals: draw the Na/Fst plane with the confidence region "
@@ -283,9 +286,15 @@ def _interval_plots(problem, iv, args: argparse.Namespace) -> list[str]:
 
 def _print_intervals(iv, out: dict) -> None:
     """Estimate and interval per parameter, and what the noise and tests say."""
+    from ..calibration_files import describe
+    from ..uncertainty import calibration as cal
+
+    # the table the factors came from, shipped or the user's (EMA_BENCH_CALIBRATION), named
+    size = cal.calibration_size(iv.calibration, iv.method, iv.model_form)
+    table = "" if iv.calibration == "none" else f" ({describe(cal.TABLE, size)})"
     print(f"{100 * iv.level:g} % {iv.method} intervals around the polished fit (fitness "
-          f"{iv.fitness:.6g}; model form: {iv.model_form}; calibration: {iv.calibration}; "
-          f"{iv.evaluations} extra evaluations)")
+          f"{iv.fitness:.6g}; model form: {iv.model_form}; calibration: {iv.calibration}"
+          f"{table}; {iv.evaluations} extra evaluations)")
     truth = out.get("truth") or {}
     print(f"{'param':<12} {'unit':<5} {'estimate':>12} {'interval':>28} {'width %':>8}"
           + (f" {'truth in':>8}" if truth else ""))

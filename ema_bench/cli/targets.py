@@ -19,14 +19,14 @@ import argparse
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from .args import add_json, add_quiet
+    from .args import add_json, add_quiet, worker_count
 
     p = sub.add_parser("targets", help="compute or show the suite's best-known optima f*",
                        description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", default=None, metavar="FILE.json",
                    help="where to write the table (required unless --show)")
-    p.add_argument("--workers", type=int, default=None, help="processes (default: cores)")
+    p.add_argument("--workers", type=worker_count, default=None, help="processes (default: cores)")
     p.add_argument("--show", action="store_true", help="summarise the shipped table")
     add_json(p, "the summary")
     add_quiet(p)

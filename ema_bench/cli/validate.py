@@ -21,7 +21,7 @@ import argparse
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from .args import add_json
+    from .args import add_json, seed_number
 
     p = sub.add_parser("validate", help="check third-party run records (suite, manifest, "
                                         "budget, re-evaluated fitness)",
@@ -37,7 +37,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "registered solver at the record's identity and compare the trace, "
                         "best_at, final vector and trajectory (catches a solver that reads "
                         "what it was not given, and hits moved earlier)")
-    p.add_argument("--replay-seed", type=int, default=None, metavar="S",
+    p.add_argument("--replay-seed", type=seed_number, default=None, metavar="S",
                    help="seed of the replay sample (default 29)")
     p.add_argument("--replay-key", action="append", default=None, metavar="KEY",
                    help="replay the record with this key (solver|case|track|seed; "
@@ -50,7 +50,7 @@ def run(args: argparse.Namespace) -> int:
     from ..leaderboard.store import is_error, unique
     from ..leaderboard.validate import LEGACY_UNVERIFIABLE, Finding, validate
     from ..records import schema
-    from ..suite import SUITE_ID
+    from ..suite_v2 import suite_of
     from . import CLIError, print_json
     from .args import read_run_files
 
@@ -58,6 +58,7 @@ def run(args: argparse.Namespace) -> int:
     if not records:
         raise CLIError(f"no run records in {', '.join(args.runs)}")
     found = validate(records, reevaluate=not args.no_reevaluate, complete=not args.partial)
+    SUITE_ID = ", ".join(sorted({suite_of(r.get("case")) for r in records}))  # noqa: N806
     legacy = sum(schema(r) < 2 and not is_error(r) for r in records)
     replayed = _replay(records, "all" if args.replay_key and not args.replay else args.replay,
                        args.replay_seed, set(args.replay_key or ()) or None)

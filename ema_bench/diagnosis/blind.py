@@ -60,16 +60,13 @@ there).  ``named_acquisition`` lists the acquisition faults named, ``kind(channe
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
-import multiprocessing as mp
-import os
 import statistics
 import time
 from collections import Counter
-from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
-from contextlib import closing
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -79,11 +76,13 @@ import numpy as np
 from ..effects import DECOYS, EFFECT_INDEX, EFFECTS, LIBRARY, effects_vector
 from ..faults import faults_to_dict, random_faults
 from ..instances import twin_traces
-from ..leaderboard.store import RunStore, is_current, read_records
-from ..progress import progress
 from ..protocol import HOLDOUT_TESTS, STANDARD_TESTS
 from ..reference import simulate_reference
 from ..seeding import run_seed, stream
+from ..sweep.executors import Job
+from ..sweep.loop import run_sweep
+from ..sweep.schema import opt, req
+from ..sweep.store import Store, is_current
 from ..trace_cache import MODEL_VERSION
 from ..traces import Traces
 from . import acquisition, decoys
@@ -120,6 +119,22 @@ ACQUIRED = ("acquisition_decoy", "effect_acquisition")
 TESTS = STANDARD_TESTS + HOLDOUT_TESTS
 
 Runner = Callable[["BlindCase", int, Settings], dict]
+CASES_FILE = "blind.jsonl"
+_FLAG = opt("bool")
+#: The fields of a case's record a reader relies on, by JSON type (older formats' records
+#: are read too, then refused by name on resume).
+CASE_SCHEMA = {
+    "key": req("str"), "root_seed": req("int"), "seed": req("int"), "index": req("int"),
+    "model_version": opt("str|int"), "kind": req("str"), "category": opt("str"),
+    "effects": opt("dict"), "faults": opt("dict"), "decoy": opt("str|null"),
+    "decoy_params": opt("dict"), "verdict": req("str"), "named": opt("list"),
+    "named_acquisition": opt("list"), "partial": opt("str|null"),
+    "gap_closed": opt("number|null"), "evaluations": opt("int"), "wall_s": opt("number"),
+    "cpu_s": opt("number"), "misnamed": opt("list"), "correct": _FLAG, "both_named": _FLAG,
+    "one_named": _FLAG, "all_named": _FLAG, "named_partial": _FLAG, "false_alarm": _FLAG,
+    "decoy_ok": _FLAG, "effect_named": _FLAG, "acquisition_named": _FLAG,
+    "acquisition_ok": _FLAG, "interval_covers": opt("dict|bool"),
+}
 
 
 @dataclass(frozen=True)
@@ -498,6 +513,15 @@ def summarise(records: list[dict]) -> dict[str, object]:
 
 # --- running a suite ------------------------------------------------------------------------
 
+def _job(case: BlindCase) -> Job:
+    """A case as a task of the sweep engine: its record's key and model version."""
+    return Job(f"case{case.index}", (f"case{case.index}", MODEL_VERSION), case)
+
+
+def _run_task(runner: Runner, seed: int, settings: Settings, job: Job) -> dict:
+    return runner(job.data, seed, settings)
+
+
 def run_blind(n: int, seed: int, out: str | Path | None = None,
               settings: Settings | None = None, quiet: bool = True, workers: int = 1,
               runner: Runner | None = None, extra: int = 0,
@@ -507,9 +531,11 @@ def run_blind(n: int, seed: int, out: str | Path | None = None,
     :func:`~ema_bench.progress.progress` shows it unless ``quiet``.  ``only``: run and
     summarise the cases of these categories alone (the others are drawn, not run).
 
-    ``workers`` > 1 runs the cases in that many processes; each record is appended to the
-    store (by this process) as its case finishes, and the records come back in case order.
-    ``runner`` replaces :func:`run_case` (a module-level function, for the processes)."""
+    The cases run on the sweep engine (:func:`~ema_bench.sweep.loop.run_sweep`): ``workers``
+    > 1 runs them in that many spawned processes; each record is appended to
+    ``out/blind.jsonl`` as its case finishes, a rerun (or a second process on the folder)
+    runs exactly the cases missing, and the records come back in case order.  ``runner``
+    replaces :func:`run_case` (a module-level function, for the processes)."""
     settings = settings or Settings()
     cases = draw_cases(n, seed, extra)
     if only is not None:
@@ -517,53 +543,43 @@ def run_blind(n: int, seed: int, out: str | Path | None = None,
         if unknown:
             raise ValueError(f"unknown categories {unknown}; known: {list(KINDS)}")
         cases = [c for c in cases if c.category in only]
-    store = RunStore(Path(out) / "blind.jsonl") if out else None
-    # cases of another model version are stale: run again, recorded beside the old ones
-    done = {r["key"]: r for r in read_records(store.path) if is_current(r)} if store else {}
-    records: dict[int, dict] = {}
-    try:
-        with progress(len(cases), "blind", "case", quiet=quiet) as bar:
-            todo = []
-            for case in cases:
-                rec = done.get(f"case{case.index}")
-                if rec is None:
-                    todo.append(case)
-                    continue
-                _check_resumed(rec, case, seed, store.path)
-                records[case.index] = rec
-                bar.update(f"case{case.index} {rec['verdict']}")
-            with closing(run_cases(todo, seed, settings, workers, runner or run_case)) as ran:
-                for rec in ran:
-                    if store:
-                        store.append(rec)
-                    records[rec["index"]] = rec
-                    bar.update(f"case{rec['index']} {rec['verdict']}")
-    finally:
-        if store:
-            store.close()
-    ordered = [records[c.index] for c in cases]
+    tasks = [_job(c) for c in cases]
+    run = functools.partial(_run_task, runner or run_case, seed, settings)
+    if out is None:
+        got = run_sweep(tasks, run, executor="serial" if workers <= 1 else "processes",
+                        workers=workers, label="blind", unit="case", quiet=quiet,
+                        describe=_verdict).records
+    else:
+        with Store(Path(out) / CASES_FILE, schema=CASE_SCHEMA) as store:
+            # cases of another model version are stale: run again, recorded beside the old
+            drawn = {t.key: t.data for t in tasks}
+            for rec in store.records:
+                if is_current(rec) and rec["key"] in drawn:
+                    _check_resumed(rec, drawn[rec["key"]], seed, store.path)
+            run_sweep(tasks, run, [store], executor="serial" if workers <= 1
+                      else "processes", workers=workers, label="blind", unit="case",
+                      quiet=quiet, describe=_verdict)
+            got = [r for r in store.records if is_current(r)]
+    by_key = {r["key"]: r for r in got}
+    ordered = [by_key[t.key] for t in tasks]
     return {"seed": seed, "summary": summarise(ordered), "records": ordered}
 
 
-def run_cases(cases: Sequence[BlindCase], seed: int, settings: Settings, workers: int = 1,
-              runner: Runner = run_case) -> Iterator[dict]:
-    """The records of ``cases`` as they finish: in order in this process, or in any order
-    from ``workers`` spawned processes (one numba thread each)."""
-    if workers <= 1 or len(cases) <= 1:
-        for case in cases:
-            yield runner(case, seed, settings)
-        return
-    from ..leaderboard.executors import worker_init
+def _verdict(outcome) -> str:
+    return f"{outcome.task.key} {outcome.records[0]['verdict']}" if outcome.records \
+        else outcome.task.key
 
-    # "spawn": numba's threading layers and fork do not mix well
-    pool = ProcessPoolExecutor(min(workers, len(cases)), mp_context=mp.get_context("spawn"),
-                               initializer=worker_init, initargs=(os.getpid(),))
-    try:
-        futures = [pool.submit(runner, case, seed, settings) for case in cases]
-        for fut in as_completed(futures):
-            yield fut.result()
-    finally:
-        pool.shutdown(wait=True, cancel_futures=True)
+
+def run_cases(cases: Sequence[BlindCase], seed: int, settings: Settings, workers: int = 1,
+              runner: Runner = run_case, label: str = "blind", quiet: bool = True
+              ) -> list[dict]:
+    """The records of ``cases`` in completion order, run on the sweep engine (in this
+    process, or in ``workers`` spawned processes, one numba thread each), stored nowhere;
+    progress under ``label`` unless ``quiet``."""
+    return run_sweep([_job(c) for c in cases], functools.partial(_run_task, runner, seed,
+                                                                  settings),
+                     executor="serial" if workers <= 1 else "processes",
+                     workers=workers, label=label, unit="case", quiet=quiet).records
 
 
 def _check_resumed(rec: dict, case: BlindCase, seed: int, path: Path) -> None:

@@ -17,40 +17,28 @@ are reported at other seeds, so the factor is not fitted to the coverage it is j
 factor is pooled over effects (a handful of cases per effect is too few for a quantile of its
 own), so the guarantee is marginal over the blind suite's mix of effects; it is never below 1
 (the profile interval of the noise alone is the narrowest honest one).  The scores ship as
-``interval_calibration.json``; ``ema-bench blind --calibrate`` recomputes them.
+``interval_calibration.json`` (read by :mod:`~ema_bench.diagnosis.interval_table`);
+``ema-bench blind --calibrate --out DIR`` recomputes them into DIR/interval_calibration.json.
 """
 
 from __future__ import annotations
 
 import json
-from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 
+from ..calibration_files import inside_package, write_atomic
 from ..objective import N_FAULTS
 from ..seeding import run_seed, stream
 from ..uncertainty.calibration import conformal_quantile, score
-from .workflow import HOLDOUT, TRAIN, Settings, _spec, _subset, fit, profile
+from .interval_table import TABLE, read
+from .workflow import HOLDOUT, TRAIN, Settings, effect_spec, fit, profile, subset_traces
 
-PATH = Path(__file__).with_name("interval_calibration.json")
+#: The shipped table (read-only: :func:`calibrate` writes a user file).
+PATH = TABLE.shipped
 #: Root seed of the calibration cases (blind suites are reported at other seeds).
 CALIBRATION_SEED = 1
-
-
-@lru_cache(maxsize=1)
-def _scores(path: Path = PATH) -> tuple[float, ...]:
-    if not path.exists():
-        return ()
-    data = json.loads(path.read_text())
-    return tuple(float(r["score"]) for r in data["scores"])
-
-
-def factor(level: float = 0.95) -> float:
-    """The factor every effect interval's half-widths are multiplied by at ``level`` (1 when
-    no calibration ships)."""
-    s = _scores()
-    return max(1.0, conformal_quantile(s, level)) if s else 1.0
 
 
 def case_scores(case, seed: int, settings: Settings) -> dict:
@@ -59,13 +47,14 @@ def case_scores(case, seed: int, settings: Settings) -> dict:
     run_cases` runner)."""
     from .blind import measured_traces
 
-    measured = _subset(measured_traces(case, seed), TRAIN + HOLDOUT)
+    measured = subset_traces(measured_traces(case, seed), TRAIN + HOLDOUT)
     measured = measured.with_meta(faults=None, effects=None)
     node = stream(run_seed(seed, case.index), "diagnosis")
     base = fit(measured, (), settings, stream(node, "fit", 0, 0))
     names = tuple(sorted(case.effects))
     start = np.r_[base.x[:N_FAULTS],
-                  [np.clip(_spec(n).detect, _spec(n).lower, _spec(n).upper) for n in names]]
+                  [np.clip(effect_spec(n).detect, effect_spec(n).lower, effect_spec(n).upper)
+                   for n in names]]
     f = fit(measured, names, settings, stream(node, "fit", 1, 1), start)
     iv = profile(f, measured, names)
     rows = []
@@ -79,24 +68,25 @@ def case_scores(case, seed: int, settings: Settings) -> dict:
     return {"index": case.index, "rows": rows}
 
 
-def calibrate(cases: int = 60, workers: int = 1, seed: int = CALIBRATION_SEED,
-              path: Path | str = PATH, quiet: bool = True) -> dict:
+def calibrate(path: Path | str, cases: int = 60, workers: int = 1,
+              seed: int = CALIBRATION_SEED, quiet: bool = True) -> dict:
     """Score the effect cases among the first ``cases`` of the blind suite of root ``seed``
-    and write the scores to ``path`` (about 15 CPU-seconds per case)."""
-    from ..progress import progress
+    and write the scores to the user file ``path`` (about 15 CPU-seconds per case).
+
+    ValueError for a path inside the package: the shipped table is replaced only by
+    ``python -m ema_bench.calibration_files``, in a checkout."""
+    if inside_package(path):
+        raise ValueError(f"{path}: inside the package, whose data is read-only")
     from .blind import draw_cases, run_cases
 
     todo = [c for c in draw_cases(cases, seed) if c.kind == "effect"]
-    settings = Settings()
-    rows = []
-    with progress(len(todo), "interval calibration", "case", quiet=quiet) as bar:
-        for rec in run_cases(todo, seed, settings, workers, case_scores):
-            rows.extend(rec["rows"])
-            bar.update(f"case{rec['index']}")
+    rows = [row for rec in run_cases(todo, seed, Settings(), workers, case_scores,
+                                     label="interval calibration", quiet=quiet)
+            for row in rec["rows"]]
     rows.sort(key=lambda r: (r["case"], r["effect"]))
     data = {"root_seed": seed, "suite_cases": cases, "effect_cases": len(todo),
             "factor_95": max(1.0, conformal_quantile([r["score"] for r in rows], 0.95)),
             "scores": rows}
-    Path(path).write_text(json.dumps(data, indent=1) + "\n")
-    _scores.cache_clear()
+    write_atomic(Path(path), json.dumps(data, indent=1) + "\n")
+    read.cache_clear()
     return data

@@ -261,7 +261,8 @@ def _commands(tests: tuple[str, ...]) -> dict[str, np.ndarray]:
     return out
 
 
-def _subset(tr: Traces, tests: tuple[str, ...]) -> Traces:
+def subset_traces(tr: Traces, tests: tuple[str, ...]) -> Traces:
+    """The traces of ``tests`` only (same sampling, same metadata)."""
     return Traces({t: tr.data[t] for t in tests}, dt=tr.dt, meta=dict(tr.meta))
 
 
@@ -307,7 +308,7 @@ def fit(measured: Traces, augment: tuple[str, ...], settings: Settings, seed: Se
     With acquisition ``faults`` (their starting values) the model carries them: the physics
     is fitted through them held fixed, then each is fitted again at the new monitor outputs
     (one alternation; their parameters need no simulation, :mod:`.acquisition`)."""
-    train = _subset(measured, TRAIN)
+    train = subset_traces(measured, TRAIN)
     weights = _fit_weights(train, faults)
     problem = make_problem(measured=train, budget=settings.budget, augment=augment,
                            start=start, sample_weights=weights)
@@ -384,7 +385,7 @@ def profile(model: Fit, measured: Traces, params: tuple[str, ...], level: float 
     instead of its tangent."""
     from ..uncertainty import intervals
 
-    train = _subset(measured, TRAIN)
+    train = subset_traces(measured, TRAIN)
     objective = CarriedObjective(train, SearchSpace.of(model.augment),
                                  sample_weights=_fit_weights(train, model.acquisition),
                                  faults=model.acquisition)
@@ -397,8 +398,9 @@ def interval(model: Fit, measured: Traces, params: tuple[str, ...] | None = None
     """Intervals of augmented effects (default: the last one), ``name -> [low, high]``:
     their :func:`profile` intervals, each half-width multiplied (with ``calibrate``) by the
     shipped split-conformal factor for the model-form bias the noise does not account for
-    (:mod:`~ema_bench.diagnosis.interval_calibration`)."""
-    from .interval_calibration import factor
+    (:mod:`~ema_bench.diagnosis.interval_calibration`; the active table:
+    :mod:`~ema_bench.diagnosis.interval_table`)."""
+    from .interval_table import factor
 
     params = params or model.augment[-1:]
     iv = profile(model, measured, params, level)
@@ -447,13 +449,14 @@ def _bounds(augment: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(space.lower), np.asarray(space.upper)
 
 
-def _spec(name: str):
+def effect_spec(name: str):
+    """The library entry (:class:`~ema_bench.effects.Effect`) of the physical effect ``name``."""
     return EFFECTS[EFFECT_NAMES.index(name)]
 
 
 def _trivial(name: str) -> float:
     """The trivial band of a physical effect or an acquisition fault (its unit)."""
-    return acq.trivial(name) if acq.is_acquisition(name) else _spec(name).trivial
+    return acq.trivial(name) if acq.is_acquisition(name) else effect_spec(name).trivial
 
 
 def _physical(names: tuple[str, ...]) -> tuple[str, ...]:
@@ -552,11 +555,11 @@ class _Search:
         f = self.fits[trial.name]
         if f.acquisition:
             return None
-        keep = tuple(n for n in f.augment if abs(f.effects[n]) > _spec(n).trivial)
+        keep = tuple(n for n in f.augment if abs(f.effects[n]) > effect_spec(n).trivial)
         key = "+".join(keep)
         if not keep or keep == f.augment or key not in self.fits:
             return None
-        train = _subset(self.measured, TRAIN)
+        train = subset_traces(self.measured, TRAIN)
         x = np.r_[f.x[:N_FAULTS], [f.effects[n] for n in keep]]
         fitness = float(Objective(train, SearchSpace.of(keep), sample_weights=stick_weights(
             train)).evaluate(x[None, :])[0][0])
@@ -575,7 +578,8 @@ class _Search:
               faults: np.ndarray) -> np.ndarray:
         """A warm start: ``faults`` and each physical effect of ``effects`` at ``values``
         (else zero), in bounds."""
-        return np.r_[faults, [np.clip(values.get(n, 0.0), _spec(n).lower, _spec(n).upper)
+        return np.r_[faults, [np.clip(values.get(n, 0.0), effect_spec(n).lower,
+                                      effect_spec(n).upper)
                               for n in _physical(effects)]]
 
     def screen_acquisition(self, f: Fit) -> list[acq.Estimate]:
@@ -649,7 +653,7 @@ def diagnose(measured: Traces, settings: Settings | None = None, seed: SeedLike 
     if missing:
         raise DiagnosisError(f"the workflow needs the tests {list(TRAIN + HOLDOUT)} (the last "
                              f"one held out for validation); missing {missing}")
-    measured = _subset(measured, TRAIN + HOLDOUT)
+    measured = subset_traces(measured, TRAIN + HOLDOUT)
     sw = stick_weights(measured)
     weights = {t: w[None, :] * sw[t] for t, w in signal_weights(measured).items()}
     base = fit(measured, (), settings, stream(seed, "fit", 0, 0))

@@ -36,19 +36,19 @@ from functools import lru_cache
 
 import numpy as np
 
-from ..faults import FAULT_NAMES, N_FAULTS
+from ..faults import FAULT_NAMES, LOWER, N_FAULTS, UPPER
 from ..records import schema
 from ..scoring import SUCCESS_RANGE_ERROR, paper_accuracy, range_error
 from ..suite import (
     BUDGET_CHECKPOINTS,
     FITNESS_PRECISIONS,
     PARAMETER_TARGETS,
-    best_known,
     fitness_targets,
     instance_faults,
     is_instance,
     precision_key,
 )
+from ..suite_v2 import best_known_for, is_v2_case, scoring_frame
 from .store import is_error
 
 
@@ -87,6 +87,8 @@ def truth_of(record: dict) -> np.ndarray:
     """The true faults of the record's instance, from the suite (or, for a case drawn from the
     seed, the rebuilt instance), never from the record."""
     case = record["case"]
+    if is_v2_case(case):
+        return scoring_frame(case)[1][:N_FAULTS]
     if is_instance(case):
         return instance_faults(case)
     return _rebuilt_truth(case, record["track"], int(record["seed"]),
@@ -100,6 +102,15 @@ def _rebuilt_truth(case: str, track: str, seed: int, root_seed: int) -> np.ndarr
 
     p = make_problem(case, track=track, seed=run_seed(root_seed, seed), budget=1)
     return np.array([p.score(p.nominal).truth[n] for n in FAULT_NAMES])
+
+
+def frame_of(record: dict) -> tuple[np.ndarray, np.ndarray]:
+    """Truth and ranges of every parameter the record's parameter targets judge: the faults
+    (v1), or every searched parameter of a v2 tier (its effects too)."""
+    if is_v2_case(record["case"]):
+        _, truth, ranges = scoring_frame(record["case"])
+        return truth, ranges
+    return truth_of(record), UPPER - LOWER
 
 
 def _points(record: dict) -> tuple[list[int], list[float], list[np.ndarray] | None]:
@@ -141,6 +152,7 @@ def derive(record: dict) -> Derived:
     ev, fit = [ev[i] for i in keep], [fit[i] for i in keep]
     vecs = None if vecs is None else [vecs[i] for i in keep]
     truth = truth_of(record)
+    every, ranges = frame_of(record)   # parameter targets and success judge all of these
     if vecs is not None:
         final = vecs[-1][:N_FAULTS]
     else:
@@ -149,7 +161,7 @@ def derive(record: dict) -> Derived:
         except (KeyError, TypeError, ValueError) as exc:
             raise DerivationError(f"final vector x unreadable ({exc})") from None
     err = range_error(final, truth)
-    known = best_known(record["case"], record["track"], int(record["seed"]),
+    known = best_known_for(record["case"], record["track"], int(record["seed"]),
                        int(record.get("root_seed", 0)))
     # improvements only: a legacy trace ends with the last evaluation, which may repeat
     imp = [i for i in range(len(fit)) if i == 0 or fit[i] < fit[i - 1]]
@@ -166,13 +178,14 @@ def derive(record: dict) -> Derived:
         f_hits = {precision_key(p): _first([f <= lv for f in fit], ev)
                   for p, lv in zip(FITNESS_PRECISIONS, levels)}
     if vecs is not None:
-        worst = [float(np.max(range_error(v[:N_FAULTS], truth))) for v in vecs]
+        worst = [float(np.max(np.abs(v[:every.size] - every) / ranges)) for v in vecs]
         p_hits = {precision_key(p): _first([w <= p for w in worst], ev)
                   for p in PARAMETER_TARGETS}
     else:   # legacy: the final vector, from where it was found (the latest it can be)
         p_hits = {precision_key(p): (last if known_final and float(np.max(err)) <= p
                                      else None) for p in PARAMETER_TARGETS}
-    success = bool(np.all(err <= SUCCESS_RANGE_ERROR)) and known_final
+    err_all = err if vecs is None else np.abs(vecs[-1][:every.size] - every) / ranges
+    success = bool(np.all(err_all <= SUCCESS_RANGE_ERROR)) and known_final
     best_at = [[b, next(f for e, f in zip(reversed(ev), reversed(fit)) if e <= b)]
                for b in BUDGET_CHECKPOINTS if ev[0] <= b <= cut]
     return Derived(

@@ -4,18 +4,15 @@ from __future__ import annotations
 
 import shlex
 import sys
-import time
-from collections.abc import Iterator
 from pathlib import Path
 
 from .. import jsonio
 from ..faults import CASES
-from ..progress import Progress, progress
 from ..suite import SANITY_CASES, SUITE_ID
+from ..sweep.executors import Runner
+from ..sweep.loop import run_sweep
 from ..trace_cache import MODEL_VERSION
 from .anytime import anytime_scores
-from .claims import Claim, holder, try_claim
-from .executors import Runner, execute
 from .figures import (
     convergence_plot,
     ecdf_plot,
@@ -28,102 +25,21 @@ from .page import write_page
 from .report import load_paper_results, write_leaderboards, write_paper_tables
 from .scores import score_records
 from .store import RUNS_FILE, RunStore, is_error, read_records, run_identity, unique
-from .tasks import Task, make_tasks, run_task
+from .tasks import Task, failure_record, make_tasks, run_task
 
 
 def run_tasks(tasks: list[Task], out: Path, executor: str = "processes",
               workers: int | None = None, scheduler: str | None = None, quiet: bool = False,
               runner: Runner = run_task) -> int:
-    """Run what is not yet in ``out/runs.jsonl``, appending each record as it finishes.
+    """Run what is not yet in ``out/runs.jsonl`` on the sweep engine
+    (:func:`~ema_bench.sweep.loop.run_sweep`), appending each record as it finishes.
 
     Runs recorded as errors are run again (the error may have been transient; a success
-    supersedes the error record).  Each task is claimed (:mod:`.claims`) just before it
-    starts: a task another process claimed is left to it, and waited for at the end (run
-    here after all if its claimer dies first), so sweeps sharing ``out`` split the work and
-    run nothing twice.  Returns how many runs this process executed."""
+    supersedes the error record).  Returns how many runs this process executed."""
     with RunStore(out / RUNS_FILE) as store:
-        pending = [t for t in tasks if t.identity not in store.done]
-        with progress(len(pending), f"leaderboard ({executor})", "run", quiet=quiet) as bar:
-            ran = 0
-            while pending:
-                elsewhere: list[Task] = []
-                ran += _run_claimed(pending, out, store, elsewhere, bar, executor, workers,
-                                    scheduler, runner)
-                pending = _wait_for_others(elsewhere, out, store, bar)
-    return ran
-
-
-def _run_claimed(tasks: list[Task], out: Path, store: RunStore, elsewhere: list[Task],
-                 bar: Progress, executor: str, workers: int | None, scheduler: str | None,
-                 runner: Runner) -> int:
-    """Run the ``tasks`` this process can claim, appending their records; returns how
-    many ran."""
-    claims: dict[tuple, Claim] = {}
-    ran = 0
-    try:
-        feed = _claimed(tasks, out, store, claims, elsewhere, bar)
-        for rec in execute(feed, executor, workers, scheduler, runner):
-            store.append(rec)
-            claim = claims.pop(run_identity(rec), None)
-            if claim is not None:
-                claim.release()
-            ran += 1
-            bar.update(rec["key"] + (f" FAILED ({rec['error_type']})" if is_error(rec)
-                                     else ""))
-    finally:
-        for claim in claims.values():
-            claim.release()
-    return ran
-
-
-def _claimed(tasks: list[Task], out: Path, store: RunStore, claims: dict[tuple, Claim],
-             elsewhere: list[Task], bar: Progress) -> Iterator[Task]:
-    """The tasks this process claims, as the executor asks for them; those another process
-    holds go to ``elsewhere``, those recorded meanwhile are dropped."""
-    for t in tasks:
-        claim = try_claim(out, t.identity, t.key)
-        if claim is None:
-            elsewhere.append(t)
-            continue
-        claims[t.identity] = claim   # from now on the caller releases it, come what may
-        store.refresh()   # another sweep may have recorded it since we listed the work
-        if store.settled(t.identity):
-            claims.pop(t.identity).release()
-            bar.update(f"{t.key} (run by another process)")
-            continue
-        yield t
-
-
-def _wait_for_others(tasks: list[Task], out: Path, store: RunStore, bar: Progress,
-                     poll_s: float = 0.5) -> list[Task]:
-    """Wait until some of ``tasks`` (claimed by other processes) are released; return those
-    still unrecorded (their claimer died: run them here).  Holds no claim while waiting, so
-    two sweeps never wait for each other."""
-    noted = False
-    while tasks:
-        store.refresh()
-        for t in tasks:
-            if store.settled(t.identity):
-                bar.update(f"{t.key} (run by another process)")
-        tasks = [t for t in tasks if not store.settled(t.identity)]
-        if any(_is_free(out, t) for t in tasks):
-            return tasks
-        if tasks and not noted:
-            who = sorted({holder(out, t.identity) for t in tasks} - {""})
-            bar.note(f"waiting for {len(tasks)} runs claimed by another process "
-                     f"({', '.join(who) or 'unknown'})")
-            noted = True
-        if tasks:
-            time.sleep(poll_s)
-    return tasks
-
-
-def _is_free(out: Path, task: Task) -> bool:
-    claim = try_claim(out, task.identity, task.key)
-    if claim is None:
-        return False
-    claim.release()
-    return True
+        return run_sweep(tasks, runner, [store], executor=executor, workers=workers,
+                         scheduler=scheduler, on_error=failure_record,
+                         label=f"leaderboard ({executor})", unit="run", quiet=quiet).ran
 
 
 def select(records: list[dict], tasks: list[Task]) -> list[dict]:
@@ -149,7 +65,8 @@ def write_outputs(records: list[dict], out: Path, command: str, plots: bool = Tr
     failed = failures(records)
     errors = (f" {len(failed)} runs failed with an error (counted as unsuccessful at their "
               "budget; summary.json lists them)." if failed else "")
-    header = (f"Produced by `{command}`: {len(records)} runs, suite {SUITE_ID}, model "
+    suites = ", ".join(sorted({str(r.get("suite", SUITE_ID)) for r in records}))
+    header = (f"Produced by `{command}`: {len(records)} runs, suite {suites}, model "
               f"version {MODEL_VERSION}.{partial}{errors}")
     # scores and the ECDF count failed runs as unsuccessful; what needs a fit, finished runs
     finished = [r for r in records if not is_error(r)]
@@ -186,7 +103,7 @@ def write_outputs(records: list[dict], out: Path, command: str, plots: bool = Tr
     written.append(write_page(records, out / "leaderboard.html", header, images))
     summary["files"] = [str(p) for p in written]
     (out / "summary.json").write_text(jsonio.dumps(
-        {"command": command, "runs": len(records), "suite": SUITE_ID,
+        {"command": command, "runs": len(records), "suite": suites,
          "model_version": MODEL_VERSION, **summary,
          "anytime": [s.row() for s in anytime_scores(records)],
          "scores": [s.row() for s in scores]}, indent=1, default=str))

@@ -3,18 +3,17 @@
 from __future__ import annotations
 
 import time
-import traceback
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from ..instances import make_problem
 from ..records import run_record
 from ..registry import get_solver, run_solver
 from ..seeding import run_seed
-from ..suite import SUITE_ID
+from ..suite_v2 import build_problem, suite_of
+from ..sweep.executors import Failure
 from ..trace_cache import MODEL_VERSION
 from .store import IDENTITY_FIELDS
 
@@ -47,16 +46,18 @@ class Task:
         return run_seed(self.root_seed, self.seed)
 
 
-def make_tasks(solvers, cases, tracks, seeds: int, budget: int, root_seed: int = 0,
-               shard: tuple[int, int] = (0, 1)) -> list[Task]:
+def make_tasks(solvers, cases, tracks, seeds: int, budget: int | Callable[[str], int],
+               root_seed: int = 0, shard: tuple[int, int] = (0, 1)) -> list[Task]:
     """Every (solver, case, track, seed) run, in a fixed order; ``shard=(i, n)`` keeps the
-    i-th of n interleaved slices (0-based) so n machines can share a sweep."""
+    i-th of n interleaved slices (0-based) so n machines can share a sweep.  ``budget`` may
+    be a function of the case (suite emafdi-v2: a multiple of the tier's dimension)."""
     i, n = shard
     if not (n >= 1 and 0 <= i < n):
         raise ValueError(f"shard must be i/n with 0 <= i < n, got {i}/{n}")
     for s in solvers:
         get_solver(s)  # unknown names fail before anything runs
-    all_tasks = [Task(s, c, t, k, budget, root_seed)
+    per_case = budget if callable(budget) else (lambda _case: budget)
+    all_tasks = [Task(s, c, t, k, int(per_case(c)), root_seed)
                  for t in tracks for c in cases for s in solvers for k in range(seeds)]
     return all_tasks[i::n]
 
@@ -64,29 +65,23 @@ def make_tasks(solvers, cases, tracks, seeds: int, budget: int, root_seed: int =
 def run_task(task: Task) -> dict:
     """Run one task and return its JSON record (deterministic apart from ``wall_s``)."""
     t0 = time.perf_counter()
-    problem = make_problem(task.case, track=task.track, seed=task.node(), budget=task.budget)
+    problem = build_problem(task.case, track=task.track, seed=task.node(), budget=task.budget)
     result = run_solver(task.solver, problem, task.budget, seed=task.node())
     return run_record(problem, result, case=task.case, track=task.track, seed=task.seed,
                       budget=task.budget, root_seed=task.root_seed,
                       wall_s=time.perf_counter() - t0, info=get_solver(task.solver).library)
 
 
-def error_record(task: Task, exc: BaseException, wall_s: float = 0.0) -> dict[str, Any]:
-    """The record of a run that raised ``exc`` (or whose worker died): its identity and the
-    error, and no score (scores count it as an unsuccessful run at its budget; a score a
-    record carries is not read)."""
+def failure_record(task: Task, failure: Failure) -> dict[str, Any]:
+    """The record of a run that raised: its identity and the error, and no score (scores
+    count it as an unsuccessful run at its budget; a score a record carries is not read).
+    The ``on_error`` of the leaderboard's sweep."""
     return {"key": task.key, **{f: getattr(task, f) for f in IDENTITY_FIELDS},
-            "model_version": MODEL_VERSION, "suite": SUITE_ID, "status": "error",
-            "error_type": type(exc).__name__, "error": str(exc) or repr(exc),
-            "traceback": "".join(traceback.format_exception(exc))[-4000:],
-            "wall_s": wall_s}
+            "model_version": MODEL_VERSION, "suite": suite_of(task.case), "status": "error",
+            "error_type": failure.error_type, "error": failure.error,
+            "traceback": failure.traceback, "wall_s": failure.wall_s}
 
 
-def run_guarded(runner: Callable[[Task], dict], task: Task) -> dict:
-    """``runner(task)``, or the :func:`error_record` of what it raised (in the worker, where
-    the traceback is)."""
-    t0 = time.perf_counter()
-    try:
-        return runner(task)
-    except Exception as exc:
-        return error_record(task, exc, time.perf_counter() - t0)
+def error_record(task: Task, exc: BaseException, wall_s: float = 0.0) -> dict[str, Any]:
+    """The :func:`failure_record` of a run that raised ``exc``."""
+    return failure_record(task, Failure.of(exc, wall_s))

@@ -222,7 +222,7 @@ def make_campaign(name: str = "fleet-v1", *, units: int = 20, split: str = "test
             truth_units[label] = truth
             bar.update(label)
 
-    from .. import __version__
+    from ..version import __version__
     manifest = {"format": FORMAT, "version": VERSION, "name": name,
                 "definition_version": spec.version, "track": track,
                 "seed": seed, "split": split, "inspection_every": every,

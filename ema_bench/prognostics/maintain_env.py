@@ -54,7 +54,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from ..env import _observation_space
+from ..env import observation_box
 from ..faults import LOWER, UPPER
 from ..instances import TRACKS
 from ..protocol import STANDARD_TESTS
@@ -90,7 +90,7 @@ class MaintainEnv(gym.Env):
         self.tests = tuple(t for t in STANDARD_TESTS if t.name in self.spec_.tests)
         self.action_space = spaces.Discrete(3)
         self.observation_space = spaces.Dict({
-            "traces": _observation_space("traces"),
+            "traces": observation_box("traces"),
             "since_inspection": spaces.Box(0.0, float(self.horizon), (1,), np.float64),
             "age": spaces.Box(0.0, float(self.horizon), (1,), np.float64),
         })
@@ -147,6 +147,11 @@ class MaintainEnv(gym.Env):
     def step(self, action: Any):
         if self._root is None:
             raise gym.error.ResetNeeded("call reset() before step()")
+        if self._flight >= self.horizon:
+            # like Identify-v1 after its budget: a step past the end would fly on silently
+            raise gym.error.ResetNeeded(f"the episode reached its horizon of {self.horizon} "
+                                        "flights (truncated); call reset() to start a new "
+                                        "episode")
         if not self.action_space.contains(action):
             raise ValueError(f"action must be 0 (continue), 1 (inspect) or 2 (replace), "
                              f"got {action!r}")

@@ -35,6 +35,7 @@ import time
 from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from types import SimpleNamespace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -43,6 +44,8 @@ from ..faults import FAULT_NAMES
 from ..jsonio import plain
 from ..plugins import PluginRegistry
 from ..seeding import run_seed, stream
+from ..sweep.executors import Job
+from ..sweep.schema import opt, req
 from ..traces import Traces
 
 if TYPE_CHECKING:
@@ -265,6 +268,22 @@ def _restore(record: dict) -> dict:
     return r
 
 
+#: The fields of a step line, by JSON type (a hand-edited ``"replace": "no"`` is refused,
+#: not read as true).
+STEP_SCHEMA = {"key": req("str"), "unit": req("str"), "index": req("int"),
+               "flight": req("int"), "estimate": req("dict"), "low": req("dict"),
+               "high": req("dict"), "rul": req("number|null"), "rul_low": req("number|null"),
+               "rul_high": req("number|null"), "failing_fault": req("str|null"),
+               "replace": req("bool"), "evaluations": req("int"), "extra": opt("dict")}
+#: The fields of the error line of a unit whose tracker failed.
+ERROR_SCHEMA = {"key": req("str"), "unit": req("str"), "index": req("int"),
+                "flight": req("int"), "status": req("str"), "error": req("str")}
+
+
+def _schema(record: dict) -> dict:
+    return ERROR_SCHEMA if record.get("status") == "error" else STEP_SCHEMA
+
+
 @dataclass
 class TrackLog:
     """A tracking run read back (:func:`read_track`).
@@ -279,8 +298,9 @@ class TrackLog:
 
 
 def read_track(out: Path | str) -> TrackLog:
-    """Read ``OUT/track.jsonl`` and ``OUT/manifest.json`` of :func:`track_campaign`."""
-    from ..leaderboard.store import read_records
+    """Read ``OUT/track.jsonl`` and ``OUT/manifest.json`` of :func:`track_campaign` (every
+    line type-checked: :data:`STEP_SCHEMA`)."""
+    from ..sweep.store import read_records
 
     out = Path(out)
     mpath = out / MANIFEST_FILE
@@ -291,7 +311,7 @@ def read_track(out: Path | str) -> TrackLog:
     if manifest.get("format") != FORMAT:
         raise TrackerError(f"{mpath}: not a tracking run's manifest (format "
                            f"{manifest.get('format')!r}, expected {FORMAT!r})")
-    steps, failed = _group(read_records(out / TRACK_FILE))
+    steps, failed = _group(read_records(out / TRACK_FILE, schema=_schema))
     return TrackLog(steps, failed, manifest)
 
 
@@ -313,15 +333,18 @@ def _group(records: list[dict]) -> tuple[dict[str, list[dict]], dict[str, dict]]
     return out, failed
 
 
-def _complete(campaign: Campaign, records: list[dict]) -> set[str]:
-    """Units tracked to the end: every inspection has its step, or the unit failed."""
-    steps, failed = _group(records)
-    done = set(failed)
-    for unit, rows in steps.items():
-        n = len(campaign.units.get(unit, ()))
-        if rows and {r["index"] for r in rows} >= set(range(n)):
-            done.add(unit)
-    return done
+def _unit_done(campaign: Campaign):
+    """record -> the unit it completes (a failure, or the step of its last inspection), or
+    ``None``: a unit tracked part of the way (by a run before steps were written unit by
+    unit) is tracked again."""
+    last = {u: len(rows) - 1 for u, rows in campaign.units.items()}
+
+    def task_of(record: dict) -> str | None:
+        unit = record["unit"]
+        if record.get("status") == "error" or record["index"] == last.get(unit):
+            return unit
+        return None
+    return task_of
 
 
 # --- running a tracker over a campaign -------------------------------------------------------
@@ -334,9 +357,9 @@ def unit_seed(seed: int, k: int) -> np.random.SeedSequence:
 
 
 def _manifest(campaign: Campaign, info: TrackerInfo, seed: int, out: Path) -> dict:
-    from .. import __version__
     from ..registry import library_versions
     from ..trace_cache import MODEL_VERSION
+    from ..version import __version__
 
     return {"format": FORMAT, "version": VERSION, "tracker": info.name,
             "description": info.description, "config": plain(info.config, default=str),
@@ -371,15 +394,16 @@ def _prepare(out: Path, manifest: dict) -> None:
     if (out / TRACK_FILE).exists():
         raise TrackerError(f"{out}: has a {TRACK_FILE} but no {MANIFEST_FILE}; give another "
                            "output folder")
-    tmp = mpath.with_name(mpath.name + ".tmp")
+    # a temporary file of this process's own: two runs starting on one folder both write
+    tmp = mpath.with_name(f"{mpath.name}.{os.getpid()}.tmp")
     tmp.write_text(json.dumps(manifest, indent=1) + "\n")
     os.replace(tmp, mpath)
 
 
 def track_unit(campaign: Campaign, info: TrackerInfo, unit: str, seed: np.random.SeedSequence,
                store) -> str:
-    """Track one unit from its first inspection, appending each step to ``store`` (a
-    :class:`~ema_bench.leaderboard.store.RunStore`) as it finishes.
+    """Track one unit from its first inspection, appending each step's record to ``store``
+    (anything with ``append(record)``) as it finishes.
 
     Returns ``"replaced"`` (a replacement was called at some inspection; the unit is still
     tracked to its cut), ``"tracked"`` or ``"failed"``.  A tracker that raises, or answers
@@ -409,10 +433,18 @@ def track_unit(campaign: Campaign, info: TrackerInfo, unit: str, seed: np.random
     return "replaced" if replaced else "tracked"
 
 
-def _worker(root: str, name: str, module: str, unit: str, k: int, seed: int, path: str) -> str:
+def _track(campaign: Campaign, info: TrackerInfo, seed: int, job: Job) -> list[dict]:
+    """The records of unit ``job.key``, the ``job.data``-th of the manifest (its steps, and
+    its error line if the tracker failed)."""
+    rows: list[dict] = []
+    track_unit(campaign, info, job.key, unit_seed(seed, job.data), SimpleNamespace(
+        append=rows.append))
+    return rows
+
+
+def _worker(root: str, name: str, module: str, seed: int, job: Job) -> list[dict]:
     """One unit in a worker process: the tracker's module imported by name (a tracker
     registered in a script's ``__main__`` is not importable there)."""
-    from ..leaderboard.store import RunStore
     from .campaign import load_campaign
 
     if name not in _TRACKERS.entries:
@@ -420,9 +452,7 @@ def _worker(root: str, name: str, module: str, unit: str, k: int, seed: int, pat
             importlib.import_module(module)
         except ImportError:
             pass
-    info = get_tracker(name)
-    with RunStore(path) as store:
-        return track_unit(load_campaign(root), info, unit, unit_seed(seed, k), store)
+    return _track(load_campaign(root), get_tracker(name), seed, job)
 
 
 def track_campaign(campaign: Campaign | Path | str, tracker: str, out: Path | str,
@@ -448,15 +478,21 @@ def track_campaign(campaign: Campaign | Path | str, tracker: str, out: Path | st
 
     Notes
     -----
-    Resumable: units already complete (every inspection tracked, or a failure recorded) are
-    skipped; a unit tracked part of the way is tracked again from its
-    first inspection (a tracker's state is not saved), and its lines already written are not
-    written twice.  A unit is tracked to its last inspection (the cut) even after a step with
-    ``replace`` (the first is its maintenance decision).  A failed
-    unit is not retried; delete its lines to retry it.
+    Runs on the sweep engine (:func:`~ema_bench.sweep.loop.run_sweep`): a unit's lines are
+    appended in one piece when it is tracked to its end, so a killed run, a dead worker or a
+    full disk leaves whole units only, never a failure that is not the tracker's; a rerun
+    (or a second process on the same folder) tracks exactly the units missing.  Units
+    already complete (every inspection tracked, or a failure recorded) are skipped; a unit
+    tracked part of the way is tracked again from its first inspection (a tracker's state is
+    not saved), and its lines already written are not written twice.  A unit is tracked to
+    its last inspection (the cut) even after a step with ``replace`` (the first is its
+    maintenance decision).  A unit whose tracker failed is not retried; delete its lines to
+    retry it.
     """
-    from ..leaderboard.store import RunStore, read_records
-    from ..progress import progress
+    import functools
+
+    from ..sweep.loop import run_sweep
+    from ..sweep.store import Store
     from .campaign import load_campaign
 
     info = get_tracker(tracker)
@@ -467,53 +503,25 @@ def track_campaign(campaign: Campaign | Path | str, tracker: str, out: Path | st
     camp = campaign if not isinstance(campaign, str | Path) else load_campaign(campaign)
     out = Path(out)
     _prepare(out, _manifest(camp, info, int(seed), out))
-    path = out / TRACK_FILE
-    with RunStore(path):   # cuts a torn last line of an interrupted run before reading
-        pass
-    done = _complete(camp, read_records(path))
-    todo = [(k, u) for k, u in enumerate(camp.units) if u not in done]
-    counts: dict[str, int] = {}
+    tasks = [Job(u, u, k) for k, u in enumerate(camp.units)]
+    if workers == 1:   # in this process: the campaign as given, the tracker as registered
+        runner = functools.partial(_track, camp, info, int(seed))
+    else:
+        runner = functools.partial(_worker, str(camp.root), info.name,
+                                   info.factory.__module__, int(seed))
     t0 = time.perf_counter()
-    with progress(len(camp.units), f"track {tracker}", unit="unit", quiet=quiet) as bar:
-        if done:
-            bar.update(f"{len(done)} already done", n=len(done))
-        if workers == 1 or len(todo) <= 1:
-            with RunStore(path) as store:
-                for k, unit in todo:
-                    status = track_unit(camp, info, unit, unit_seed(int(seed), k), store)
-                    counts[status] = counts.get(status, 0) + 1
-                    bar.update(f"{unit} {status}")
-        else:
-            for unit, status in _parallel(camp, info, todo, int(seed), path, int(workers)):
-                counts[status] = counts.get(status, 0) + 1
-                bar.update(f"{unit} {status}")
-    log.debug("tracked %d unit(s) in %.1f s: %s", len(todo), time.perf_counter() - t0, counts)
+    with Store(out / TRACK_FILE, task_of=_unit_done(camp), schema=_schema,
+               retry_errors=False) as store:
+        report = run_sweep(tasks, runner, [store], executor="serial" if workers == 1
+                           else "processes", workers=int(workers), label=f"track {tracker}",
+                           unit="unit", quiet=quiet, describe=_status)
+    log.debug("tracked %d unit(s) in %.1f s", report.ran, time.perf_counter() - t0)
     return out
 
 
-def _parallel(camp: Campaign, info: TrackerInfo, todo: list[tuple[int, str]], seed: int,
-              path: Path, workers: int):
-    """Units in ``workers`` spawned processes, one numba thread each; yields (unit, status)
-    as they finish.  A worker that dies records its unit as failed."""
-    import multiprocessing as mp
-    from concurrent.futures import ProcessPoolExecutor, as_completed
-
-    from ..leaderboard.executors import worker_init
-    from ..leaderboard.store import RunStore
-
-    # "spawn": numba's threading layers and fork do not mix well
-    with ProcessPoolExecutor(max_workers=min(workers, len(todo)),
-                             mp_context=mp.get_context("spawn"), initializer=worker_init,
-                             initargs=(os.getpid(),)) as pool:
-        futures = {pool.submit(_worker, str(camp.root), info.name, info.factory.__module__,
-                               unit, k, seed, str(path)): unit for k, unit in todo}
-        for fut in as_completed(futures):
-            unit = futures[fut]
-            try:
-                yield unit, fut.result()
-            except Exception as exc:   # the worker died or could not start the tracker
-                log.warning("tracking unit %s failed: %s: %s", unit, type(exc).__name__, exc)
-                first = camp.units[unit][0] if camp.units[unit] else None
-                with RunStore(path) as store:
-                    store.append(error_record(unit, 0, first.flight if first else 0, exc))
-                yield unit, "failed"
+def _status(outcome) -> str:
+    """A unit's progress line: its name and how its tracking ended."""
+    recs = outcome.records
+    status = ("failed" if any(r.get("status") == "error" for r in recs) else
+              "replaced" if any(r.get("replace") for r in recs) else "tracked")
+    return f"{outcome.task.key} {status}"

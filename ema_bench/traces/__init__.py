@@ -30,13 +30,15 @@ Untrusted files
 ---------------
 Sizes that a file declares (an ``.npy`` header's shape, a MATLAB element's byte count or
 dimensions) are checked against :data:`MAX_ARRAY_BYTES` and against the bytes the file really
-holds before anything is allocated, so a small crafted file cannot exhaust memory; every defect
-of a file raises :class:`TracesError`.
+holds before anything is allocated, and all of a file's arrays together against
+:data:`MAX_FILE_BYTES` (an ``.npz`` member's name, count and size before any member is read),
+so a small crafted file cannot exhaust memory; every defect of a file raises
+:class:`TracesError`.
 """
 
 from __future__ import annotations
 
-from .arrays import MAX_ARRAY_BYTES
+from .arrays import MAX_ARRAY_BYTES, MAX_FILE_BYTES
 from .container import DESCRIPTIONS, OUTPUT_DT, SIGNALS, UNITS, Traces
 from .errors import TracesError
 from .load import MAX_OVERSAMPLING, load_measured, load_traces
@@ -45,6 +47,7 @@ from .units import UNIT_CONVERSIONS
 __all__ = [
     "DESCRIPTIONS",
     "MAX_ARRAY_BYTES",
+    "MAX_FILE_BYTES",
     "MAX_OVERSAMPLING",
     "OUTPUT_DT",
     "SIGNALS",

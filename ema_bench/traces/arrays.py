@@ -1,5 +1,5 @@
-"""Named arrays (NPZ keys, MATLAB variables) grouped into tests, and the size limit of
-one array a file may declare."""
+"""Named arrays (NPZ keys, MATLAB variables) grouped into tests, and the size limits of one
+array and of all the arrays a file may declare."""
 
 from __future__ import annotations
 
@@ -16,6 +16,43 @@ from .units import _Raw, _time_factor, _time_label, _TimeLabel, _unit_factor
 # Largest array a file may declare, in bytes (256 MiB: 33 million float64 samples, about an
 # hour of one signal at 10 kHz).  Checked before allocation, against crafted headers.
 MAX_ARRAY_BYTES = 2**28
+# Largest total a file's arrays may hold, in bytes (64 MiB; the three standard tests at 100
+# times the output rate, every column, take about 17 MB), and most arrays it may hold: with
+# the limit per array alone, many members just under it made a 2 MB file fill 2.4 GB.
+MAX_FILE_BYTES = 2**26
+MAX_FILE_ARRAYS = 512
+# names that are not a test's array
+_OTHER_KEYS = frozenset({"units", "dt", "meta_json"})
+
+
+def check_keys(path: Path, keys: list[str], sep: str, what: str) -> None:
+    """Refuse, before any array is read, a file with more than :data:`MAX_FILE_ARRAYS` arrays,
+    a name twice, or a name that is not one of a traces file (the layouts of
+    :func:`_arrays_to_raw`)."""
+    if len(keys) > MAX_FILE_ARRAYS:
+        raise _fail(path, f"{len(keys)} {what}s, more than the limit of {MAX_FILE_ARRAYS} per "
+                          "file")
+    seen: set[str] = set()
+    for key in keys:
+        if key in seen:
+            raise _fail(path, f"{what} {key!r} is in the file twice")
+        seen.add(key)
+        if key not in _OTHER_KEYS and key != "time" and key not in SIGNALS:
+            _test_key(path, key, sep, what, f"'time{sep}<test>', '<test>{sep}<signal>'")
+
+
+def _test_key(path: Path, key: str, sep: str, what: str, pattern: str) -> tuple[str, str]:
+    """(test, part) of ``<test><sep><signal>`` or ``time<sep><test>``; TracesError else."""
+    sig = next((s for s in SIGNALS if key.endswith(sep + s)), None)
+    if sig is not None:
+        name, part = key[: -len(sep + sig)], sig
+    elif key.startswith("time" + sep):
+        name, part = key[len("time" + sep):], "time"
+    else:
+        raise _unknown_key(path, key, what, pattern)
+    if not _TEST_NAME_RE.match(name) or name in _RESERVED_NAMES:
+        raise _fail(path, f"{what} {key!r}: invalid test name {name!r}")
+    return name, part
 
 
 def _arrays_to_raw(
@@ -46,15 +83,7 @@ def _arrays_to_raw(
             layout[test][key] = key
     else:
         for key in arrays:
-            sig = next((s for s in SIGNALS if key.endswith(sep + s)), None)
-            if sig is not None:
-                name, part = key[: -len(sep + sig)], sig
-            elif key.startswith("time" + sep):
-                name, part = key[len("time" + sep):], "time"
-            else:
-                raise _unknown_key(path, key, what, pattern)
-            if not _TEST_NAME_RE.match(name) or name in _RESERVED_NAMES:
-                raise _fail(path, f"{what} {key!r}: invalid test name {name!r}")
+            name, part = _test_key(path, key, sep, what, pattern)
             layout.setdefault(name, {})[part] = key
 
     for s in SIGNALS:

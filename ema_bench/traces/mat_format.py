@@ -12,7 +12,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from .arrays import MAX_ARRAY_BYTES, _arrays_to_raw
+from .arrays import MAX_ARRAY_BYTES, MAX_FILE_ARRAYS, MAX_FILE_BYTES, _arrays_to_raw
 from .errors import _describe, _fail
 from .units import _Raw, _TimeLabel
 
@@ -21,6 +21,10 @@ def _read_mat(path: Path, test: str | None) -> tuple[_Raw, dict[str, Any], _Time
     import scipy.io  # only .mat files need scipy.io; keep the module import light
 
     try:
+        size = path.stat().st_size
+        if size > MAX_FILE_BYTES:   # before reading it into memory
+            raise _fail(path, f"the file holds {size} bytes, more than the limit of "
+                              f"{MAX_FILE_BYTES} bytes per file")
         data = path.read_bytes()
     except OSError as exc:
         raise _fail(path, f"cannot read file: {exc}") from exc
@@ -63,30 +67,44 @@ def _check_mat_sizes(path: Path, data: bytes) -> None:
     order = "<" if data[126:128] == b"IM" else ">"
     if struct.unpack_from(order + "H", data, 124)[0] != 0x0100:
         return
-    pos = 128
+    pos, total, count = 128, 0, 0
     while len(data) - pos >= 8:
         mtype, nbytes = struct.unpack_from(order + "II", data, pos)
         if mtype not in (_MI_MATRIX, _MI_COMPRESSED):
             return  # scipy refuses anything else at the top level
+        count += 1
+        if count > MAX_FILE_ARRAYS:
+            raise _fail(path, f"more than the limit of {MAX_FILE_ARRAYS} variables per file")
         end = pos + 8 + nbytes
         if end > len(data):
             raise _fail(path, f"a variable declares {nbytes} bytes but only "
                               f"{len(data) - pos - 8} follow; the file is truncated or corrupt")
         if mtype == _MI_COMPRESSED:
-            inflated = _inflate(path, data[pos + 8: end])
+            # scipy inflates every variable at once: their total is bounded, not each alone
+            inflated = _inflate(path, data[pos + 8: end], MAX_FILE_BYTES - total)
+            total += len(inflated)
             _check_mat_elements(path, inflated, 0, len(inflated), order, 0)
+            del inflated
         else:
+            total += nbytes
             _check_mat_elements(path, data, pos, end, order, 0)
+        if total > MAX_FILE_BYTES:
+            raise _fail(path, f"its variables hold more than the limit of {MAX_FILE_BYTES} "
+                              "bytes per file")
         pos = end
 
 
-def _inflate(path: Path, blob: bytes) -> bytes:
-    """A compressed MATLAB variable, decompressed up to its largest allowed size."""
+def _inflate(path: Path, blob: bytes, room: int) -> bytes:
+    """A compressed MATLAB variable, decompressed up to its largest allowed size (and at most
+    ``room`` bytes, what the file's limit leaves, plus one so that passing it shows)."""
     inflater = zlib.decompressobj()
     try:
-        out = inflater.decompress(blob, MAX_ARRAY_BYTES + _MAT_HEADER_ROOM)
+        out = inflater.decompress(blob, min(MAX_ARRAY_BYTES + _MAT_HEADER_ROOM, room + 1))
     except zlib.error as exc:
         raise _fail(path, f"a compressed variable is corrupt: {exc}") from exc
+    if inflater.unconsumed_tail and len(out) < MAX_ARRAY_BYTES + _MAT_HEADER_ROOM:
+        raise _fail(path, f"its variables hold more than the limit of {MAX_FILE_BYTES} bytes "
+                          "per file")
     if inflater.unconsumed_tail:
         raise _fail(path, f"a compressed variable holds more than the limit of "
                           f"{MAX_ARRAY_BYTES} bytes per array")

@@ -1,5 +1,5 @@
-"""The NPZ reader: every member and ``.npy`` header checked before its data is read;
-nothing is unpickled."""
+"""The NPZ reader: the members' names, count and total size, then each ``.npy`` header,
+checked before any data is read; nothing is unpickled."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from .arrays import MAX_ARRAY_BYTES, _arrays_to_raw
+from .arrays import MAX_ARRAY_BYTES, MAX_FILE_BYTES, _arrays_to_raw, check_keys
 from .errors import _describe, _fail
 from .units import _Raw, _TimeLabel
 
@@ -48,10 +48,16 @@ def _npz_arrays(path: Path) -> dict[str, np.ndarray]:
     arrays: dict[str, np.ndarray] = {}
     try:
         with zipfile.ZipFile(path) as archive:
-            for info in archive.infolist():
+            infos = archive.infolist()
+            # names, count and total size from the central directory, before any member is
+            # read; zipfile never inflates a member past the size listed there
+            check_keys(path, [i.filename.removesuffix(".npy") for i in infos], "/", "key")
+            total = sum(i.file_size for i in infos)
+            if total > MAX_FILE_BYTES:
+                raise _fail(path, f"its members hold {total} bytes in all, more than the limit "
+                                  f"of {MAX_FILE_BYTES} bytes per file")
+            for info in infos:
                 key = info.filename.removesuffix(".npy")
-                if key in arrays:
-                    raise _fail(path, f"key {key!r} is in the archive twice")
                 arrays[key] = _npy_member(path, archive, info, f"key {key!r}")
     except _ZIP_ERRORS as exc:
         raise _fail(path, f"corrupt .npz archive: {_describe(exc)}") from exc

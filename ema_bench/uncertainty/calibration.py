@@ -6,10 +6,12 @@ transition moves by one integration step), and the model-form allowance rests on
 calibration instances.  So each half-width ``h`` (noise half-width combined in quadrature with
 the allowance) is multiplied by a per-fault factor: the conformal quantile of the
 nonconformity scores ``|t - t_hat| / h`` of a *calibration* coverage run, in which the truth
-is known (``ema-bench coverage --calibrate``, root seed :data:`CALIBRATION_ROOT_SEED`).  Coverage
+is known (``ema-bench coverage --calibrate --out DIR``, root seed
+:data:`CALIBRATION_ROOT_SEED`).  Coverage
 is reported on other instances (root seed 0), so the factors are not fitted to the figures they
 are judged by; for instances drawn like the calibration ones, split-conformal theory guarantees
-marginal coverage of at least the level.  The scores ship as ``calibration.json``.
+marginal coverage of at least the level.  The scores ship as ``calibration.json``; a user
+table is used only when named (``--calibration FILE`` or ``EMA_BENCH_CALIBRATION``).
 """
 
 from __future__ import annotations
@@ -22,9 +24,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..calibration_files import TABLES, active
 from ..faults import FAULT_NAMES
 
-PATH = Path(__file__).with_name("calibration.json")
 #: The root seed of the calibration runs (coverage is reported at root seed 0).
 CALIBRATION_ROOT_SEED = 1
 
@@ -39,15 +41,44 @@ def calibration_key(kind: str, method: str, model_form: str) -> str:
     return f"{kind}|{method}|{model_form}"
 
 
-@lru_cache(maxsize=1)
-def shipped() -> dict[str, object]:
-    """The shipped calibration (empty scores if the file is absent)."""
-    if not PATH.exists():
+TABLE = TABLES["calibration.json"]
+#: The shipped table (read-only; a user table is named by ``EMA_BENCH_CALIBRATION``).
+PATH = TABLE.shipped
+
+
+@lru_cache(maxsize=4)
+def read(path: Path) -> dict[str, object]:
+    """The calibration table in ``path`` (empty scores if the file is absent); ValueError
+    (one line) for a file that is not one, or one made for other faults."""
+    if not path.exists():
         return {"scores": {}}
-    data = json.loads(PATH.read_text())
+    try:
+        data = json.loads(path.read_text())
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ValueError(f"{path}: not a calibration table ({exc})") from None
+    if not isinstance(data, dict) or not isinstance(data.get("scores"), dict):
+        raise ValueError(f"{path}: not a calibration table (no 'scores' object)")
     if data.get("faults") != list(FAULT_NAMES):
-        raise ValueError(f"{PATH} is for faults {data.get('faults')}, not {list(FAULT_NAMES)}")
+        raise ValueError(f"{path} is for faults {data.get('faults')}, not {list(FAULT_NAMES)}")
     return data
+
+
+def active_table() -> dict[str, object]:
+    """The active calibration: the shipped file, or the user file named by
+    ``EMA_BENCH_CALIBRATION`` (:mod:`ema_bench.calibration_files`)."""
+    return read(active(TABLE)[0])
+
+
+def calibration_size(kind: str, method: str, model_form: str,
+                     data: Mapping[str, object] | None = None) -> int:
+    """How many calibration instances the active table holds for (kind, method, model form)
+    (0 where it has none)."""
+    data = data or active_table()
+    run = data.get("runs", {}).get(calibration_key(kind, method, model_form))
+    if run:
+        return int(run["instances"])
+    scores = data["scores"].get(calibration_key(kind, method, model_form))
+    return len(next(iter(scores.values()))) if scores else 0
 
 
 def conformal_quantile(scores: Iterable[float], level: float) -> float:
@@ -62,9 +93,9 @@ def conformal_quantile(scores: Iterable[float], level: float) -> float:
 
 def calibration_factor(kind: str, method: str, model_form: str, level: float,
                        data: Mapping[str, object] | None = None) -> np.ndarray | None:
-    """Per-fault factors (4,) for ``level``; None where the shipped file has no scores for
+    """Per-fault factors (4,) for ``level``; None where the active table has no scores for
     this (kind, method, model form): such intervals are uncalibrated, and say so."""
-    scores = (data or shipped())["scores"].get(calibration_key(kind, method, model_form))
+    scores = (data or active_table())["scores"].get(calibration_key(kind, method, model_form))
     if not scores:
         return None
     return np.array([conformal_quantile(scores[n], level) for n in FAULT_NAMES])

@@ -4,8 +4,10 @@ is known, and the fraction of intervals that contain it.
 Instance ``i`` of a run is the seeded random case (:func:`~ema_bench.faults.random_faults`,
 heterogeneity 1) of the run node ``run_seed(root_seed, i)``; its noise, its solver and its
 bootstrap draw from that node's streams, so one (track, root seed, index, settings) is one
-record, bit for bit.  Records are appended to a JSON-lines file as they finish; a rerun skips
-the instances already there (an interrupted run resumes).
+record, bit for bit.  The instances run on the sweep engine
+(:func:`~ema_bench.sweep.loop.run_sweep`): records are appended to a JSON-lines file as they
+finish (type-checked when read back, :data:`RECORD_SCHEMA`); a rerun, or a second process
+on the same files, runs exactly the instances missing.
 """
 
 from __future__ import annotations
@@ -13,17 +15,19 @@ from __future__ import annotations
 import functools
 import json
 import math
-import os
-from collections.abc import Iterator, Mapping, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ..faults import FAULT_NAMES, LOWER, UPPER, faults_to_dict
-from ..progress import log, progress
+from ..progress import log
 from ..seeding import run_seed, stream
+from ..sweep import store as sweep_store
+from ..sweep.executors import Job
+from ..sweep.loop import run_sweep
+from ..sweep.schema import opt, req
 from . import calibration as cal
 from .local import UncertaintyError
 from .methods import MISFIT_RATIO
@@ -49,6 +53,28 @@ class Settings:
 
     def key(self, index: int) -> str:
         return f"{self.track}|{self.method}|{self.root_seed}|{index}"
+
+
+_ENDS = req("dict")
+#: The fields of a coverage record a reader relies on, by JSON type.
+RECORD_SCHEMA = {
+    "key": req("str"), "index": req("int"), "settings": req("dict"), "truth": req("dict"),
+    "estimate": req("dict"), "low": _ENDS, "high": _ENDS, "uncalibrated": _ENDS,
+    "noise_only": _ENDS, "factor": req("list|null"), "calibration": req("str"),
+    "model_form": req("str"), "noise_ratio": req("dict"), "fitness": req("number"),
+    "interval_evaluations": req("int"), "non_identifiable": req("list"),
+    "fit_fitness": opt("number"), "fit_evaluations": opt("int"), "error": opt("str"),
+}
+
+
+def _of(settings: Settings):
+    """record -> the instance it completes for ``settings`` (``None``: another run's)."""
+    same = asdict(settings)
+
+    def task_of(record: dict) -> int | None:
+        i = record["index"]
+        return i if record["key"] == settings.key(i) and record["settings"] == same else None
+    return task_of
 
 
 def _problem(track: str, root_seed: int, index: int, budget: int):
@@ -114,24 +140,14 @@ def _ends(pair: Sequence[float | None]) -> tuple[float, float]:
     return tuple(math.nan if v is None else float(v) for v in pair)  # type: ignore[return-value]
 
 
-def _run_many(args: tuple[tuple[Settings, ...], int]) -> list[dict[str, object]]:
-    settings, index = args
-    return [run_instance(st, index) for st in settings]
+def _run_many(settings: tuple[Settings, ...], job: Job) -> list[dict[str, object]]:
+    return [run_instance(st, job.data) for st in settings]
 
 
 def read_records(path: Path) -> dict[str, dict]:
-    """Records of a JSON-lines file by key (a torn last line of an interrupted run is
-    skipped)."""
-    out: dict[str, dict] = {}
-    if not Path(path).exists():
-        return out
-    for line in Path(path).read_text().splitlines():
-        try:
-            rec = json.loads(line)
-        except json.JSONDecodeError:
-            continue
-        out[rec["key"]] = rec
-    return out
+    """Records of a JSON-lines file by key, type-checked (a torn last line of an interrupted
+    run is skipped)."""
+    return {r["key"]: r for r in sweep_store.read_records(path, schema=RECORD_SCHEMA)}
 
 
 def run(settings: Settings, n: int, path: Path | None = None, workers: int = 1,
@@ -143,46 +159,38 @@ def run(settings: Settings, n: int, path: Path | None = None, workers: int = 1,
 def run_methods(settings: Sequence[Settings], n: int, paths: Sequence[Path | None],
                 workers: int = 1, quiet: bool = False) -> list[list[dict]]:
     """:func:`run` for several settings over the same instances (typically one per interval
-    method), each instance fitted once for all of them; one records file per settings."""
-    done = [read_records(p) if p is not None else {} for p in paths]
-    for st, p, d in zip(settings, paths, done):
-        stale = [k for k in (st.key(i) for i in range(n))
-                 if k in d and d[k]["settings"] != asdict(st)]
-        if stale:
-            raise ValueError(f"{p} holds records of other settings ({stale[0]}); use another "
-                             "file")
-    todo = [i for i in range(n) if any(st.key(i) not in d for st, d in zip(settings, done))]
-    handles = [open(p, "a") if p is not None else None for p in paths]
+    method), each instance fitted once for all of them; one records file per settings
+    (records in memory alone when a path is ``None``)."""
+    tasks = [Job(f"#{i}", i, i) for i in range(n)]
+    runner = functools.partial(_run_many, tuple(settings))
+    place = {json.dumps(asdict(st), sort_keys=True): k for k, st in enumerate(settings)}
     what = "/".join(st.method for st in settings)
-    try:
-        with progress(len(todo), f"coverage {settings[0].track}/{what}", "instance",
-                      quiet=quiet) as bar:
-            for index, recs in _execute(tuple(settings), todo, workers):
-                for rec, d, fh in zip(recs, done, handles):
-                    if rec["key"] in d:
-                        continue
-                    d[rec["key"]] = rec
-                    if fh is not None:
-                        fh.write(json.dumps(rec) + "\n")
-                        fh.flush()
-                bar.update(f"#{index}")
-    finally:
-        for fh in handles:
-            if fh is not None:
-                fh.close()
-    return [[d[st.key(i)] for i in range(n)] for st, d in zip(settings, done)]
+    def route(record: dict) -> int:
+        return place[json.dumps(record["settings"], sort_keys=True)]
 
-
-def _execute(settings: tuple[Settings, ...], todo: Sequence[int],
-             workers: int) -> Iterator[tuple[int, list[dict]]]:
-    if workers <= 1 or len(todo) <= 1:
-        for i in todo:
-            yield i, _run_many((settings, i))
-        return
-    with ProcessPoolExecutor(min(workers, len(todo))) as pool:
-        futures = {pool.submit(_run_many, (settings, i)): i for i in todo}
-        for fut in as_completed(futures):
-            yield futures[fut], fut.result()
+    sweep = dict(executor="serial" if workers <= 1 else "processes", workers=workers,
+                 label=f"coverage {settings[0].track}/{what}", unit="instance", quiet=quiet,
+                 route=route)
+    if any(p is None for p in paths):
+        by_key = [{} for _ in settings]
+        for r in run_sweep(tasks, runner, **sweep).records:
+            by_key[route(r)][r["key"]] = r
+    else:
+        stores = [sweep_store.Store(p, task_of=_of(st), schema=RECORD_SCHEMA)
+                  for p, st in zip(paths, settings)]
+        try:
+            for st, store in zip(settings, stores):
+                stale = [r["key"] for r in store.records
+                         if r["key"] == st.key(r["index"]) and r["settings"] != asdict(st)]
+                if stale:
+                    raise ValueError(f"{store.path} holds records of other settings "
+                                     f"({stale[0]}); use another file")
+            run_sweep(tasks, runner, stores, **sweep)
+            by_key = [{r["key"]: r for r in store.records} for store in stores]
+        finally:
+            for store in stores:
+                store.close()
+    return [[d[st.key(i)] for i in range(n)] for st, d in zip(settings, by_key)]
 
 
 def wilson(k: int, n: int, z: float = 1.959964) -> tuple[float, float]:
@@ -263,9 +271,17 @@ def calibration_scores(records: Sequence[Mapping]) -> dict[str, list[float]]:
                     1e9) for r in records] for n in FAULT_NAMES}
 
 
-def write_calibration(runs: Mapping[str, Sequence[Mapping]], path: Path = cal.PATH) -> dict:
-    """Write the calibration file from calibration runs (key ``kind|method|model_form`` ->
-    records), keeping the entries of other keys already in the file."""
+def write_calibration(runs: Mapping[str, Sequence[Mapping]], path: Path) -> dict:
+    """Write the calibration table ``path`` (``--calibrate --out DIR``: DIR/calibration.json)
+    from calibration runs (key ``kind|method|model_form`` -> records), keeping the entries of
+    other keys already in that file.  Never the shipped table: ValueError for a path inside
+    the package (:mod:`ema_bench.calibration_files` ships a table, in a checkout)."""
+    from ..calibration_files import inside_package, write_atomic
+
+    if inside_package(path):
+        raise ValueError(f"{path}: inside the package, whose data is read-only; write the "
+                         "calibration elsewhere and ship it with 'python -m "
+                         "ema_bench.calibration_files' in a checkout")
     # read from disk, not the cached copy: another calibration run may have written since
     data = json.loads(Path(path).read_text()) if Path(path).exists() else {"scores": {}}
     data = {"faults": list(FAULT_NAMES), "root_seed": cal.CALIBRATION_ROOT_SEED,
@@ -275,8 +291,6 @@ def write_calibration(runs: Mapping[str, Sequence[Mapping]], path: Path = cal.PA
         data["runs"][key] = {"instances": len(records), **{k: records[0]["settings"][k] for k in
                                                           ("solver", "budget", "level",
                                                            "root_seed")}}
-    tmp = Path(path).with_suffix(".tmp")
-    tmp.write_text(json.dumps(data, indent=0, sort_keys=True) + "\n")
-    os.replace(tmp, path)
-    cal.shipped.cache_clear()
+    write_atomic(Path(path), json.dumps(data, indent=0, sort_keys=True) + "\n")
+    cal.read.cache_clear()
     return data

@@ -1,12 +1,17 @@
-"""Where runs execute: in this process, in local worker processes, or on a Dask cluster.
+"""Where tasks execute: in this process, in local worker processes, or on a Dask cluster.
 
 Every executor pulls tasks from the iterable it is given only when a worker is free (so the
-caller can claim each task just before it starts, see :mod:`.claims`) and hands finished
-records back to this process, which alone writes the store, in completion order.  A task that
-raises, or whose worker process dies, yields an error record
-(:func:`~ema_bench.leaderboard.tasks.error_record`) instead: one failing run never stops the
-others.  Records do not depend on the executor (each task carries its own seeds; numba
-threads never mix candidates), only ``wall_s`` does.
+caller can claim each task just before it starts, see :mod:`.claims`) and hands each task's
+:class:`Outcome` back to this process, which alone writes the store, in completion order.  A
+task that raises yields an outcome with its :class:`Failure`; one whose worker process dies
+(or a Dask worker lost) yields a failure marked ``infrastructure``: not the task's doing, so
+:func:`~ema_bench.sweep.loop.run_sweep` never records it as the task's result.  One failing
+task never stops the others.  Records do not depend on the executor (each task carries its
+own seeds; numba threads never mix candidates), only their timings do.
+
+A task is any picklable object with a ``key`` (a label, str) and an ``identity`` (hashable);
+a runner is a picklable callable (a module-level function or a ``functools.partial`` of
+one) taking a task and returning its record or a list of records.
 
 Worker processes started here exit when this process dies, SIGKILL included
 (:func:`_exit_with_parent`); the workers of an existing Dask cluster (``--scheduler``) are
@@ -16,16 +21,18 @@ the cluster's, not ours, and are left alone.
 from __future__ import annotations
 
 import functools
+import hashlib
 import itertools
 import os
 import signal
 import sys
 import threading
 import time
+import traceback
 from collections import deque
-from collections.abc import Callable, Iterable, Iterator
-
-from .tasks import Task, error_record, run_guarded, run_task
+from collections.abc import Callable, Hashable, Iterable, Iterator
+from dataclasses import dataclass, field
+from typing import Any
 
 EXECUTORS = ("serial", "processes", "dask")
 
@@ -33,11 +40,71 @@ EXECUTORS = ("serial", "processes", "dask")
 WATCH_S = 0.5
 _PR_SET_PDEATHSIG = 1
 
-Runner = Callable[[Task], dict]
+Task = Any
+Runner = Callable[[Any], "dict | list[dict]"]
+
+
+@dataclass(frozen=True)
+class Job:
+    """A task for commands that need no class of their own: a label, the identity its
+    records complete (:class:`~.store.Store`'s ``task_of``) and what the runner needs."""
+
+    key: str
+    identity: Hashable
+    data: Any = None
 
 
 class WorkerDied(RuntimeError):
     """The worker process running a task died (killed, out of memory, ``os._exit``)."""
+
+
+@dataclass(frozen=True)
+class Failure:
+    """Why a task gave no records: the exception's type, message and traceback (formatted in
+    the worker, where the frames are), the seconds it ran, and whether the cause lies outside
+    the task (its worker died): such a failure is retried, not recorded as the task's own
+    (:func:`~ema_bench.sweep.loop.run_sweep` says what happens when it recurs)."""
+
+    error_type: str
+    error: str
+    traceback: str = ""
+    wall_s: float = 0.0
+    infrastructure: bool = False
+
+    @classmethod
+    def of(cls, exc: BaseException, wall_s: float = 0.0, infrastructure: bool = False
+           ) -> Failure:
+        return cls(type(exc).__name__, str(exc) or repr(exc),
+                   "".join(traceback.format_exception(exc))[-4000:], wall_s, infrastructure)
+
+    def line(self) -> str:
+        return f"{self.error_type}: {self.error}"
+
+
+@dataclass
+class Outcome:
+    """A finished task: its records, or the :class:`Failure` that stopped it."""
+
+    task: Task
+    records: list[dict] = field(default_factory=list)
+    failure: Failure | None = None
+
+
+def run_guarded(runner: Runner, task: Task) -> Outcome:
+    """``runner(task)`` as an :class:`Outcome`: its records, or the failure it raised (caught
+    in the worker, where the traceback is)."""
+    t0 = time.perf_counter()
+    try:
+        out = runner(task)
+    except Exception as exc:
+        return Outcome(task, failure=Failure.of(exc, time.perf_counter() - t0))
+    return Outcome(task, [out] if isinstance(out, dict) else list(out))
+
+
+def _died(task: Task) -> Outcome:
+    return Outcome(task, failure=Failure.of(WorkerDied(
+        "the worker process running this task died (killed, out of memory or os._exit)"),
+        infrastructure=True))
 
 
 def _exit_with_parent(parent_pid: int) -> None:
@@ -67,7 +134,7 @@ def _exit_with_parent(parent_pid: int) -> None:
 def worker_init(parent_pid: int | None = None) -> None:
     """Set up a worker process: one numba thread (the processes are the parallelism) and,
     given the pid of the process that started it, exit with that process.  The initializer of
-    every process pool in the package (leaderboard, blind suite, campaign tracking)."""
+    the package's only process pool (:func:`execute`)."""
     import numba
 
     numba.set_num_threads(1)
@@ -76,16 +143,17 @@ def worker_init(parent_pid: int | None = None) -> None:
 
 
 def _serial(tasks: Iterator[Task], workers: int, scheduler: str | None, runner: Runner
-            ) -> Iterator[dict]:
+            ) -> Iterator[Outcome]:
     for t in tasks:
         yield run_guarded(runner, t)
 
 
 def _processes(tasks: Iterator[Task], workers: int, scheduler: str | None, runner: Runner
-               ) -> Iterator[dict]:
+               ) -> Iterator[Outcome]:
     """A process pool that survives a worker's death: the pool is started again, the tasks
-    that were in flight run again one at a time, and the one whose worker dies alone gets an
-    error record (so a run that kills its worker does not take its neighbours with it)."""
+    that were in flight run again one at a time, and the one whose worker dies alone comes
+    back as an infrastructure failure (so a task that kills its worker does not take its
+    neighbours with it)."""
     from concurrent.futures import FIRST_COMPLETED, wait
 
     pool = _Pool(workers)
@@ -118,14 +186,13 @@ def _processes(tasks: Iterator[Task], workers: int, scheduler: str | None, runne
                 if _Pool.is_broken(fut):
                     lost.append(t)
                 else:
-                    exc = fut.exception()
-                    yield error_record(t, exc) if exc is not None else fut.result()
+                    exc = fut.exception()   # the runner or its result could not be pickled
+                    yield Outcome(t, failure=Failure.of(exc)) if exc is not None \
+                        else fut.result()
             if lost or broken:
                 pool.restart()
             if len(lost) == 1:
-                yield error_record(lost[0], WorkerDied(
-                    "the worker process running this task died (killed, out of memory or "
-                    "os._exit)"))
+                yield _died(lost[0])
             else:
                 suspects.extend(lost)
     finally:
@@ -171,7 +238,7 @@ class _Pool:
 
 
 def _dask(tasks: Iterator[Task], workers: int, scheduler: str | None, runner: Runner
-          ) -> Iterator[dict]:
+          ) -> Iterator[Outcome]:
     try:
         from dask.distributed import Client, LocalCluster, as_completed
     except ImportError as exc:  # pragma: no cover - depends on the install
@@ -191,7 +258,7 @@ def _dask(tasks: Iterator[Task], workers: int, scheduler: str | None, runner: Ru
             client.register_worker_callbacks(functools.partial(worker_init, os.getpid()))
         slots = workers if cluster is not None else max(1, sum(client.nthreads().values()))
         # a task whose worker dies is rescheduled by the scheduler (up to its
-        # allowed-failures, 3 by default), then fails with KilledWorker: an error record
+        # allowed-failures, 3 by default), then fails with KilledWorker: not the task's doing
         futures = as_completed()
         running: dict[str, Task] = {}
         for t in itertools.islice(tasks, slots):
@@ -201,7 +268,8 @@ def _dask(tasks: Iterator[Task], workers: int, scheduler: str | None, runner: Ru
             try:
                 rec = fut.result()
             except Exception as exc:   # KilledWorker, or a runner that could not be sent
-                rec = error_record(t, exc)
+                rec = Outcome(t, failure=Failure.of(
+                    exc, infrastructure=type(exc).__name__ == "KilledWorker"))
             fut.release()
             yield rec
             if (t := next(tasks, None)) is not None:
@@ -212,22 +280,28 @@ def _dask(tasks: Iterator[Task], workers: int, scheduler: str | None, runner: Ru
             cluster.close()
 
 
+_SUBMITTED = itertools.count()
+
+
 def _dask_submit(client, futures, running: dict, runner: Runner, t: Task) -> None:
-    fut = client.submit(run_guarded, runner, t, key=f"ema-{t.key}-{t.root_seed}-{t.budget}",
-                        pure=False)
+    # a key unique to this submission: a retried task must not meet its old future's key
+    digest = hashlib.sha1(repr(t.identity).encode()).hexdigest()[:12]
+    fut = client.submit(run_guarded, runner, t, key=f"ema-{digest}-{os.getpid()}-"
+                        f"{next(_SUBMITTED)}", pure=False)
     running[fut.key] = t
     futures.add(fut)
 
 
-_RUNNERS: dict[str, Callable[[Iterator[Task], int, str | None, Runner], Iterator[dict]]] = {
+_RUNNERS: dict[str, Callable[[Iterator[Task], int, str | None, Runner],
+                              Iterator[Outcome]]] = {
     "serial": _serial, "processes": _processes, "dask": _dask,
 }
 
 
-def execute(tasks: Iterable[Task], executor: str = "processes", workers: int | None = None,
-            scheduler: str | None = None, runner: Runner = run_task) -> Iterator[dict]:
-    """Run ``tasks`` (each through ``runner``, :func:`run_task` unless a test injects a
-    fault) and yield their records as they finish, error records for those that fail.
+def execute(tasks: Iterable[Task], runner: Runner, executor: str = "processes",
+            workers: int | None = None, scheduler: str | None = None) -> Iterator[Outcome]:
+    """Run ``tasks`` (each through ``runner``) and yield their :class:`Outcome` as they
+    finish.
 
     ``tasks`` is read lazily, one task per free worker; nothing starts (no pool, no cluster)
     when it is empty."""

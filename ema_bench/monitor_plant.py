@@ -1,0 +1,48 @@
+"""The monitor plant: per-candidate constants, rest state and one 50 microsecond step.
+
+The blocks the integrator (:mod:`ema_bench.physics.integrator`) runs for the monitor model, in
+a leaf module of their own so that both batched kernels, the scalar one of
+:mod:`ema_bench.monitor` and the lock-step lanes of :mod:`ema_bench.monitor_lanes`, import
+them without importing each other.
+"""
+
+from __future__ import annotations
+
+from numba import njit
+
+from .faults import F_BLK, F_FST, F_NA
+from .params import P_PP
+from .physics.averaged_drive import drive_consts, drive_step, sector_index
+from .physics.effect_terms import cogging_torque, plant_terms
+from .physics.load import hinge_extra
+from .physics.mechanics import mech_consts, mech_step
+
+
+@njit(cache=True, error_model="numpy")
+def monitor_consts(p, x, e, dt):
+    """Per-candidate constants of the monitor plant (drive, mechanics, effects)."""
+    zeta, v_dc, r_scale, ks_scale, c_visc, k_aero, cog, quad, hfric = plant_terms(e, p)
+    dc = drive_consts(p, x[F_NA], zeta, r_scale, v_dc, dt)
+    mc = mech_consts(p, x[F_FST], x[F_BLK], c_visc, k_aero, ks_scale, dt)
+    return dc, mc, cog, p[P_PP], quad, hfric
+
+
+@njit(cache=True, error_model="numpy")
+def monitor_init(pc):
+    """Drive state at rest: no current, the sector of angle 0, no commutation in progress."""
+    return 0.0, sector_index(0.0, pc[3]), -1.0, 0.0, 0.0, 0.0, 0.0
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def monitor_step(th_m, w_m, th_u, w_u, ps, i_ref, pc):
+    """One 50 microsecond step of the monitor plant (see :mod:`ema_bench.physics.integrator`)."""
+    dc, mc, cog, pp, quad, hfric = pc
+    cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr = ps
+    (cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr, t_mean, t_start, t_end, t_rip,
+     i_eq) = drive_step(cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr, i_ref, th_m, w_m, dc)
+    t_cog = cogging_torque(cog, th_m + 0.5 * dc.h * w_m, pp)
+    th_m, w_m, th_u, w_u, m_thm, m_wm, m_thu = mech_step(
+        th_m, w_m, th_u, w_u, t_mean + t_cog, t_start + t_cog, t_end + t_cog, t_rip,
+        hinge_extra(w_u, quad, hfric), mc)
+    return (th_m, w_m, th_u, w_u, (cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr), m_thu, m_thm,
+            m_wm, i_eq)

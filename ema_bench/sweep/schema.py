@@ -1,0 +1,75 @@
+"""Type checks of the JSON lines the package reads back (run records, blind cases, tracking
+steps, coverage records, best-known entries).
+
+A schema maps a field to its :class:`Field`: the JSON types it may hold and whether it must be
+there.  Types are strict: ``true`` is not a number, ``1`` is not a boolean and ``"no"`` is
+not ``false`` (a hand-edited ``"replace": "no"`` read as true would change a score), so one
+wrong field stops the reading with one line naming the file, the line and the field.
+Fields a schema does not name are not checked (records carry free-form extras).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+
+#: JSON type names -> the Python types ``json.loads`` makes of them
+_TYPES: dict[str, tuple[type, ...]] = {
+    "bool": (bool,), "int": (int,), "number": (int, float), "str": (str,),
+    "list": (list,), "dict": (dict,), "null": (type(None),),
+}
+
+
+class SchemaError(ValueError):
+    """A JSON line whose fields are missing or of the wrong type."""
+
+
+@dataclass(frozen=True)
+class Field:
+    """What one field may hold: JSON type names (``"int|null"``) and whether it is required."""
+
+    types: str
+    required: bool = True
+
+    def accepts(self, value: object) -> bool:
+        for name in self.types.split("|"):
+            if name in ("int", "number") and isinstance(value, bool):
+                continue   # a boolean is an int to Python, not a count to us
+            if isinstance(value, _TYPES[name]):
+                return True
+        return False
+
+
+Schema = Mapping[str, Field]
+#: A schema, or a function choosing one by the record (e.g. an error record's own schema).
+SchemaLike = Schema | Callable[[dict], Schema]
+
+
+def req(types: str) -> Field:
+    """A required field of these JSON types."""
+    return Field(types, True)
+
+
+def opt(types: str) -> Field:
+    """An optional field of these JSON types."""
+    return Field(types, False)
+
+
+def check(record: object, schema: SchemaLike, where: str) -> dict:
+    """``record`` if it is a JSON object matching ``schema``; :class:`SchemaError` naming
+    ``where`` (file and line) and the first bad field otherwise."""
+    if not isinstance(record, dict):
+        raise SchemaError(f"{where}: expected a JSON object, got {type(record).__name__}")
+    fields = schema(record) if callable(schema) else schema
+    for name, spec in fields.items():
+        if name not in record:
+            if spec.required:
+                raise SchemaError(f"{where}: field {name!r} is missing")
+            continue
+        value = record[name]
+        if not spec.accepts(value):
+            shown = repr(value)
+            shown = shown if len(shown) <= 40 else shown[:37] + "..."
+            raise SchemaError(f"{where}: field {name!r} must be {spec.types.replace('|', ' or ')}"
+                              f", got {shown}")
+    return record
