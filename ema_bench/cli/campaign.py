@@ -118,8 +118,10 @@ def _register_track(actions: argparse._SubParsersAction) -> None:
                     "and inspection: estimates with 95 % intervals, RUL median and 95 % "
                     "interval, failing fault, replace) as each finishes, plus "
                     "DIR2/manifest.json.  Rerunning the same command resumes: units already "
-                    "complete are skipped.  A unit's tracking stops at its first replacement; "
-                    "a tracker that fails on a unit is recorded as a failed unit.  'ema-bench "
+                    "complete are skipped.  Every inspection is tracked to the unit's cut, also "
+                    "after a replacement call (the first call is the unit's maintenance "
+                    "decision); a tracker that raises on a unit is recorded as a failed unit, "
+                    "a killed worker or a full disk is not (a rerun tries it again).  'ema-bench "
                     "campaign track --list' lists the trackers (the 'ema_bench.trackers' "
                     "entry-point group: the baselines and any installed plugin).")
     p.add_argument("campaign", metavar="DIR", nargs="?", help="campaign folder")
