@@ -31,15 +31,18 @@ FILES = {"leaderboard": "runs.jsonl", "blind": "blind.jsonl", "coverage": "twin_
          "track": "track.jsonl", "targets": "targets.json.partial.jsonl"}
 #: Lines of a complete run: one per task, but one per inspection (4 units x 4) for tracking.
 LINES = {"leaderboard": 4, "blind": 4, "coverage": 4, "track": 16, "targets": 4}
-#: What may differ between runs of one task: timings, and the numba threads of the process
-#: that ran it (a run's manifest says how many; the results do not depend on it).
+#: What may differ between runs of one task: timings, the numba threads of the process that
+#: ran it (a run's manifest says how many; the results do not depend on it) and the checkout
+#: its code was imported from (pytest run in a clone imports the clone's sources, the job
+#: script an installed copy, which no commit vouches for).
 VOLATILE = {"wall_s", "solver_wall_s", "cpu_s"}
+PROCESS = {"threads", "git_commit", "git_dirty"}
 
 
 def stable(record: dict) -> dict:
     out = {k: v for k, v in record.items() if k not in VOLATILE}
     if "manifest" in out:
-        out["manifest"] = {k: v for k, v in out["manifest"].items() if k != "threads"}
+        out["manifest"] = {k: v for k, v in out["manifest"].items() if k not in PROCESS}
     return out
 JOB = [sys.executable, str(Path(__file__).with_name("sweep_jobs.py"))]
 

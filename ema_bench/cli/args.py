@@ -230,6 +230,7 @@ def read_run_files(paths: Sequence[str]) -> list[dict]:
     """The run records of ``runs.jsonl`` files, in order (not deduplicated); CLIError (one
     line) when a file is missing, not a file, or not a file of run records."""
     from ..leaderboard.store import read_records
+    from ..sweep.schema import SchemaError
     from . import CLIError
 
     out: list[dict] = []
@@ -242,6 +243,9 @@ def read_run_files(paths: Sequence[str]) -> list[dict]:
                            "folder)")
         try:
             out += read_records(p)
+        except SchemaError as exc:   # names the line and the field
+            raise CLIError(f"{exc} (not a file of run records: one JSON object per line, as "
+                           "'ema-bench leaderboard' writes)") from None
         except (TypeError, KeyError, AttributeError):
             # JSON lines that are not records (a list, a number, an object without identity)
             raise CLIError(f"{path}: not a file of run records (one JSON object per line, as "

@@ -76,9 +76,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--conditions", type=comma_list, default=None,
                    help="emafdi-v2: comma-separated conditions (default prior,no-prior,"
                         "step-only)")
-    p.add_argument("--per-tier", type=int, default=None,
+    p.add_argument("--per-tier", type=count(1, 1000), default=None,
                    help="emafdi-v2: the first N instances of each tier (default all)")
-    p.add_argument("--budget-per-dim", type=int, default=None,
+    p.add_argument("--budget-per-dim", type=count(1, 10**6), default=None,
                    help="emafdi-v2: evaluations per searched dimension (default 1250)")
     p.add_argument("--tracks", type=comma_list, default=["reference", "twin"],
                    help="comma-separated tracks (default reference,twin)")
@@ -226,9 +226,6 @@ def _v2_sweep(args: argparse.Namespace):
                                args.per_tier)
     except ValueError as exc:   # SuiteError, or a tier that is not a number
         raise CLIError(str(exc)) from None
-    if args.per_tier is not None and args.per_tier < 1 or \
-            args.budget_per_dim is not None and args.budget_per_dim < 1:
-        raise CLIError("--per-tier and --budget-per-dim must be >= 1")
     if args.budget is not None:
         return cases, args.budget
     per_dim = args.budget_per_dim or suite_v2.BUDGET_PER_DIM
