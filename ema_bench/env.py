@@ -78,6 +78,15 @@ __all__ = ["ENV_ID", "OBSERVATIONS", "EMAFaultEnv", "EMAFaultVectorEnv", "regist
 ENV_ID = "EMAFault/Identify-v1"
 OBSERVATIONS = ("traces", "residuals")
 _OPTIONS = ("case", "track")
+
+
+def reset_options(options: Mapping[str, Any] | None) -> dict[str, Any]:
+    """``reset``'s options as a dict; ValueError naming any it does not know."""
+    options = dict(options or {})
+    unknown = sorted(set(options) - set(_OPTIONS))
+    if unknown:
+        raise ValueError(f"unknown reset option(s) {unknown}; known: {list(_OPTIONS)}")
+    return options
 _SPAN_MARGIN = 0.01  # the traces box is each sensor's span widened by this fraction
 # residual box: every |r| <= sqrt(sum r^2) <= sqrt(PENALTY) for a scored candidate
 _RESIDUAL_BOUND = float(np.sqrt(PENALTY))
@@ -158,10 +167,7 @@ class _EpisodeMixin:
 
     def _new_problem(self, rng: np.random.Generator, options: Mapping[str, Any] | None,
                      seed: int | None = None) -> None:
-        options = dict(options or {})
-        unknown = sorted(set(options) - set(_OPTIONS))
-        if unknown:
-            raise ValueError(f"unknown reset option(s) {unknown}; known: {list(_OPTIONS)}")
+        options = reset_options(options)
         case = options.get("case", self.case)
         track = options.get("track", self.track)
         # the seed tree's run node: reset(seed=k) is run k of root_seed, the instance and noise

@@ -27,7 +27,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from .env import _OPTIONS, _RESIDUAL_BOUND, _SPAN_MARGIN, OBSERVATIONS, EMAFaultEnv
+from .env import _RESIDUAL_BOUND, _SPAN_MARGIN, OBSERVATIONS, EMAFaultEnv, reset_options
 from .objective import KNOWN_TESTS
 from .physics.sensors import SENSORS
 from .protocol import STANDARD_TESTS
@@ -92,10 +92,7 @@ class EMAFaultEnvV2(EMAFaultEnv):
                      seed: int | None = None) -> None:
         from .suite_v2 import make_v2_problem
 
-        options = dict(options or {})
-        unknown = sorted(set(options) - set(_OPTIONS))
-        if unknown:
-            raise ValueError(f"unknown reset option(s) {unknown}; known: {list(_OPTIONS)}")
+        options = reset_options(options)
         k = int(rng.integers(0, 2**63 - 1)) if seed is None else seed
         self._episode_seed = k
         names = instance_names(self.tier)
