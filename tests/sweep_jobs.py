@@ -10,11 +10,12 @@ Each job runs the command's own code on the sweep engine, only smaller:
 - ``track``: ``ema-bench campaign track`` on a 4-unit synthetic campaign (made once, under
   ``OUT/../campaign``) with ``slow-age``: the ``rul-age`` reference, 0.2 s per inspection;
 - ``track-exit``: the same with ``exits-on-u001``, whose worker dies on unit ``u001``;
-- ``blind``: :func:`~ema_bench.diagnosis.blind.run_blind` of 4 cases with a runner that
-  scores a perfect diagnosis after 0.5 s (the real one takes a minute per case);
+- ``blind``: ``ema-bench blind`` of 4 cases whose diagnosis (``blind.run_case``, a minute
+  per case) is replaced by one that scores a perfect diagnosis after 0.5 s;
 - ``targets``: :func:`~ema_bench.best_known.compute_targets` of 4 instances with polishing
   stages of 20 to 30 evaluations (set when this file runs as a script, so its spawned
-  workers polish alike; a test importing it sets them with ``monkeypatch``).
+  workers polish alike; a test importing it sets them with ``monkeypatch``, as it replaces
+  the blind diagnosis).
 
 Module-level definitions only: spawned workers import this file again as their main module.
 """
@@ -141,10 +142,8 @@ def run(command: str, out: Path, workers: int) -> int:
         return main(["campaign", "track", str(campaign(out.parent / "campaign")),
                      "--tracker", "exits-on-u001", *w, "--quiet", "--json", "--out", str(out)])
     if command == "blind":
-        from ema_bench.diagnosis.blind import run_blind
-
-        run_blind(4, 5, out, workers=workers, runner=slow_perfect_case)
-        return 0
+        return main(["blind", "--cases", "4", "--seed", "5", *w, "--quiet", "--json",
+                     "--out", str(out)])
     if command == "targets":
         out.mkdir(parents=True, exist_ok=True)
         best_known.compute_targets(out / "targets.json", workers=workers, quiet=True,
@@ -152,6 +151,11 @@ def run(command: str, out: Path, workers: int) -> int:
         return 0
     raise SystemExit(f"unknown job {command!r}")
 
+
+if __name__ in ("__main__", "__mp_main__"):   # this script and its spawned workers only
+    from ema_bench.diagnosis import blind
+
+    blind.run_case = slow_perfect_case
 
 if __name__ == "__main__":
     sys.exit(run(sys.argv[1], Path(sys.argv[2]), int(sys.argv[3])))

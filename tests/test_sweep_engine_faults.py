@@ -24,6 +24,7 @@ import sweep_jobs
 from test_sweep_faults import _alive, _children, _cmdline
 
 from ema_bench import best_known
+from ema_bench.diagnosis import blind
 from ema_bench.sweep.store import Store
 
 COMMANDS = ("leaderboard", "blind", "coverage", "track", "targets")
@@ -50,8 +51,10 @@ pytestmark = pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="ne
 
 
 @pytest.fixture(autouse=True)
-def tiny_targets(monkeypatch):
+def tiny_tasks(monkeypatch):
+    """The jobs' cheap task bodies in this process too (the script sets them itself)."""
     monkeypatch.setattr(best_known, "STAGES", sweep_jobs.TINY_STAGES)
+    monkeypatch.setattr(blind, "run_case", sweep_jobs.slow_perfect_case)
 
 
 def run_here(command: str, out: Path) -> int:
