@@ -75,7 +75,7 @@ class EMAFaultEnvV2(EMAFaultEnv):
                  observation: str = "traces", normalise: bool = True,
                  render_mode: str | None = None, root_seed: int = 0) -> None:
         t, c = _tier(tier), _condition(condition)   # SuiteError (a ValueError) if unknown
-        if c.tests is not None and t.dim not in c.tiers:
+        if not c.offered_on(t.dim):
             raise ValueError(f"condition {condition!r} is offered on tiers {list(c.tiers)}")
         if case is not None and case not in instance_names(t.dim):
             raise ValueError(f"unknown tier-{t.dim} instance {case!r}; known: "
