@@ -10,9 +10,11 @@ method from the nominal start it hands out.  v2 keeps it as tier 4 and adds:
   tier's effects non-zero (:func:`tier_instances`) and the parameter targets judge every
   searched parameter, the effects included;
 - **conditions** (:data:`CONDITIONS`): ``prior`` (the solver gets the nominal vector and
-  starts there, as in v1), ``no-prior`` (bounds only: solvers draw their own start) and
+  starts there, as in v1), ``no-prior`` (bounds only: solvers draw their own start),
   ``step-only`` (less information: the step test alone, with the prior; tier 4 only,
-  where it keeps every parameter identifiable);
+  where it keeps every parameter identifiable) and ``surface-current`` (less information:
+  the fitness weighs the surface position and the equivalent current only, with the
+  prior; every tier);
 - **budgets** ``BUDGET_PER_DIM x dim`` (5,000 at tier 4, v1's board budget).
 
 The instances' names: tier 4 uses v1's (``small``, ``full``, ``random``, ``s00`` ..);
@@ -32,6 +34,7 @@ from .faults import FAULT_NAMES, LOWER, UPPER, faults_to_dict
 from .seeding import SeedLike, child
 from .suite import N_SEEDED, SANITY_CASES, SuiteError, instance_faults
 from .suite import instance_names as v1_instance_names
+from .traces import SIGNALS
 
 SUITE_ID = "emafdi-v2"
 #: Root of the draw of the higher tiers' instances (never changes within the suite version).
@@ -258,6 +261,8 @@ def describe() -> dict[str, object]:
     """The suite as JSON: tiers with their instances' truths, conditions, budgets."""
     return {"suite": SUITE_ID, "suite_seed": SUITE_SEED, "budget_per_dim": BUDGET_PER_DIM,
             "conditions": {c.name: {"prior": c.prior, "tests": c.tests or ["step", "sine"],
+                                    "signals": list(c.signals or SIGNALS),
+                                    "tiers": [d for d in TIERS if c.offered_on(d)],
                                     "description": c.description}
                            for c in CONDITIONS.values()},
             "tiers": {str(t.dim): {"effects": list(t.effects), "budget": t.budget,

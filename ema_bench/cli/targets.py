@@ -3,8 +3,8 @@
 One long multi-solver polishing run per (instance, track, noise seed) of the suite: zoo
 least-squares warm-started at the truth, zoo powell from its best, zoo cmaes from nominal
 (2700 evaluations in all; ema_bench/best_known.py documents the method).  It writes the JSON
-the package ships as ema_bench/suite_targets.json (--suite emafdi-v2:
-ema_bench/suite_targets_v2.json, whose seed-0 reference entries also hold the clean-data fit
+the package ships as ema_bench/suite_targets.json (--suite emafdi-v2: the package's
+suite_targets_v2.json, once computed, whose seed-0 reference entries also hold the clean-data fit
 that picks the judged parameters); entries are appended to OUT.partial.jsonl as they
 finish, so an interrupted run resumes.  v1: about 3 CPU-s per entry, 460 entries.  v2:
 docs/suite-v2.md gives the cost per entry and tier.  --tiers, --conditions, --per-tier,
@@ -14,7 +14,7 @@ table.  --show prints the shipped table's summary instead.
 Examples::
 
     ema-bench targets --out ema_bench/suite_targets.json          # regenerate (~25 CPU-min)
-    ema-bench targets --suite emafdi-v2 --out ema_bench/suite_targets_v2.json
+    ema-bench targets --suite emafdi-v2 --out suite_targets_v2.json   # then ship it
     ema-bench targets --suite emafdi-v2 --tiers 7 --conditions prior --per-tier 2 \\
         --seeds 1 --tracks reference --out /tmp/t.json                 # a handful
     ema-bench targets --show --json

@@ -22,6 +22,14 @@ def known_sigma() -> np.ndarray:
     return np.array([np.hypot(s.noise_std, s.lsb / np.sqrt(12.0)) for s in SENSORS])
 
 
+def weighed(objective: Objective) -> np.ndarray:
+    """Per residual element (stacked layout), whether the fitness weighs its output (all,
+    unless an information condition of suite ``emafdi-v2`` masks some: ``objective.mask``)."""
+    mask = getattr(objective, "mask", None)   # objective-like test models carry none
+    idx = objective.signal_index
+    return np.ones(idx.size, bool) if mask is None else np.asarray(mask)[idx] > 0.0
+
+
 def estimated_sigma(objective: Objective, residual: np.ndarray, n_params: int) -> np.ndarray:
     """Per-signal standard deviation of the raw residual ``model - data`` (stacked layout),
     shape (4,): the root mean square over that signal's samples, degrees of freedom
@@ -29,7 +37,7 @@ def estimated_sigma(objective: Objective, residual: np.ndarray, n_params: int) -
     weighted elements count; a signal the fitness does not weigh (an information condition
     of suite ``emafdi-v2``: its data are withheld) gets the datasheet level
     (:func:`known_sigma`), which no interval then uses."""
-    seen = objective.mask[objective.signal_index] > 0.0
+    seen = weighed(objective)
     idx = objective.signal_index[seen]
     n = np.bincount(idx, minlength=len(SIGNALS)).astype(float)
     ss = np.bincount(idx, weights=residual[seen] ** 2, minlength=len(SIGNALS))
