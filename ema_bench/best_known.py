@@ -64,16 +64,17 @@ POLISH_BUDGET = sum(b for _, b, _ in STAGES)
 MARGIN = 1e-4
 
 
-def _run_stages(make, stages, truth: np.ndarray, nominal: np.ndarray):
-    """Run the polishing ``stages`` on problems from ``make(budget, start)``: the best
-    point, its fitness, the fitness each stage reached and the first problem."""
+def _run_stages(make, stages, truth: np.ndarray, nominal: np.ndarray, seed):
+    """Run the polishing ``stages`` on problems from ``make(budget, start)``, each solver
+    seeded with ``seed``: the best point, its fitness, the fitness each stage reached and
+    the first problem."""
     best_x, best_f, reached, first = truth, np.inf, {}, None
     for solver, budget, start in stages:
         x0 = {"truth": truth, "previous": best_x, "nominal": nominal}[start]
         problem = make(budget, x0)
         if first is None:
             first = problem
-        run_solver(solver, problem, budget, seed=problem.meta.get("node", 0))
+        run_solver(solver, problem, budget, seed=seed)
         x, f = problem.best
         reached[solver] = f
         if f < best_f:
@@ -98,12 +99,10 @@ def polish(case: str, track: str, seed: int) -> dict[str, object]:
     nominal = np.r_[NOMINAL, np.zeros(truth.size - NOMINAL.size)]   # effects off
 
     def make(budget: int, x0: np.ndarray):
-        p = (_v2_problem(case, track, node, budget, x0) if v2 else
-             make_problem(case, track=track, seed=node, budget=budget, start=x0))
-        p.meta["node"] = node
-        return p
+        return (_v2_problem(case, track, node, budget, x0) if v2 else
+                make_problem(case, track=track, seed=node, budget=budget, start=x0))
 
-    best_x, best_f, stages, first = _run_stages(make, STAGES, truth, nominal)
+    best_x, best_f, stages, first = _run_stages(make, STAGES, truth, nominal, node)
     f_nominal = float(first.objective.evaluate(nominal[None, :])[0][0])
     entry = {"key": target_key(case, track, seed), "f_star": float(best_f),
              "x_star": faults_to_dict(best_x), "f_nominal": f_nominal,
@@ -152,7 +151,9 @@ def clean_fit(case: str) -> dict[str, object]:
         return make_problem(measured=clean, augment=t.effects, signals=cond.signals,
                             budget=budget, start=x0)
 
-    x, _, _, first = _run_stages(make, CLEAN_STAGES, truth, truth)
+    # the solvers' streams: the seed-0 entry's node (the clean data have no noise to seed)
+    x, _, _, first = _run_stages(make, CLEAN_STAGES, truth, truth,
+                                 run_seed(TARGET_ROOT_SEED, CLEAN_SEED))
     errs = np.abs(x - truth) / (first.upper - first.lower)
     return {"clean_x": dict(zip(first.names, map(float, x))),
             "clean_bias": dict(zip(first.names, map(float, errs)))}

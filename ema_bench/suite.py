@@ -24,6 +24,7 @@ import json
 import math
 from collections.abc import Sequence
 from importlib import resources
+from importlib.resources.abc import Traversable
 
 import numpy as np
 
@@ -125,7 +126,7 @@ def target_key(case: str, track: str, seed: int) -> str:
     return f"{case}|{track}|{seed}"
 
 
-def read_targets(path, suite: str, missing_ok: bool = True) -> dict:
+def read_targets(path: Traversable, suite: str, missing_ok: bool = True) -> dict:
     """A best-known table (``ema-bench targets``' JSON) of ``suite`` on the installed model
     version: ``{"suite", "model_version", "entries": {key: {"f_star", "f_nominal",
     "x_star", ..}}}``; an empty ``entries`` when the file is missing and ``missing_ok`` (a

@@ -26,6 +26,7 @@ from __future__ import annotations
 import functools
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from importlib.resources.abc import Traversable
 
 import numpy as np
 
@@ -357,7 +358,7 @@ TARGET_SEEDS = 5
 CLEAN_SEED = 0
 
 
-def targets_path():
+def targets_path() -> Traversable:
     """Where the shipped v2 table is (the package's ``suite_targets_v2.json``)."""
     from importlib import resources
 

@@ -81,8 +81,18 @@ def test_a_solver_is_not_given_the_withheld_outputs_and_cannot_weigh_them_back()
         p.objective.mask[1] = 1.0
     assert p.objective.signals == ("theta_u", "i_eq")
     with pytest.raises(ProblemError, match="distinct outputs"):
-        make_v2_problem("s05", cond="prior", track="twin").objective.__class__(
-            p.measured, signals=("theta_u", "current"))
+        Objective(p.measured, signals=("theta_u", "current"))
+    # the Gymnasium observation is that data: the withheld outputs' blocks are zeros
+    import gymnasium as gym
+
+    import ema_bench.env  # noqa: F401  (registers the ids)
+
+    env = gym.make("EMAFault/Identify-v2", tier=7, condition="surface-current",
+                   track="twin", budget=2)
+    obs, _ = env.reset(seed=1)
+    prob = env.unwrapped.problem
+    assert np.array_equal(obs, prob.measured.stacked()) and prob.objective.signals == SC.signals
+    assert not obs[np.isin(prob.objective.signal_index, MASKED)].any()
 
 
 def test_surface_current_is_offered_where_the_report_keeps_every_parameter():
