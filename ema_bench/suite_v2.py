@@ -423,10 +423,17 @@ def judged_for(case: str, track: str) -> np.ndarray | None:
         return None
     entry = shipped_targets()["entries"].get(target_key(target_case(case), track,
                                                         CLEAN_SEED))
-    if entry is None or "clean_x" not in entry:
+    return None if entry is None else judged_by_entry(case, entry)
+
+
+def judged_by_entry(case: str, entry: Mapping[str, object]) -> np.ndarray | None:
+    """:func:`judged_parameters` of a v2 case on the clean-data fit ``clean_x`` of a table
+    entry (None without one)."""
+    clean = entry.get("clean_x")
+    if not isinstance(clean, Mapping):
         return None
     names, truth, ranges = scoring_frame(case)
-    return judged_parameters(truth, np.array([entry["clean_x"][n] for n in names]), ranges)
+    return judged_parameters(truth, np.array([float(clean[n]) for n in names]), ranges)
 
 
 def target_keys(seeds: int = TARGET_SEEDS, tracks: Sequence[str] = ("reference", "twin"),

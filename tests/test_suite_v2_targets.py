@@ -183,6 +183,18 @@ def test_targets_writes_a_v2_table_with_the_clean_data_fit(table, use_table):
     assert suite_v2.judged_for("small@surface-current", "twin") is None
 
 
+def test_targets_show_summarises_the_v2_table(table, use_table, capsys):
+    """``--show``: the exclusions (none here) and the cost per tier, read from the table."""
+    use_table(table)
+    capsys.readouterr()
+    assert main(["targets", "--suite", "emafdi-v2", "--show", "--json"]) == 0
+    got = json.loads(capsys.readouterr().out)
+    e = json.loads(table.read_text())["entries"]
+    assert got["suite"] == "emafdi-v2" and got["entries"] == 1 and got["excluded"] == {}
+    assert got["cost_by_tier"] == {"4": {"entries": 1, "cpu_s_median": e[next(iter(e))]["cpu_s"],
+                                         "cpu_s_total": e[next(iter(e))]["cpu_s"]}}
+
+
 def test_a_missing_or_mislabelled_table_is_tolerated_or_refused(tmp_path, use_table, table,
                                                                  capsys):
     use_table(tmp_path / "absent.json")   # absent: no fitness targets, every parameter judged
@@ -198,7 +210,7 @@ def test_a_missing_or_mislabelled_table_is_tolerated_or_refused(tmp_path, use_ta
 
 
 def test_a_biased_parameter_loses_its_parameter_targets_on_the_reference_track(
-        table, tmp_path, use_table):
+        table, tmp_path, use_table, capsys):
     """The judged mask comes from the table, never the record: with a table whose clean fit
     puts Na 0.5 % of range off the truth, a run whose point misses Na by 2 % of range and
     hits the rest is a success on the reference track (and validate re-derives it so);
@@ -223,6 +235,10 @@ def test_a_biased_parameter_loses_its_parameter_targets_on_the_reference_track(
     e["clean_x"]["Na"] = float(truth[0] - 0.005 * (p.upper - p.lower)[0])
     doctored = tmp_path / "biased.json"
     doctored.write_text(json.dumps(data))
+    use_table(doctored)
+    assert main(["targets", "--suite", "emafdi-v2", "--show", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["excluded"] == {
+        target_key(case, "reference", 0): ["Na"]}
     for path, success in ((table, False), (doctored, True)):
         use_table(path)
         rec = run_task(Task("at-off-na", case, "reference", 0, 1))

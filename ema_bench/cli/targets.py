@@ -108,16 +108,14 @@ def run(args: argparse.Namespace) -> int:
         data = compute_targets(out, workers=args.workers, quiet=args.quiet, keys=keys)
     entries = data["entries"]
     bias = sorted(((e["bias_range_error"], k) for k, e in entries.items()), reverse=True)
-    about = suite_v2.describe() if v2 else describe()
     summary = {"suite": data["suite"], "model_version": data["model_version"],
                "entries": len(entries),
                "largest_bias": [{"key": k, "bias_range_error": b} for b, k in bias[:5]]}
-    if not v2:
-        summary = {**about, **summary}
-    else:
+    if v2:
         summary["excluded"] = _excluded(entries)
-        cost = [(k, e["cpu_s"], e["wall_s"]) for k, e in entries.items() if "cpu_s" in e]
-        summary["cost"] = [{"key": k, "cpu_s": c, "wall_s": w} for k, c, w in cost]
+        summary["cost_by_tier"] = _cost_by_tier(entries)
+    else:
+        summary = {**describe(), **summary}
     if args.json:
         print_json(summary)
     else:
@@ -125,17 +123,42 @@ def run(args: argparse.Namespace) -> int:
               f"{len(entries)} best-known optima")
         for b, k in bias[:5]:
             print(f"  {k}: best-known point {100 * b:.2f} % of range from the truth")
-        for k, names in summary.get("excluded", {}).items():
-            print(f"  {k}: no parameter target on {', '.join(names) or 'none'} "
-                  "(clean-data bias over 0.3 % of range)")
-        for c in summary.get("cost", []):
-            print(f"  {c['key']}: {c['cpu_s']:.1f} CPU-s, {c['wall_s']:.1f} s wall")
+        if v2:
+            clean = sum("clean_x" in e for e in entries.values())
+            print(f"  {clean} clean-data fits; parameters without parameter targets on the "
+                  f"reference track (clean-data bias over 0.3 % of range): "
+                  f"{len(summary['excluded'])} instances")
+            for k, names in summary["excluded"].items():
+                print(f"    {k.split('|')[0]}: {', '.join(names)}")
+            for d, c in summary["cost_by_tier"].items():
+                print(f"  tier {d}: {c['entries']} entries, median {c['cpu_s_median']:.1f} "
+                      f"CPU-s, {c['cpu_s_total']:.0f} CPU-s in all")
     return 0
 
 
 def _excluded(entries: dict) -> dict[str, list[str]]:
-    """Per entry with a clean-data fit: the parameters without parameter targets."""
-    from ..suite_v2 import MAX_TARGET_BIAS
+    """Per entry with a clean-data fit that excludes some: the parameters without
+    parameter targets (:func:`~ema_bench.suite_v2.judged_by_entry`, as scoring judges)."""
+    from ..suite_v2 import judged_by_entry, scoring_frame
 
-    return {k: [n for n, b in e["clean_bias"].items() if b > MAX_TARGET_BIAS]
-            for k, e in entries.items() if "clean_bias" in e}
+    out = {}
+    for k, e in entries.items():
+        case = k.split("|")[0]
+        judged = judged_by_entry(case, e)
+        if judged is not None and not judged.all():
+            out[k] = [n for n, j in zip(scoring_frame(case)[0], judged) if not j]
+    return out
+
+
+def _cost_by_tier(entries: dict) -> dict[str, dict[str, float]]:
+    """Per tier: entries, median and total CPU seconds (those that recorded them)."""
+    import statistics
+
+    from ..suite_v2 import parse_case
+
+    by: dict[int, list[float]] = {}
+    for k, e in entries.items():
+        if "cpu_s" in e:
+            by.setdefault(parse_case(k.split("|")[0])[0].tier, []).append(e["cpu_s"])
+    return {str(d): {"entries": len(v), "cpu_s_median": statistics.median(v),
+                     "cpu_s_total": sum(v)} for d, v in sorted(by.items())}
