@@ -250,7 +250,24 @@ def test_a_biased_parameter_loses_its_parameter_targets_on_the_reference_track(
 
 
 def test_targets_subset_options_and_suites_do_not_mix(tmp_path):
-    from ema_bench.best_known import compute_targets
+    import argparse
+
+    from ema_bench.best_known import all_keys, compute_targets
+    from ema_bench.cli.targets import _keys
+
+    def keys(**kw):
+        base = dict(suite="emafdi-v1", cases=None, tiers=None, conditions=None,
+                    per_tier=None, seeds=None, tracks=None)
+        return _keys(argparse.Namespace(**{**base, **kw}))
+
+    # v1: the default is every key (the CI instances first); --cases picks instances
+    assert keys() is None and len(all_keys()) == 460
+    assert keys(cases=["paper"], seeds=1, tracks=["twin"]) == [
+        "small|twin|0", "full|twin|0", "random|twin|0"]   # the sanity case has no f*
+    assert keys(suite="emafdi-v2", tiers=["12"], conditions=["surface-current"], per_tier=1,
+                seeds=2, tracks=["twin"]) == ["t12-s00@surface-current|twin|0",
+                                              "t12-s00@surface-current|twin|1"]
+    assert len(keys(suite="emafdi-v2")) == 1260
 
     with pytest.raises(SuiteError, match="in one table"):
         compute_targets(tmp_path / "x.json", keys=["small|twin|0", "t7-s00@prior|twin|0"])
