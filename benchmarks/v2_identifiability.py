@@ -4,9 +4,12 @@ For each instance of a tier, the Laplace intervals at the truth (no polish, no c
 the noise-whitened Jacobian of the tests, :mod:`ema_bench.uncertainty`) under the standard
 tests and under the step test alone; per parameter the widest 95 % interval over the
 tier's instances (in % of range), the instances where it is non-identifiable (interval wider
-than 5 % of range) and the confounded pairs (|r| > 0.9).
+than 5 % of range) and the confounded pairs (|r| > 0.9).  Each condition's problem carries
+its own objective (tests and output weights: ``surface-current`` weighs ``theta_u`` and
+``i_eq`` only), so the interval's Jacobian sees exactly what its fitness sees.
 
-    python benchmarks/v2_identifiability.py [--tiers 7,12] [--per-tier 20] > report.md
+    python benchmarks/v2_identifiability.py [--tiers 7,12] [--per-tier 20] \
+        [--conditions prior,step-only,surface-current] > report.md
 """
 
 from __future__ import annotations
@@ -19,7 +22,7 @@ import numpy as np
 
 from ema_bench.instances import make_problem
 from ema_bench.seeding import run_seed
-from ema_bench.suite_v2 import TIERS, instance, instance_names
+from ema_bench.suite_v2 import CONDITIONS, TIERS, instance, instance_names
 from ema_bench.uncertainty.methods import intervals
 
 
@@ -27,18 +30,22 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--tiers", default=",".join(str(t) for t in TIERS))
     ap.add_argument("--per-tier", type=int, default=20)
+    # no-prior shares prior's objective: the same intervals
+    ap.add_argument("--conditions", default="prior,step-only,surface-current")
     a = ap.parse_args()
     t0, c0 = time.perf_counter(), time.process_time()
     for d in (int(t) for t in a.tiers.split(",")):
         names = instance_names(d)[:a.per_tier]
-        for tests, cond in ((None, "prior"), (("step",), "step-only")):
+        for cond in a.conditions.split(","):
+            c = CONDITIONS[cond]
             widths, nonid, conf = [], Counter(), Counter()
             for n in names:
-                # step-only is offered on some tiers only: build it through make_problem
+                # a condition with less information is offered on some tiers only: build
+                # it through make_problem, with the condition's tests and outputs
                 inst = instance(n)
                 p = make_problem(inst.faults, track="twin", seed=run_seed(0, 0), budget=1,
                                  effects={k: v for k, v in inst.effects.items() if v},
-                                 augment=TIERS[d].effects, tests=tests)
+                                 augment=TIERS[d].effects, tests=c.tests, signals=c.signals)
                 iv = intervals(p.objective, inst.truth, method="laplace", track="twin",
                                polish=False, calibrate=False)
                 widths.append(iv.width_percent())

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import json
 import os
+import time
 from pathlib import Path
 
 import numpy as np
@@ -40,12 +41,13 @@ from .suite import (
     SUITE_MODEL_VERSION,
     TARGET_ROOT_SEED,
     TARGET_SEEDS,
+    SuiteError,
     check_model_version,
     instance_faults,
     instance_names,
     target_key,
 )
-from .suite_v2 import is_v2_case, make_v2_problem, parse_case
+from .suite_v2 import CLEAN_SEED, is_v2_case, make_v2_problem, parse_case, target_condition
 from .sweep.executors import Job
 from .sweep.loop import run_sweep
 from .sweep.schema import req
@@ -62,31 +64,45 @@ POLISH_BUDGET = sum(b for _, b, _ in STAGES)
 MARGIN = 1e-4
 
 
+def _run_stages(make, stages, truth: np.ndarray, nominal: np.ndarray, seed):
+    """Run the polishing ``stages`` on problems from ``make(budget, start)``, each solver
+    seeded with ``seed``: the best point, its fitness, the fitness each stage reached and
+    the first problem."""
+    best_x, best_f, reached, first = truth, np.inf, {}, None
+    for solver, budget, start in stages:
+        x0 = {"truth": truth, "previous": best_x, "nominal": nominal}[start]
+        problem = make(budget, x0)
+        if first is None:
+            first = problem
+        run_solver(solver, problem, budget, seed=seed)
+        x, f = problem.best
+        reached[solver] = f
+        if f < best_f:
+            best_x, best_f = x, f
+    return best_x, best_f, reached, first
+
+
 def polish(case: str, track: str, seed: int) -> dict[str, object]:
     """The best-known entry of one instance: ``f_star``, ``x_star``, ``f_nominal``,
     ``fitness_at_truth``, ``bias_range_error`` and the fitness each stage reached.
 
     ``case`` is a v1 instance or a v2 instance key (``t7-s03@prior``: the polish runs on
-    the tier's search space, from the truth of every searched parameter; the entry then
-    also holds ``bias_range_errors``, per parameter, from which the reference track's
-    parameter targets are chosen, :func:`~ema_bench.suite_v2.judged_parameters`)."""
+    the tier's search space and the condition's objective (tests, outputs), from the truth
+    of every searched parameter; the entry then also holds ``bias_range_errors``, per
+    parameter).  A v2 reference-track entry of seed
+    :data:`~ema_bench.suite_v2.CLEAN_SEED` also holds the clean-data fit ``clean_x``
+    (:func:`clean_fit`), from which the reference track's parameter targets are chosen
+    (:func:`~ema_bench.suite_v2.judged_for`)."""
     node = run_seed(TARGET_ROOT_SEED, seed)
     v2 = is_v2_case(case)
     truth = parse_case(case)[0].truth if v2 else instance_faults(case)
     nominal = np.r_[NOMINAL, np.zeros(truth.size - NOMINAL.size)]   # effects off
-    best_x, best_f, stages = truth, np.inf, {}
-    first = None
-    for solver, budget, start in STAGES:
-        x0 = {"truth": truth, "previous": best_x, "nominal": nominal}[start]
-        problem = (_v2_problem(case, track, node, budget, x0) if v2 else
-                   make_problem(case, track=track, seed=node, budget=budget, start=x0))
-        if first is None:
-            first = problem
-        run_solver(solver, problem, budget, seed=node)
-        x, f = problem.best
-        stages[solver] = f
-        if f < best_f:
-            best_x, best_f = x, f
+
+    def make(budget: int, x0: np.ndarray):
+        return (_v2_problem(case, track, node, budget, x0) if v2 else
+                make_problem(case, track=track, seed=node, budget=budget, start=x0))
+
+    best_x, best_f, stages, first = _run_stages(make, STAGES, truth, nominal, node)
     f_nominal = float(first.objective.evaluate(nominal[None, :])[0][0])
     entry = {"key": target_key(case, track, seed), "f_star": float(best_f),
              "x_star": faults_to_dict(best_x), "f_nominal": f_nominal,
@@ -98,15 +114,58 @@ def polish(case: str, track: str, seed: int) -> dict[str, object]:
         errs = np.abs(best_x - truth) / (first.upper - first.lower)
         entry["x_star"] = dict(zip(first.names, map(float, best_x)))
         entry["bias_range_errors"] = dict(zip(first.names, map(float, errs)))
+        if track == "reference" and seed == CLEAN_SEED:
+            entry.update(clean_fit(case))
     return entry
 
 
+#: The clean-data fit: the polish's local stages (the model-form bias is a local property
+#: of the truth's neighbourhood; cmaes's global view adds nothing there).
+CLEAN_STAGES = tuple(s for s in STAGES if s[2] != "nominal")
+
+
+def clean_fit(case: str) -> dict[str, object]:
+    """The monitor's best fit to *noise-free* reference traces of a v2 case (its instance's
+    faults and effects, its condition's tests and outputs), from the truth by
+    :data:`CLEAN_STAGES`: ``clean_x`` (name -> value) and ``clean_bias`` (name -> distance
+    from the truth in fractions of range).  No solver gets closer to the truth on the
+    reference track than this on average: a parameter whose clean bias exceeds
+    :data:`~ema_bench.suite_v2.MAX_TARGET_BIAS` carries no parameter target there.  (v1's
+    tabulation, :func:`ema_bench.calibrate.clean_bias`, spends 12,000 CMA-ES evaluations
+    on the faults only.)"""
+    from .effects import effects_vector
+    from .objective import KNOWN_TESTS
+    from .protocol import STANDARD_TESTS
+    from .reference import simulate_reference
+    from .suite_v2 import tier
+
+    inst, c = parse_case(case)
+    t = tier(inst.tier)
+    cond = target_condition(c)
+    specs = STANDARD_TESTS if cond.tests is None else tuple(KNOWN_TESTS[n] for n in cond.tests)
+    clean = simulate_reference(inst.faults, effects_vector(dict(inst.effects)), tests=specs,
+                               noise=False, adc=False)
+    truth = inst.truth
+
+    def make(budget: int, x0: np.ndarray):
+        return make_problem(measured=clean, augment=t.effects, signals=cond.signals,
+                            budget=budget, start=x0)
+
+    # the solvers' streams: the seed-0 entry's node (the clean data have no noise to seed)
+    x, _, _, first = _run_stages(make, CLEAN_STAGES, truth, truth,
+                                 run_seed(TARGET_ROOT_SEED, CLEAN_SEED))
+    errs = np.abs(x - truth) / (first.upper - first.lower)
+    return {"clean_x": dict(zip(first.names, map(float, x))),
+            "clean_bias": dict(zip(first.names, map(float, errs)))}
+
+
 def _v2_problem(case: str, track: str, node, budget: int, start: np.ndarray):
-    """A v2 instance's problem for the polish: its tier's space and data (the condition's
-    tests), the prior handed in as the warm start."""
+    """A v2 instance's problem for the polish: its tier's space and data (the tests and
+    outputs of its :func:`~ema_bench.suite_v2.target_condition`), the prior handed in as
+    the warm start."""
     inst, cond = parse_case(case)
-    return make_v2_problem(inst.name, cond="prior" if cond.tests is None else cond.name,
-                           track=track, seed=node, budget=budget, start=start)
+    return make_v2_problem(inst.name, cond=target_condition(cond).name, track=track,
+                           seed=node, budget=budget, start=start)
 
 
 #: The fields of a best-known entry, by JSON type.
@@ -115,9 +174,17 @@ ENTRY_SCHEMA = {"key": req("str"), "f_star": req("number"), "x_star": req("dict"
                 "bias_range_error": req("number"), "stages": req("dict")}
 
 
+#: Optional fields of an entry: v2's per-parameter point and biases, the clean-data fit
+#: (seed-0 reference entries), and what the entry cost (CPU seconds in its worker, wall).
+V2_FIELDS = ("bias_range_errors", "clean_x", "clean_bias")
+COST_FIELDS = ("cpu_s", "wall_s")
+
+
 def _polish_key(job: Job) -> dict[str, object]:
     case, track, seed = job.key.split("|")
-    return polish(case, track, int(seed))
+    t0, c0 = time.perf_counter(), time.process_time()
+    entry = polish(case, track, int(seed))
+    return {**entry, "cpu_s": time.process_time() - c0, "wall_s": time.perf_counter() - t0}
 
 
 def _key(record: dict) -> str:
@@ -135,22 +202,35 @@ def all_keys() -> list[str]:
 
 def compute_targets(out: Path, workers: int | None = None, quiet: bool = False,
                     keys: list[str] | None = None) -> dict:
-    """Polish every instance (resuming from ``<out>.partial.jsonl``) and write ``out``."""
+    """Polish every instance (resuming from ``<out>.partial.jsonl``) and write ``out``: the
+    table of suite v1 (default keys :func:`all_keys`) or, for keys of v2 cases
+    (:func:`~ema_bench.suite_v2.target_keys`), of suite emafdi-v2; SuiteError for keys of
+    both."""
+    from .suite_v2 import suite_of
+
     check_model_version()
     out = Path(out)
     partial = out.with_name(out.name + ".partial.jsonl")
     keys = all_keys() if keys is None else keys
+    suites = {suite_of(k.split("|")[0]) for k in keys}
+    if len(suites) > 1:
+        raise SuiteError(f"keys of suites {sorted(suites)} in one table: compute each apart")
+    suite = suites.pop() if suites else SUITE_ID
     workers = workers or os.cpu_count() or 1
     with Store(partial, identity=_key, schema=ENTRY_SCHEMA) as store:
         run_sweep([Job(k, k) for k in keys], _polish_key,
                   [store], executor="serial" if workers == 1 else "processes",
                   workers=workers, label="best-known optima", unit="instance", quiet=quiet)
         done = {r["key"]: r for r in store.records}
-    data = {"suite": SUITE_ID, "model_version": SUITE_MODEL_VERSION,
-            "method": {"stages": [list(s) for s in STAGES], "root_seed": TARGET_ROOT_SEED,
-                       "command": "ema-bench targets"},
-            "entries": {k: {f: done[k][f] for f in ("f_star", "f_nominal", "x_star",
-                                                    "fitness_at_truth", "bias_range_error")}
+    fields = ("f_star", "f_nominal", "x_star", "fitness_at_truth", "bias_range_error")
+    if suite != SUITE_ID:
+        fields += V2_FIELDS + COST_FIELDS
+    method = {"stages": [list(s) for s in STAGES], "root_seed": TARGET_ROOT_SEED,
+              "command": "ema-bench targets"}
+    if suite != SUITE_ID:
+        method["clean_stages"] = [list(s) for s in CLEAN_STAGES]
+    data = {"suite": suite, "model_version": SUITE_MODEL_VERSION, "method": method,
+            "entries": {k: {f: done[k][f] for f in fields if f in done[k]}
                         for k in keys if k in done}}
     tmp = out.with_name(f"{out.name}.{os.getpid()}.tmp")   # two runs on one file both write
     tmp.write_text(json.dumps(data, indent=0, sort_keys=True) + "\n")

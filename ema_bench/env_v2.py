@@ -9,9 +9,10 @@ As ``v1`` (:mod:`ema_bench.env`: observations, rewards, truncation, the seed tre
 
 - ``tier`` (4, 7, 12) sets the action's dimension (the faults, then the tier's effects, each
   in ``[0, 1]``) and the default budget (:func:`~ema_bench.suite_v2.budget`);
-- ``condition`` (``prior``, ``no-prior``, ``step-only``) sets what the episode's problem
-  hands out (no nominal vector or start without prior) and the tests in the observation
-  (``step-only``: the step test alone, a shorter observation);
+- ``condition`` (``prior``, ``no-prior``, ``step-only``, ``surface-current``) sets what the
+  episode's problem hands out (no nominal vector or start without prior) and the tests in
+  the observation (``step-only``: the step test alone, a shorter observation;
+  ``surface-current``: the same shape, ``theta_m`` and ``omega_m`` zeroed and unweighted);
 - ``case`` None (default) picks the tier's instance from the reset seed: run ``k`` fits
   instance ``k mod n`` of the tier (:func:`~ema_bench.suite_v2.instance_names`).
 
@@ -61,7 +62,7 @@ class EMAFaultEnvV2(EMAFaultEnv):
     tier : int
         The suite's tier (dimension of the action).
     condition : str
-        ``prior``, ``no-prior`` or ``step-only``.
+        ``prior``, ``no-prior``, ``step-only`` or ``surface-current``.
     case : str, optional
         An instance of the tier (``t7-s03``; tier 4: v1's names); default: from the seed.
     track, observation, normalise, root_seed
@@ -75,7 +76,7 @@ class EMAFaultEnvV2(EMAFaultEnv):
                  observation: str = "traces", normalise: bool = True,
                  render_mode: str | None = None, root_seed: int = 0) -> None:
         t, c = _tier(tier), _condition(condition)   # SuiteError (a ValueError) if unknown
-        if c.tests is not None and t.dim not in c.tiers:
+        if not c.offered_on(t.dim):
             raise ValueError(f"condition {condition!r} is offered on tiers {list(c.tiers)}")
         if case is not None and case not in instance_names(t.dim):
             raise ValueError(f"unknown tier-{t.dim} instance {case!r}; known: "

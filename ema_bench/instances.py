@@ -11,7 +11,7 @@ import numpy as np
 from .effects import EFFECT_INDEX, effects_to_dict, effects_vector
 from .faults import FaultError, check_faults, faults_to_dict, random_faults
 from .monitor import simulate_monitor
-from .objective import KNOWN_TESTS, ProblemError
+from .objective import KNOWN_TESTS, ProblemError, signal_mask
 from .params import DEFAULT_PARAMS
 from .physics.sensors import measure
 from .problem import Problem, check_budget
@@ -94,6 +94,7 @@ def make_problem(
     sample_weights: Mapping[str, np.ndarray] | None = None,
     prior: bool = True,
     score_effects: bool = False,
+    signals: Sequence[str] | None = None,
 ) -> Problem:
     """Build an identification problem.
 
@@ -135,17 +136,23 @@ def make_problem(
     score_effects : bool
         The hidden truth holds the ``augment`` effects' true values after the faults, so
         parameter targets judge them too (suite ``emafdi-v2``'s higher tiers).
+    signals : sequence of str, optional
+        The outputs the fitness weighs (default all four; suite ``emafdi-v2``'s
+        ``surface-current`` condition: ``theta_u``, ``i_eq``).  The others get weight 0 in
+        the objective, and in synthetic data (a case and a track) their columns are zeros:
+        the solver is not given what the condition withholds.
     """
     if measured is not None:
         if not isinstance(measured, Traces):
             raise ProblemError("measured must be a Traces (see ema_bench.load_traces)")
         return Problem(measured, budget, normalise=normalise, augment=augment, start=start,
-                       sample_weights=sample_weights, prior=prior,
+                       sample_weights=sample_weights, signals=signals, prior=prior,
                        label=str(measured.meta.get("source", "measured")), track="measured",
                        _meta={"source": measured.meta.get("source")})
     if sample_weights is not None:
         raise ProblemError("sample_weights weigh given measured traces: pass measured too")
     check_settings(case, track, budget, heterogeneity)
+    keep = signal_mask(signals)   # an unknown signal fails before any simulation
     ss = as_seed_sequence(seed)
     s_instance, s_noise = stream(ss, "instance"), stream(ss, "noise")
     if isinstance(case, str) and case == "seeded":
@@ -165,12 +172,15 @@ def make_problem(
                                      tuple(s_noise.spawn_key), specs)
     else:
         measured = twin_traces(truth, e, s_noise, specs)
-    # the data makers record faults, effects and seeds; a solver sees none of them
-    measured = Traces(measured.data, dt=measured.dt,
+    # the data makers record faults, effects and seeds; a solver sees none of them, nor the
+    # outputs a condition withholds (zeroed: their weight is 0, the fitness is unchanged)
+    measured = Traces({t: v * keep if signals is not None else v
+                       for t, v in measured.data.items()}, dt=measured.dt,
                       meta={k: v for k, v in measured.meta.items() if k in _PUBLIC_META})
     # public: nothing a solver could use to recover the truth (no seed, no effects)
     meta = {"case": label, "track": track}
     if score_effects:
         truth = np.r_[truth, [e[EFFECT_INDEX[n]] for n in augment]]
     return Problem(measured, budget, normalise=normalise, label=label, track=track,
-                   augment=augment, start=start, prior=prior, _truth=truth, _meta=meta)
+                   augment=augment, start=start, prior=prior, signals=signals, _truth=truth,
+                   _meta=meta)

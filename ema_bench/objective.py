@@ -178,6 +178,20 @@ def check_measured(measured: Traces) -> tuple[TestSpec, ...]:
     return tuple(KNOWN_TESTS[t] for t in measured.tests)
 
 
+def signal_mask(signals: Sequence[str] | None) -> np.ndarray:
+    """Weight multiplier (4,) per output, ``SIGNALS`` order: 1 for each of ``signals`` (all
+    for None), 0 for the others (an information condition of suite ``emafdi-v2``: the
+    fitness sees fewer signals); :class:`ProblemError` for an unknown or empty selection."""
+    if signals is None:
+        return np.ones(len(SIGNALS))
+    signals = tuple(signals)
+    bad = [n for n in signals if n not in SIGNALS]
+    if bad or not signals or len(set(signals)) != len(signals):
+        raise ProblemError(f"signals takes distinct outputs of {list(SIGNALS)}, got "
+                           f"{list(signals)}")
+    return np.array([float(n in signals) for n in SIGNALS])
+
+
 def _sample_weights(sample_weights: Mapping[str, np.ndarray], test: str,
                     shape: tuple[int, ...]) -> np.ndarray:
     """The checked per-sample weight multipliers of one test."""
@@ -215,7 +229,8 @@ class Objective:
 
     def __init__(self, measured: Traces, space: SearchSpace | None = None, *,
                  normalise: bool = True, effects: np.ndarray | None = None,
-                 sample_weights: Mapping[str, np.ndarray] | None = None) -> None:
+                 sample_weights: Mapping[str, np.ndarray] | None = None,
+                 signals: Sequence[str] | None = None) -> None:
         self.tests = check_measured(measured)
         self.measured = measured
         self.space = space or SearchSpace.of()
@@ -223,7 +238,10 @@ class Objective:
         self.effects = np.zeros(N_EFFECTS) if effects is None else np.asarray(effects, float)
         if self.effects.shape != (N_EFFECTS,):
             raise ProblemError(f"effects must have shape ({N_EFFECTS},)")
-        self.weights = signal_weights(measured, normalise)
+        self.mask = signal_mask(signals)
+        self.mask.flags.writeable = False
+        self.signals = tuple(n for n, m in zip(SIGNALS, self.mask) if m)
+        self.weights = {t: w * self.mask for t, w in signal_weights(measured, normalise).items()}
         if sample_weights is not None:
             self.weights = {t: w[None, :] * _sample_weights(sample_weights, t,
                                                             measured.data[t].shape)

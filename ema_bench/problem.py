@@ -295,6 +295,8 @@ class Problem(_Counted):
         Default: the nominal (healthy) vector.
     sample_weights : mapping, optional
         Per-sample weight multipliers of the fitness (:class:`~ema_bench.objective.Objective`).
+    signals : sequence of str, optional
+        The outputs the fitness weighs (default all; :class:`~ema_bench.objective.Objective`).
     prior : bool
         False: the no-prior condition of suite ``emafdi-v2``: ``nominal`` and ``start`` are
         None here and in the solver's view, whose search space has bounds only (solvers
@@ -305,6 +307,7 @@ class Problem(_Counted):
                  monitor_effects: np.ndarray | None = None, augment: Sequence[str] = (),
                  start: np.ndarray | None = None,
                  sample_weights: Mapping[str, np.ndarray] | None = None,
+                 signals: Sequence[str] | None = None,
                  prior: bool = True, label: str = "measured",
                  track: str = "measured", _truth: np.ndarray | None = None,
                  _meta: Mapping[str, object] | None = None) -> None:
@@ -315,7 +318,8 @@ class Problem(_Counted):
                 raise ProblemError("a problem without prior takes no start")
             self.space = self.space.without_prior()
         self.objective = Objective(measured, self.space, normalise=normalise,
-                                   effects=monitor_effects, sample_weights=sample_weights)
+                                   effects=monitor_effects, sample_weights=sample_weights,
+                                   signals=signals)
         self.names: tuple[str, ...] = self.space.names
         self.units: dict[str, str] = self.space.units
         self.lower, self.upper, self.nominal = self.space.lower, self.space.upper, \

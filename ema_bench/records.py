@@ -40,7 +40,7 @@ from .suite import (
     fitness_targets,
     precision_key,
 )
-from .suite_v2 import best_known_for, is_v2_case, scoring_frame, suite_of
+from .suite_v2 import best_known_for, is_v2_case, judged_for, scoring_frame, suite_of
 from .trace_cache import MODEL_VERSION
 
 if TYPE_CHECKING:
@@ -63,13 +63,14 @@ def schema(record: dict) -> int:
 
 
 def trajectory_indices(X: np.ndarray, f: np.ndarray, truth: np.ndarray | None,
-                       f_levels: list[float], ranges: np.ndarray | None = None) -> np.ndarray:
+                       f_levels: list[float], ranges: np.ndarray | None = None,
+                       judged: np.ndarray | None = None) -> np.ndarray:
     """0-based evaluations kept in the trajectory: the improvements, thinned geometrically to
     :data:`MAX_TRAJECTORY_POINTS`, plus every improvement no thinning may drop (the first hit
     of each fitness level in ``f_levels`` and of each parameter target against ``truth``, the
     last improvement at or before each ``best_at`` checkpoint, the first and the last).
     ``truth`` holds the faults, or (suite emafdi-v2) every judged parameter, whose
-    ``ranges`` are then given."""
+    ``ranges`` are then given; ``judged`` masks the parameters without a parameter target."""
     idx = improvements(f)
     if idx.size <= MAX_TRAJECTORY_POINTS:
         return idx
@@ -80,8 +81,9 @@ def trajectory_indices(X: np.ndarray, f: np.ndarray, truth: np.ndarray | None,
         hit = np.flatnonzero(fi <= level)
         pos |= set(hit[:1].tolist())
     if truth is not None:
-        err = np.max(range_error(X[idx, :len(truth)], truth) if ranges is None else
-                     np.abs(X[idx, :len(truth)] - truth) / ranges, axis=-1)
+        err = (range_error(X[idx, :len(truth)], truth) if ranges is None else
+               np.abs(X[idx, :len(truth)] - truth) / ranges)
+        err = np.max(err if judged is None else err[:, judged], axis=-1)
         for level in PARAMETER_TARGETS:
             pos |= set(np.flatnonzero(err <= level)[:1].tolist())
     for b in BUDGET_CHECKPOINTS:
@@ -125,14 +127,18 @@ def run_record(problem: Problem, result: SolveResult, *, case: str, track: str, 
     best = hist["best"]
     known = best_known_for(case, track, seed, root_seed)
     truth = problem.score(problem.lower).truth if problem.has_truth else None
-    every = ranges = None   # what the parameter targets judge: the faults, or a v2 tier's all
+    # what the parameter targets judge: the faults, or a v2 tier's parameters (on the
+    # reference track those whose clean-data bias is small: suite_v2.judged_for)
+    every = ranges = judged = None
     if truth is not None:
         every = np.array(list(truth.values()))
         if is_v2_case(case):
             _, every, ranges = scoring_frame(case)
+            judged = judged_for(case, track)
     keep = trajectory_indices(hist["x"], hist["fitness"], every,
                               [] if known is None else
-                              fitness_targets(known["f_star"], known["f_nominal"]), ranges)
+                              fitness_targets(known["f_star"], known["f_nominal"]), ranges,
+                              judged)
     rec["trajectory"] = trajectory(hist["x"], hist["fitness"], keep)
     # the trace is the trajectory without vectors, and the last evaluation
     rec["trace"] = [[p[0], p[1]] for p in rec["trajectory"]]
@@ -141,12 +147,15 @@ def run_record(problem: Problem, result: SolveResult, *, case: str, track: str, 
     rec["best_at"] = [[b, float(best[b - 1])] for b in BUDGET_CHECKPOINTS if b <= best.size]
     if problem.has_truth:
         score = problem.score(result.x)
-        hits = problem.parameter_hits(PARAMETER_TARGETS)
-        success = score.success if ranges is None else bool(
-            np.all(np.abs(result.x[:every.size] - every) / ranges <= SUCCESS_RANGE_ERROR))
+        hits = problem.parameter_hits(PARAMETER_TARGETS, judged=judged)
+        ok = (np.abs(result.x[:every.size] - every) / ranges <= SUCCESS_RANGE_ERROR
+              if ranges is not None else None)
+        success = score.success if ok is None else bool(
+            np.all(ok if judged is None else ok[judged]))
         rec.update(x=score.x, truth=score.truth, fitness_at_truth=problem.fitness_at_truth(),
                    success=success,
-                   evals_to_success=problem.first_success() if success else None,
+                   evals_to_success=problem.parameter_hits(
+                       (SUCCESS_RANGE_ERROR,), judged=judged)[0] if success else None,
                    accuracy=score.accuracy, range_error=score.range_error,
                    targets=anytime_targets(best, hits, known))
     return rec

@@ -24,6 +24,7 @@ import json
 import math
 from collections.abc import Sequence
 from importlib import resources
+from importlib.resources.abc import Traversable
 
 import numpy as np
 
@@ -125,20 +126,31 @@ def target_key(case: str, track: str, seed: int) -> str:
     return f"{case}|{track}|{seed}"
 
 
-@functools.lru_cache(maxsize=1)
-def shipped_targets() -> dict:
-    """The best-known optima shipped with the package (``ema_bench/suite_targets.json``):
-    ``{"suite", "model_version", "entries": {key: {"f_star", "f_nominal", "x_star"}}}``; an
-    empty ``entries`` when the file is missing (a checkout before ``ema-bench targets``)."""
-    path = resources.files("ema_bench").joinpath(TARGETS_FILE)
+def read_targets(path: Traversable, suite: str, missing_ok: bool = True) -> dict:
+    """A best-known table (``ema-bench targets``' JSON) of ``suite`` on the installed model
+    version: ``{"suite", "model_version", "entries": {key: {"f_star", "f_nominal",
+    "x_star", ..}}}``; an empty ``entries`` when the file is missing and ``missing_ok`` (a
+    checkout before ``ema-bench targets``), else :class:`SuiteError`; SuiteError when it is
+    labelled for another suite or model version."""
+    name = getattr(path, "name", str(path))
     if not path.is_file():
-        return {"suite": SUITE_ID, "model_version": SUITE_MODEL_VERSION, "entries": {}}
+        if missing_ok:
+            return {"suite": suite, "model_version": SUITE_MODEL_VERSION, "entries": {}}
+        raise SuiteError(f"{name}: no best-known table of suite {suite} there; compute it "
+                         "with 'ema-bench targets'")
     data = json.loads(path.read_text())
-    if data.get("suite") != SUITE_ID or data.get("model_version") != SUITE_MODEL_VERSION:
-        raise SuiteError(f"{TARGETS_FILE} is for suite {data.get('suite')!r} on model version "
-                         f"{data.get('model_version')!r}, not {SUITE_ID} on "
+    if data.get("suite") != suite or data.get("model_version") != SUITE_MODEL_VERSION:
+        raise SuiteError(f"{name} is for suite {data.get('suite')!r} on model version "
+                         f"{data.get('model_version')!r}, not {suite} on "
                          f"{SUITE_MODEL_VERSION}: regenerate it with 'ema-bench targets'")
     return data
+
+
+@functools.lru_cache(maxsize=1)
+def shipped_targets() -> dict:
+    """The best-known optima shipped with the package (``ema_bench/suite_targets.json``,
+    :func:`read_targets`)."""
+    return read_targets(resources.files("ema_bench").joinpath(TARGETS_FILE), SUITE_ID)
 
 
 def best_known(case: str, track: str, seed: int, root_seed: int = 0) -> dict | None:

@@ -10,9 +10,11 @@ method from the nominal start it hands out.  v2 keeps it as tier 4 and adds:
   tier's effects non-zero (:func:`tier_instances`) and the parameter targets judge every
   searched parameter, the effects included;
 - **conditions** (:data:`CONDITIONS`): ``prior`` (the solver gets the nominal vector and
-  starts there, as in v1), ``no-prior`` (bounds only: solvers draw their own start) and
+  starts there, as in v1), ``no-prior`` (bounds only: solvers draw their own start),
   ``step-only`` (less information: the step test alone, with the prior; tier 4 only,
-  where it keeps every parameter identifiable);
+  where it keeps every parameter identifiable) and ``surface-current`` (less information:
+  the fitness weighs the surface position and the equivalent current only, with the
+  prior; every tier);
 - **budgets** ``BUDGET_PER_DIM x dim`` (5,000 at tier 4, v1's board budget).
 
 The instances' names: tier 4 uses v1's (``small``, ``full``, ``random``, ``s00`` ..);
@@ -24,6 +26,7 @@ from __future__ import annotations
 import functools
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from importlib.resources.abc import Traversable
 
 import numpy as np
 
@@ -32,6 +35,7 @@ from .faults import FAULT_NAMES, LOWER, UPPER, faults_to_dict
 from .seeding import SeedLike, child
 from .suite import N_SEEDED, SANITY_CASES, SuiteError, instance_faults
 from .suite import instance_names as v1_instance_names
+from .traces import SIGNALS
 
 SUITE_ID = "emafdi-v2"
 #: Root of the draw of the higher tiers' instances (never changes within the suite version).
@@ -68,13 +72,31 @@ class Tier:
 
 @dataclass(frozen=True)
 class Condition:
-    """What the solver is given: the prior (nominal vector and start) and the tests."""
+    """What the solver is given: the prior (nominal vector and start), the tests and the
+    outputs the fitness weighs."""
 
     name: str
     prior: bool
     tests: tuple[str, ...] | None   # None: the standard step and sine
     description: str
-    tiers: tuple[int, ...] = ()     # with fewer tests: the tiers it keeps identifiable
+    tiers: tuple[int, ...] = ()     # with less information: the tiers it keeps identifiable
+    signals: tuple[str, ...] | None = None   # None: all four outputs (traces.SIGNALS)
+
+    @property
+    def full_information(self) -> bool:
+        """The standard tests and every output (offered on every tier)."""
+        return self.tests is None and self.signals is None
+
+    def offered_on(self, dim: int) -> bool:
+        """Whether the suite offers this condition on tier ``dim``: a condition with less
+        information only where the identifiability report keeps every parameter."""
+        return self.full_information or dim in self.tiers
+
+    @property
+    def objective_id(self) -> tuple[tuple[str, ...] | None, tuple[str, ...] | None]:
+        """What makes the fitness (tests and outputs): conditions that share it share the
+        data and the best-known optima (``prior`` and ``no-prior``)."""
+        return self.tests, self.signals
 
 
 # The effects of each tier (docs/suite-v2.md has the identifiability report that chose them).
@@ -95,6 +117,11 @@ CONDITIONS: dict[str, Condition] = {c.name: c for c in (
     # instances, eccentricity's on tier 12 (docs/suite-v2.md): tier 4 only
     Condition("step-only", True, ("step",), "nominal given, the step test alone (less "
                                             "information)", tiers=(4,)),
+    # the motor-side outputs theta_m, omega_m get weight 0 (and are zeroed in the data);
+    # the tiers: benchmarks/v2_identifiability.py (docs/suite-v2.md)
+    Condition("surface-current", True, None, "nominal given, the standard tests, surface "
+              "position and equivalent current only (less information)", tiers=(4, 7, 12),
+              signals=("theta_u", "i_eq")),
 )}
 
 
@@ -205,7 +232,7 @@ def make_v2_problem(name: str, *, cond: str = "prior", track: str = "reference",
     inst = instance(name)
     c = condition(cond)
     t = tier(inst.tier)
-    if c.tests is not None and t.dim not in c.tiers:
+    if not c.offered_on(t.dim):
         raise SuiteError(f"condition {cond!r} is offered on tiers {list(c.tiers)} only: on "
                          f"tier {t.dim} it leaves parameters non-identifiable")
     if start is not None and not c.prior:
@@ -214,7 +241,7 @@ def make_v2_problem(name: str, *, cond: str = "prior", track: str = "reference",
                            budget=t.budget if budget is None else budget,
                            effects={k: v for k, v in inst.effects.items() if v != 0.0},
                            augment=t.effects, tests=c.tests, start=start, prior=c.prior,
-                           score_effects=bool(t.effects))
+                           score_effects=bool(t.effects), signals=c.signals)
     problem.label = name
     problem.meta["case"] = name
     return problem
@@ -235,6 +262,8 @@ def describe() -> dict[str, object]:
     """The suite as JSON: tiers with their instances' truths, conditions, budgets."""
     return {"suite": SUITE_ID, "suite_seed": SUITE_SEED, "budget_per_dim": BUDGET_PER_DIM,
             "conditions": {c.name: {"prior": c.prior, "tests": c.tests or ["step", "sine"],
+                                    "signals": list(c.signals or SIGNALS),
+                                    "tiers": [d for d in TIERS if c.offered_on(d)],
                                     "description": c.description}
                            for c in CONDITIONS.values()},
             "tiers": {str(t.dim): {"effects": list(t.effects), "budget": t.budget,
@@ -288,7 +317,7 @@ def cases(tiers: Sequence[int], conditions: Sequence[str],
         t = tier(d)
         for cond in conditions:
             c = condition(cond)
-            if c.tests is not None and t.dim not in c.tiers:
+            if not c.offered_on(t.dim):
                 continue
             out += [case_key(n, c.name) for n in instance_names(t.dim)[:per_tier]]
     return out
@@ -318,33 +347,113 @@ def scoring_frame(case: str) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
     return t.names, inst.truth, hi - lo
 
 
+#: The best-known table of the v2 cases v1's does not cover (``ema-bench targets --suite
+#: emafdi-v2``); absent until it is computed in full (then those cases have no fitness
+#: targets, and parameter targets judge every parameter).
+TARGETS_FILE = "suite_targets_v2.json"
+#: Noise seeds (root seed 0) per (instance, data, track) the table covers: the board runs at
+#: most 5 seeds per case.
+TARGET_SEEDS = 5
+#: The reference-track entry whose clean-data fit picks the judged parameters (seed 0).
+CLEAN_SEED = 0
+
+
+def targets_path() -> Traversable:
+    """Where the shipped v2 table is (the package's ``suite_targets_v2.json``)."""
+    from importlib import resources
+
+    return resources.files("ema_bench").joinpath(TARGETS_FILE)
+
+
+@functools.cache
+def shipped_targets() -> dict:
+    """The v2 best-known table shipped with the package (:func:`ema_bench.suite.
+    read_targets`: empty entries when it is absent, SuiteError when it is mislabelled)."""
+    from .suite import read_targets
+
+    return read_targets(targets_path(), SUITE_ID)
+
+
+def target_condition(c: Condition) -> Condition:
+    """The condition whose best-known entries ``c`` uses: the first with the prior and the
+    same objective (tests and outputs; ``no-prior`` -> ``prior``)."""
+    return next(o for o in CONDITIONS.values() if o.prior and o.objective_id == c.objective_id)
+
+
+def target_case(case: str) -> str:
+    """The case key of a v2 case's best-known entries (``t7-s03@no-prior`` ->
+    ``t7-s03@prior``)."""
+    inst, c = parse_case(case)
+    return case_key(inst.name, target_condition(c).name)
+
+
 def best_known_for(case: str, track: str, seed: int, root_seed: int = 0) -> dict | None:
     """The best-known entry (``f_star``, ``f_nominal``, ``x_star``) of a run's case, or None.
 
-    A tier-4 case with the standard tests (``prior``, ``no-prior``) is v1's problem, data
+    A tier-4 case with full information (``prior``, ``no-prior``) is v1's problem, data
     and all: v1's shipped entry holds (test_suite_v2 checks the fitness to the bit).  Other
-    v2 cases have none until ``suite_targets_v2.json`` ships (issue 33, stage 2); v1 cases:
-    :func:`ema_bench.suite.best_known`."""
-    from .suite import best_known
+    v2 cases: the entry of :func:`target_case` in ``suite_targets_v2.json``
+    (:func:`shipped_targets`; None while it is absent or lacks the key, or for a root seed
+    other than 0); v1 cases: :func:`ema_bench.suite.best_known`."""
+    from .suite import TARGET_ROOT_SEED, best_known, target_key
 
     if not is_v2_case(case):
         return best_known(case, track, seed, root_seed)
     inst, c = parse_case(case)
-    if inst.tier == 4 and c.tests is None:
+    if inst.tier == 4 and c.full_information:
         return best_known(inst.name, track, seed, root_seed)
-    return None   # stage 2 ships the others (keys: target_keys())
+    if root_seed != TARGET_ROOT_SEED:
+        return None
+    return shipped_targets()["entries"].get(target_key(target_case(case), track, seed))
 
 
-def target_keys(seeds: int = 10, tracks: Sequence[str] = ("reference", "twin")) -> list[str]:
-    """The ``case|track|seed`` keys whose best-known optimum v2 must ship (for
-    :func:`ema_bench.best_known.compute_targets`'s ``keys``): one per instance and data
-    (``prior`` stands for every condition with the standard tests, whose data are the same;
-    ``step-only`` for the step test alone), none for tier 4 with the standard tests (v1's
-    entries hold) nor for the sanity case."""
+def judged_for(case: str, track: str) -> np.ndarray | None:
+    """Which of a v2 case's parameters (:func:`scoring_frame` order) carry parameter targets
+    on ``track``, or None (all of them).
+
+    On the reference track: those :func:`judged_parameters` keeps on the instance's
+    clean-data fit (``clean_x`` of its seed-0 reference entry in the v2 table, noise-free
+    reference traces, same objective).  The twin track (no model-form bias), tier 4 with
+    full information (v1's clean-data fits exclude nothing: docs/suite-v2.md) and cases
+    without a computed entry judge all."""
     from .suite import target_key
 
-    data_conds = [c for c in CONDITIONS.values() if c.prior]   # one per distinct data
+    inst, c = parse_case(case)
+    if track != "reference" or (inst.tier == 4 and c.full_information):
+        return None
+    entry = shipped_targets()["entries"].get(target_key(target_case(case), track,
+                                                        CLEAN_SEED))
+    return None if entry is None else judged_by_entry(case, entry)
+
+
+def judged_by_entry(case: str, entry: Mapping[str, object]) -> np.ndarray | None:
+    """:func:`judged_parameters` of a v2 case on the clean-data fit ``clean_x`` of a table
+    entry (None without one)."""
+    clean = entry.get("clean_x")
+    if not isinstance(clean, Mapping):
+        return None
+    names, truth, ranges = scoring_frame(case)
+    return judged_parameters(truth, np.array([float(clean[n]) for n in names]), ranges)
+
+
+def target_keys(seeds: int = TARGET_SEEDS, tracks: Sequence[str] = ("reference", "twin"),
+                tiers: Sequence[int] | None = None, conditions: Sequence[str] | None = None,
+                per_tier: int | None = None) -> list[str]:
+    """The ``case|track|seed`` keys whose best-known optimum v2 must ship (for
+    :func:`ema_bench.best_known.compute_targets`'s ``keys``): one per instance and
+    objective (``prior`` stands for ``no-prior``, whose data and fitness are the same; each
+    condition with less information for itself), none for tier 4 with full information
+    (v1's entries hold) nor for the sanity case.  ``tiers``, ``conditions`` (any: each maps
+    to its :func:`target_condition`) and ``per_tier`` (the first N instances) select a
+    subset, for a partial regeneration."""
+    from .suite import target_key
+
+    dims = [tier(d).dim for d in (TIERS if tiers is None else tiers)]
+    wanted = {target_condition(condition(n)).name for n in (conditions or CONDITIONS)}
+    data_conds = [c for c in CONDITIONS.values() if c.prior and c.name in wanted]
+    # seed by seed: a partial run covers every instance at seed 0 (whose reference entry
+    # holds the clean-data fit) first
     return [target_key(case_key(n, c.name), tr, k)
-            for d in TIERS for c in data_conds
-            if not (d == 4 and c.tests is None) and (c.tests is None or d in c.tiers)
-            for n in instance_names(d) for k in range(seeds) for tr in tracks]
+            for k in range(seeds) for d in dims for c in data_conds
+            if c.offered_on(d) and not (d == 4 and c.full_information)
+            for n in instance_names(d)[:per_tier] for tr in tracks]

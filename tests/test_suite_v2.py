@@ -179,8 +179,8 @@ def test_parameter_targets_judge_the_effects_and_skip_the_biased_parameters():
     assert q.parameter_hits((0.01,), judged=np.r_[[True] * 4, [False] * 3]) == [1]
 
 
-def test_conditions_are_the_documented_three():
-    assert set(CONDITIONS) == {"prior", "no-prior", "step-only"}
+def test_conditions_are_the_documented_four():
+    assert set(CONDITIONS) == {"prior", "no-prior", "step-only", "surface-current"}
     p = make_v2_problem("small", cond="step-only", track="twin", seed=0, budget=1)
     assert p.measured.tests == ("step",) and p.start is not None
 
@@ -271,13 +271,22 @@ def test_target_keys_cover_each_distinct_data_once_and_leave_v1s_to_v1():
 
     keys = target_keys(seeds=2, tracks=("twin",))
     cases_ = {k.split("|")[0] for k in keys}
-    assert len(keys) == 2 * len(cases_) == 2 * (20 + 20 + 23)   # t7, t12 prior; tier-4 step
+    # t7, t12 prior and surface-current; tier 4 step-only and surface-current
+    assert len(keys) == 2 * len(cases_) == 2 * (20 + 20 + 20 + 20 + 23 + 23)
     assert not any(c.startswith("small@prior") or "no-prior" in c for c in cases_)
     assert "t7-s00@prior" in cases_ and "small@step-only" in cases_
+    assert "t12-s19@surface-current" in cases_ and "s19@surface-current" in cases_
+    # seed by seed: every seed-0 entry (the reference one holds the clean fit) comes first
+    assert {k.split("|")[2] for k in keys[:len(cases_)]} == {"0"}
+    # a subset for a partial regeneration; no-prior maps to prior's entries
+    assert target_keys(1, ("reference",), tiers=[7], conditions=["no-prior"], per_tier=2) \
+        == ["t7-s00@prior|reference|0", "t7-s01@prior|reference|0"]
+    assert target_keys(1, tiers=[4], conditions=["prior"]) == []
     assert not any(c.startswith("t7") and "step-only" in c for c in cases_)
     # tier 4 with the standard tests, prior or not: v1's shipped entry
     assert best_known_for("s02@no-prior", "twin", 3) == best_known("s02", "twin", 3)
     assert best_known_for("s02@step-only", "twin", 3) is None
+    assert best_known_for("s02@surface-current", "twin", 3) is None   # another fitness
 
 
 def test_v1_records_still_validate_against_v1_and_not_as_v2():

@@ -182,7 +182,7 @@ def run(args: argparse.Namespace) -> int:
                                "not comparable; regenerate them (leaderboards/README.md "
                                "lists the commands)")
             raise CLIError(f"no committed runs of these tasks (same seeds and root seed) at "
-                           f"budget >= {budget} in {folder / RUNS_FILE} or "
+                           f"budget >= {_shown(budget, args)} in {folder / RUNS_FILE} or "
                            f"{folder / '*' / RUNS_FILE}")
         now = select(read_records(out / RUNS_FILE), tasks)
         regressions = compare(now, committed)
@@ -190,9 +190,9 @@ def run(args: argparse.Namespace) -> int:
         summary["baseline"] = used
         status = 1 if regressions else 0
         if not args.json:
-            against = (f"{args.check} (budget {budget}, {seeds} seeds; committed runs at "
-                       f"this budget: {used['same_budget']}, re-scored from a larger "
-                       f"budget: {used['re_scored']})")
+            against = (f"{args.check} (budget {_shown(budget, args)}, {seeds} seeds; "
+                       f"committed runs at this budget: {used['same_budget']}, re-scored "
+                       f"from a larger budget: {used['re_scored']})")
             if regressions:
                 print(f"REGRESSIONS against {against}:")
                 for r in regressions:
@@ -218,8 +218,6 @@ def _v2_sweep(args: argparse.Namespace):
     if args.cases:
         raise CLIError("--suite emafdi-v2 picks its instances with --tiers, --conditions and "
                        "--per-tier, not --cases")
-    if args.check is not None:
-        raise CLIError("--check compares emafdi-v1 boards only")
     try:
         tiers = [int(t) for t in (args.tiers or suite_v2.TIERS)]
         cases = suite_v2.cases(tiers, args.conditions or list(suite_v2.CONDITIONS),
@@ -230,6 +228,15 @@ def _v2_sweep(args: argparse.Namespace):
         return cases, args.budget
     per_dim = args.budget_per_dim or suite_v2.BUDGET_PER_DIM
     return cases, lambda case: per_dim * suite_v2.parse_case(case)[0].tier
+
+
+def _shown(budget, args: argparse.Namespace) -> str:
+    """The budget of a sweep in words (v2: per dimension x the tier)."""
+    if not callable(budget):
+        return str(budget)
+    from ..suite_v2 import BUDGET_PER_DIM
+
+    return f"{args.budget_per_dim or BUDGET_PER_DIM} x tier"
 
 
 def _print_failures(errors: list[dict]) -> None:

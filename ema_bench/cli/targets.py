@@ -3,13 +3,20 @@
 One long multi-solver polishing run per (instance, track, noise seed) of the suite: zoo
 least-squares warm-started at the truth, zoo powell from its best, zoo cmaes from nominal
 (2700 evaluations in all; ema_bench/best_known.py documents the method).  It writes the JSON
-the package ships as ema_bench/suite_targets.json; entries are appended to
-OUT.partial.jsonl as they finish, so an interrupted run resumes.  About 3 CPU-s per entry,
-460 entries.  --show prints the shipped table's summary instead.
+the package ships as ema_bench/suite_targets.json (--suite emafdi-v2: the package's
+suite_targets_v2.json, once computed, whose seed-0 reference entries also hold the clean-data fit
+that picks the judged parameters); entries are appended to OUT.partial.jsonl as they
+finish, so an interrupted run resumes.  v1: about 3 CPU-s per entry, 460 entries.  v2:
+docs/suite-v2.md gives the cost per entry and tier.  --tiers, --conditions, --per-tier,
+--seeds, --tracks (and for v1 --cases) compute a subset, e.g. to regenerate part of a
+table.  --show prints the shipped table's summary instead.
 
 Examples::
 
     ema-bench targets --out ema_bench/suite_targets.json          # regenerate (~25 CPU-min)
+    ema-bench targets --suite emafdi-v2 --out suite_targets_v2.json   # then ship it
+    ema-bench targets --suite emafdi-v2 --tiers 7 --conditions prior --per-tier 2 \\
+        --seeds 1 --tracks reference --out /tmp/t.json                 # a handful
     ema-bench targets --show --json
 """
 
@@ -19,13 +26,27 @@ import argparse
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from .args import add_json, add_quiet, worker_count
+    from .args import add_json, add_quiet, comma_list, count, worker_count
 
     p = sub.add_parser("targets", help="compute or show the suite's best-known optima f*",
                        description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", default=None, metavar="FILE.json",
                    help="where to write the table (required unless --show)")
+    p.add_argument("--suite", choices=("emafdi-v1", "emafdi-v2"), default="emafdi-v1",
+                   help="the suite whose table to compute or show (default emafdi-v1)")
+    p.add_argument("--cases", type=comma_list, default=None,
+                   help="emafdi-v1: instances or groups (all, paper, lhs, quick; default all)")
+    p.add_argument("--tiers", type=comma_list, default=None,
+                   help="emafdi-v2: comma-separated tiers (default all)")
+    p.add_argument("--conditions", type=comma_list, default=None,
+                   help="emafdi-v2: conditions (default all; no-prior shares prior's entries)")
+    p.add_argument("--per-tier", type=count(1, 1000), default=None,
+                   help="emafdi-v2: the first N instances of each tier (default all)")
+    p.add_argument("--seeds", type=count(1, 1000), default=None,
+                   help="noise seeds 0..N-1 (default: the suite's, v1 10, v2 5)")
+    p.add_argument("--tracks", type=comma_list, default=None,
+                   help="comma-separated tracks (default reference,twin)")
     p.add_argument("--workers", type=worker_count, default=None, help="processes (default: cores)")
     p.add_argument("--show", action="store_true", help="summarise the shipped table")
     add_json(p, "the summary")
@@ -33,24 +54,68 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+def _keys(args: argparse.Namespace) -> list[str] | None:
+    """The keys to compute (None: v1's default, every key of the suite)."""
+    from .. import suite_v2
+    from ..instances import TRACKS
+    from ..suite import SANITY_CASES, TARGET_SEEDS, expand_cases, target_key
+    from . import CLIError
+
+    tracks = args.tracks or list(TRACKS)
+    bad = [t for t in tracks if t not in TRACKS]
+    if bad:
+        raise CLIError(f"unknown track(s) {bad}; known: {list(TRACKS)}")
+    try:
+        if args.suite == "emafdi-v2":
+            if args.cases:
+                raise CLIError("--suite emafdi-v2 picks its instances with --tiers, "
+                               "--conditions and --per-tier, not --cases")
+            keys = suite_v2.target_keys(args.seeds or suite_v2.TARGET_SEEDS, tracks,
+                                        [int(t) for t in args.tiers] if args.tiers else None,
+                                        args.conditions, args.per_tier)
+            if not keys:
+                raise CLIError("no v2 case there needs its own entries (tier 4 with full "
+                               "information uses v1's table)")
+            return keys
+        if args.tiers or args.conditions or args.per_tier:
+            raise CLIError("--tiers, --conditions and --per-tier need --suite emafdi-v2")
+        if not (args.cases or args.seeds or args.tracks):
+            return None
+        cases = [c for c in expand_cases(args.cases or ["all"]) if c not in SANITY_CASES]
+        return [target_key(c, t, k) for k in range(args.seeds or TARGET_SEEDS)
+                for c in cases for t in tracks]
+    except ValueError as exc:   # SuiteError, FaultError, a tier that is not a number
+        raise CLIError(str(exc)) from None
+
+
 def run(args: argparse.Namespace) -> int:
-    from ..suite import describe, shipped_targets
+    from .. import suite_v2
+    from ..suite import describe, read_targets, shipped_targets
     from . import CLIError, print_json
     from .args import check_output
 
+    v2 = args.suite == "emafdi-v2"
     if args.show:
-        data = shipped_targets()
+        data = read_targets(suite_v2.targets_path(), suite_v2.SUITE_ID, missing_ok=False) \
+            if v2 else shipped_targets()
     elif args.out is None:
         raise CLIError("--out FILE.json is required (or --show)")
     else:
         from ..best_known import compute_targets
 
+        keys = _keys(args)
         out = check_output(args.out, "--out", folder=False, suffixes=(".json",))
-        data = compute_targets(out, workers=args.workers, quiet=args.quiet)
+        data = compute_targets(out, workers=args.workers, quiet=args.quiet, keys=keys)
     entries = data["entries"]
     bias = sorted(((e["bias_range_error"], k) for k, e in entries.items()), reverse=True)
-    summary = {**describe(), "entries": len(entries),
+    summary = {"suite": data["suite"], "model_version": data["model_version"],
+               "entries": len(entries),
                "largest_bias": [{"key": k, "bias_range_error": b} for b, k in bias[:5]]}
+    if v2:
+        summary["excluded"] = _excluded(entries)
+        summary["cost_by_tier"] = _cost_by_tier(entries)
+    else:
+        summary = {**describe(), **summary}
     if args.json:
         print_json(summary)
     else:
@@ -58,4 +123,42 @@ def run(args: argparse.Namespace) -> int:
               f"{len(entries)} best-known optima")
         for b, k in bias[:5]:
             print(f"  {k}: best-known point {100 * b:.2f} % of range from the truth")
+        if v2:
+            clean = sum("clean_x" in e for e in entries.values())
+            print(f"  {clean} clean-data fits; parameters without parameter targets on the "
+                  f"reference track (clean-data bias over 0.3 % of range): "
+                  f"{len(summary['excluded'])} instances")
+            for k, names in summary["excluded"].items():
+                print(f"    {k.split('|')[0]}: {', '.join(names)}")
+            for d, c in summary["cost_by_tier"].items():
+                print(f"  tier {d}: {c['entries']} entries, median {c['cpu_s_median']:.1f} "
+                      f"CPU-s, {c['cpu_s_total']:.0f} CPU-s in all")
     return 0
+
+
+def _excluded(entries: dict) -> dict[str, list[str]]:
+    """Per entry with a clean-data fit that excludes some: the parameters without
+    parameter targets (:func:`~ema_bench.suite_v2.judged_by_entry`, as scoring judges)."""
+    from ..suite_v2 import judged_by_entry, scoring_frame
+
+    out = {}
+    for k, e in entries.items():
+        case = k.split("|")[0]
+        judged = judged_by_entry(case, e)
+        if judged is not None and not judged.all():
+            out[k] = [n for n, j in zip(scoring_frame(case)[0], judged) if not j]
+    return out
+
+
+def _cost_by_tier(entries: dict) -> dict[str, dict[str, float]]:
+    """Per tier: entries, median and total CPU seconds (those that recorded them)."""
+    import statistics
+
+    from ..suite_v2 import parse_case
+
+    by: dict[int, list[float]] = {}
+    for k, e in entries.items():
+        if "cpu_s" in e:
+            by.setdefault(parse_case(k.split("|")[0])[0].tier, []).append(e["cpu_s"])
+    return {str(d): {"entries": len(v), "cpu_s_median": statistics.median(v),
+                     "cpu_s_total": sum(v)} for d, v in sorted(by.items())}

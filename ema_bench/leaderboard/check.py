@@ -19,6 +19,7 @@ version are refused: the targets differ.
 from __future__ import annotations
 
 import importlib.metadata
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -41,12 +42,13 @@ def suite_of(record: dict) -> str:
     return str(record.get("suite", "none"))
 
 
-def check_suites(records: list[dict], where: str) -> None:
-    """ValueError naming both versions when ``records`` are of another suite version."""
-    other = sorted({suite_of(r) for r in records} - {SUITE_ID})
+def check_suites(records: list[dict], where: str, suite: str = SUITE_ID) -> None:
+    """ValueError naming both versions when ``records`` are of another suite version than
+    ``suite``."""
+    other = sorted({suite_of(r) for r in records} - {suite})
     if other:
         raise ValueError(f"{where} holds runs of suite version {', '.join(other)}; this is "
-                         f"{SUITE_ID}: their targets differ and they cannot be compared "
+                         f"{suite}: their targets differ and they cannot be compared "
                          "(regenerate the baseline with this version, leaderboards/README.md)")
 
 
@@ -64,11 +66,19 @@ class Regression:
                 f"committed {self.committed:.4g} -> now {self.now:.4g}")
 
 
-def truncate(records: list[dict], budget: int, seeds: int) -> list[dict]:
-    """Committed records as if they had been run with ``budget`` on the first ``seeds``:
-    their ``budget`` is lowered, and the scores re-derive them from their evidence up to it
-    (:func:`~.derive.derive`: every target reached after ``budget`` is dropped)."""
-    return [{**r, "budget": min(budget, r["budget"])} for r in records if r["seed"] < seeds]
+def budget_of(budget: int | Callable[[str], int], case: str) -> int:
+    """The budget of a case: one number, or (suite emafdi-v2) per case (x its tier)."""
+    return int(budget(case)) if callable(budget) else int(budget)
+
+
+def truncate(records: list[dict], budget: int | Callable[[str], int], seeds: int
+             ) -> list[dict]:
+    """Committed records as if they had been run with ``budget`` (per case where callable)
+    on the first ``seeds``: their ``budget`` is lowered, and the scores re-derive them from
+    their evidence up to it (:func:`~.derive.derive`: every target reached after
+    ``budget`` is dropped)."""
+    return [{**r, "budget": min(budget_of(budget, r["case"]), r["budget"])} for r in records
+            if r["seed"] < seeds]
 
 
 def run_id(r: dict) -> tuple:
@@ -86,11 +96,12 @@ def committed_files(folder: str | Path) -> list[Path]:
             if p.is_file()]
 
 
-def baseline(records: list[dict], budget: int, seeds: int, keys: set[tuple] | None = None
-             ) -> tuple[list[dict], dict]:
+def baseline(records: list[dict], budget: int | Callable[[str], int], seeds: int,
+             keys: set[tuple] | None = None) -> tuple[list[dict], dict]:
     """Per (solver, case, track, seed, root seed) (those in ``keys`` when given) the record
-    run at exactly ``budget``, else the one of the smallest larger budget truncated to
-    ``budget``; and how many of each were used."""
+    run at exactly ``budget`` (per case where callable: v2's per-dimension budget), else
+    the one of the smallest larger budget truncated to ``budget``; and how many of each
+    were used."""
     best: dict[tuple, dict] = {}
     stale = 0
     for r in records:
@@ -98,12 +109,13 @@ def baseline(records: list[dict], budget: int, seeds: int, keys: set[tuple] | No
             stale += 1
             continue
         k = run_id(r)
-        if r["seed"] >= seeds or r["budget"] < budget or (keys is not None and k not in keys):
+        if (r["seed"] >= seeds or r["budget"] < budget_of(budget, r["case"])
+                or (keys is not None and k not in keys)):
             continue
         if k not in best or r["budget"] < best[k]["budget"]:
             best[k] = r
-    exact = [r for r in best.values() if r["budget"] == budget]
-    larger = [r for r in best.values() if r["budget"] > budget]
+    exact = [r for r in best.values() if r["budget"] == budget_of(budget, r["case"])]
+    larger = [r for r in best.values() if r["budget"] > budget_of(budget, r["case"])]
     return exact + truncate(larger, budget, seeds), {"same_budget": len(exact),
                                                      "re_scored": len(larger),
                                                      "other_model_version": stale}
@@ -113,9 +125,16 @@ def compare(now: list[dict], committed: list[dict], alpha: float = ALPHA
             ) -> list[Regression]:
     """Regressions of ``now`` against ``committed`` (a :func:`baseline`): per (track, solver)
     over the non-sanity runs both hold, a one-sided Mann-Whitney U test of the runs' ECDF
-    areas (now smaller) significant at ``alpha`` / number of comparisons."""
-    check_suites(committed, "the baseline")
-    check_suites(now, "this run")
+    areas (now smaller) significant at ``alpha`` / number of comparisons.  Both sides must
+    be runs of one suite version, that of ``now``'s cases (v1, or emafdi-v2 for v2 case
+    keys); ValueError otherwise."""
+    from ..suite_v2 import suite_of as suite_of_case
+
+    suites = sorted({suite_of_case(r["case"]) for r in now}) or [SUITE_ID]
+    if len(suites) > 1:
+        raise ValueError(f"this run mixes suites {', '.join(suites)}: check each apart")
+    check_suites(committed, "the baseline", suites[0])
+    check_suites(now, "this run", suites[0])
     shared = set(map(run_id, now)) & set(map(run_id, committed))
 
     def areas(rs: list[dict]) -> dict[tuple[str, str], list[float]]:
@@ -173,8 +192,8 @@ def require_baseline(folder: str | Path) -> Path:
     return folder
 
 
-def load_baseline(folder: str | Path, budget: int, seeds: int, keys: set[tuple] | None = None
-                  ) -> tuple[list[dict], dict]:
+def load_baseline(folder: str | Path, budget: int | Callable[[str], int], seeds: int,
+                  keys: set[tuple] | None = None) -> tuple[list[dict], dict]:
     """:func:`baseline` over every committed run file under ``folder``."""
     records = [r for p in committed_files(folder) for r in read_records(p)]
     return baseline(records, budget, seeds, keys)

@@ -48,7 +48,7 @@ from ..suite import (
     is_instance,
     precision_key,
 )
-from ..suite_v2 import best_known_for, is_v2_case, scoring_frame
+from ..suite_v2 import best_known_for, is_v2_case, judged_for, scoring_frame
 from .store import is_error
 
 
@@ -104,13 +104,16 @@ def _rebuilt_truth(case: str, track: str, seed: int, root_seed: int) -> np.ndarr
     return np.array([p.score(p.nominal).truth[n] for n in FAULT_NAMES])
 
 
-def frame_of(record: dict) -> tuple[np.ndarray, np.ndarray]:
-    """Truth and ranges of every parameter the record's parameter targets judge: the faults
-    (v1), or every searched parameter of a v2 tier (its effects too)."""
+def frame_of(record: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Truth, ranges and judged mask of the parameters the record's parameter targets and
+    success judge: the faults (v1), or every searched parameter of a v2 tier (its effects
+    too) but, on the reference track, those with a large clean-data bias
+    (:func:`~ema_bench.suite_v2.judged_for`, from the shipped table, never the record)."""
     if is_v2_case(record["case"]):
         _, truth, ranges = scoring_frame(record["case"])
-        return truth, ranges
-    return truth_of(record), UPPER - LOWER
+        judged = judged_for(record["case"], record["track"])
+        return truth, ranges, np.ones(truth.size, bool) if judged is None else judged
+    return truth_of(record), UPPER - LOWER, np.ones(N_FAULTS, bool)
 
 
 def _points(record: dict) -> tuple[list[int], list[float], list[np.ndarray] | None]:
@@ -152,7 +155,7 @@ def derive(record: dict) -> Derived:
     ev, fit = [ev[i] for i in keep], [fit[i] for i in keep]
     vecs = None if vecs is None else [vecs[i] for i in keep]
     truth = truth_of(record)
-    every, ranges = frame_of(record)   # parameter targets and success judge all of these
+    every, ranges, judged = frame_of(record)   # parameter targets and success judge these
     if vecs is not None:
         final = vecs[-1][:N_FAULTS]
     else:
@@ -178,13 +181,14 @@ def derive(record: dict) -> Derived:
         f_hits = {precision_key(p): _first([f <= lv for f in fit], ev)
                   for p, lv in zip(FITNESS_PRECISIONS, levels)}
     if vecs is not None:
-        worst = [float(np.max(np.abs(v[:every.size] - every) / ranges)) for v in vecs]
+        worst = [float(np.max((np.abs(v[:every.size] - every) / ranges)[judged]))
+                 for v in vecs]
         p_hits = {precision_key(p): _first([w <= p for w in worst], ev)
                   for p in PARAMETER_TARGETS}
     else:   # legacy: the final vector, from where it was found (the latest it can be)
         p_hits = {precision_key(p): (last if known_final and float(np.max(err)) <= p
                                      else None) for p in PARAMETER_TARGETS}
-    err_all = err if vecs is None else np.abs(vecs[-1][:every.size] - every) / ranges
+    err_all = err if vecs is None else (np.abs(vecs[-1][:every.size] - every) / ranges)[judged]
     success = bool(np.all(err_all <= SUCCESS_RANGE_ERROR)) and known_final
     best_at = [[b, next(f for e, f in zip(reversed(ev), reversed(fit)) if e <= b)]
                for b in BUDGET_CHECKPOINTS if ev[0] <= b <= cut]

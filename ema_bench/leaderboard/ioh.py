@@ -31,6 +31,12 @@ seed and budget, and where the suite knows them the instance's ``f_star`` and ``
 are run attributes; ``fitness_targets`` lists each run's fitness targets in the written
 values, and the meta file's ``targets`` the target precisions and parameter targets.
 
+Suite ``emafdi-v2`` (case keys ``instance@condition``, docs/suite-v2.md): one IOH function per
+(condition, track), named ``condition@track``, whose *dimensions* are the tiers (one data file
+per tier: IOH's scaling view, ERT against dimension); ``x`` holds the faults then the tier's
+effects (the record's ``fitted_effects``); the instance numbers the tier's instance and the
+seed, ``1000 x`` the instance's position in its tier plus the seed (seeds below 1000).
+
 Values (``experiment_attributes`` ``value``): ``raw`` (default) writes the best-so-far fitness;
 ``precision`` writes ``(f - f*) / (f_nominal - f*)``, the precision the suite's fitness targets
 are defined on (1e-1 .. 1e-4), so IOH's fixed targets equal the board's; a run without a
@@ -62,7 +68,9 @@ from pathlib import Path
 from typing import Any
 
 from ..faults import FAULT_NAMES
-from ..suite import FITNESS_PRECISIONS, PARAMETER_TARGETS, SANITY_CASES, best_known
+from ..suite import FITNESS_PRECISIONS, PARAMETER_TARGETS, SANITY_CASES
+from ..suite_v2 import CONDITIONS, best_known_for, is_v2_case, parse_case
+from ..suite_v2 import instance_names as v2_instance_names
 from .store import is_error
 
 log = logging.getLogger("ema_bench")
@@ -78,6 +86,8 @@ RUN_ATTRIBUTES = ("seed", "root_seed", "budget")
 OPTIMUM_ATTRIBUTES = ("f_star", "f_nominal")
 #: IOH tools store instance ids as unsigned 16-bit integers (iohinspector: ``UInt16``)
 MAX_INSTANCE = 2**16 - 1
+#: suite emafdi-v2: IOH instance = this x the instance's position in its tier + the seed
+V2_SEEDS = 1000
 #: what the data files' ``raw_y`` holds
 VALUES = ("raw", "precision")
 
@@ -85,15 +95,34 @@ _UNSAFE = re.compile(r"[^A-Za-z0-9._@+-]")
 
 
 def function_name(record: Mapping[str, Any]) -> str:
-    """The IOH function of a run record: ``case@track``."""
-    return f"{record['case']}@{record['track']}"
+    """The IOH function of a run record: ``case@track`` (v1), ``condition@track`` (suite
+    emafdi-v2: one function per condition, one dimension per tier)."""
+    case = str(record["case"])
+    if is_v2_case(case):
+        return f"{parse_case(case)[1].name}@{record['track']}"
+    return f"{case}@{record['track']}"
+
+
+def dimension_of(record: Mapping[str, Any]) -> int:
+    """The IOH dimension of a run: 4 (v1), the tier (v2)."""
+    case = str(record["case"])
+    return parse_case(case)[0].tier if is_v2_case(case) else DIMENSION
 
 
 def instance_of(record: Mapping[str, Any]) -> int:
-    """The IOH instance of a run: its seed (0 .. 65535; the root seed is a run attribute)."""
+    """The IOH instance of a run: its seed (0 .. 65535; the root seed is a run attribute);
+    suite emafdi-v2, whose function spans a tier's instances: ``V2_SEEDS x`` the
+    instance's position in its tier plus the seed."""
     seed, root = int(record["seed"]), int(record.get("root_seed") or 0)
     if seed < 0 or root < 0:
         raise ValueError(f"run {_label(record)}: negative seed or root seed")
+    case = str(record["case"])
+    if is_v2_case(case):
+        if seed >= V2_SEEDS:
+            raise ValueError(f"run {_label(record)}: seed {seed} is beyond the {V2_SEEDS} "
+                             "seeds per instance an emafdi-v2 export numbers")
+        inst = parse_case(case)[0]
+        return V2_SEEDS * v2_instance_names(inst.tier).index(inst.name) + seed
     if seed > MAX_INSTANCE:
         raise ValueError(f"run {_label(record)}: seed {seed} is beyond IOH's 16-bit instance "
                          f"ids (at most {MAX_INSTANCE})")
@@ -107,8 +136,8 @@ def optimum(record: Mapping[str, Any]) -> tuple[float, float] | None:
     t = record.get("targets") or {}
     if t.get("f_star") is not None and t.get("f_nominal") is not None:
         return float(t["f_star"]), float(t["f_nominal"])
-    known = best_known(str(record["case"]), str(record["track"]), int(record["seed"]),
-                       int(record.get("root_seed") or 0))
+    known = best_known_for(str(record["case"]), str(record["track"]), int(record["seed"]),
+                           int(record.get("root_seed") or 0))
     return None if known is None else (float(known["f_star"]), float(known["f_nominal"]))
 
 
@@ -194,12 +223,14 @@ def export_ioh(records: Iterable[dict], out: Path,
     groups: dict[tuple[str, str], list[dict]] = {}
     for r in runs:
         groups.setdefault((str(r["solver"]), function_name(r)), []).append(r)
+    for r in runs:
+        instance_of(r)   # every bad seed is refused before a file is written
     _check_unique_files([s for s, _ in groups], "solver")
     _check_unique_files(names, "function")
     # every file is made before the first is written: a bad record leaves no partial export
     files: list[tuple[Path, str]] = []
     for (solver, name), group in groups.items():
-        group.sort(key=lambda r: (instance_of(r), int(r.get("budget") or 0)))
+        group.sort(key=lambda r: (dimension_of(r), instance_of(r), int(r.get("budget") or 0)))
         files += _function_files(Path(out) / safe_name(solver), solver, name, ids[name], group,
                                  value)
     for path, text in files:
@@ -217,12 +248,14 @@ def safe_name(name: str) -> str:
 
 def suite_function_ids() -> dict[str, int]:
     """``case@track`` -> function id for the suite's instances: 1, 2, ... in the suite's
-    order, tracks alternating (``nominal@reference`` 1, ``nominal@twin`` 2, ...)."""
+    order, tracks alternating (``nominal@reference`` 1, ``nominal@twin`` 2, ...); then
+    emafdi-v2's ``condition@track`` in its order (``prior@reference`` 49, ...)."""
     from ..instances import TRACKS
     from ..suite import instance_names
 
-    return {f"{c}@{t}": i for i, (c, t) in
-            enumerate(((c, t) for c in instance_names() for t in TRACKS), 1)}
+    names = [f"{c}@{t}" for c in instance_names() for t in TRACKS]
+    names += [f"{c}@{t}" for c in CONDITIONS for t in TRACKS]
+    return {n: i for i, n in enumerate(names, 1)}
 
 
 def _function_ids(names: list[str], given: Mapping[str, int] | None) -> dict[str, int]:
@@ -250,37 +283,41 @@ def _check_unique_files(names: Iterable[str], what: str) -> None:
 
 def _function_files(folder: Path, solver: str, name: str, fid: int, group: list[dict],
                     value: str = "raw") -> list[tuple[Path, str]]:
-    """``(path, text)`` of the meta and data files of one solver on one function."""
+    """``(path, text)`` of the meta file and the data files (one per dimension) of one
+    solver on one function."""
     stem = f"f{fid}_{safe_name(name)}"
-    dat_rel = f"data_{stem}/IOHprofiler_f{fid}_DIM{DIMENSION}.dat"
     # per-run numbers every run of the file has (IOH's run attributes: one list per file)
     attrs = [a for a in RUN_ATTRIBUTES if all(r.get(a) is not None for r in group)]
     optima = [optimum(r) for r in group]
     known = all(o is not None for o in optima)
-    lines, runs = [], []
+    lines: dict[int, list[str]] = {}
+    scenarios: dict[int, list[dict]] = {}
     for r, opt in zip(group, optima):
         trace = _trace(r)
         if value == "precision":
             f_star, f_nom = opt
             trace = [(e, precision(y, f_star, f_nom)) for e, y in trace]
-        lines.append(" ".join(ATTRIBUTES))
-        lines += [f"{e} {y!r}" for e, y in trace]
+        dim = dimension_of(r)
+        out = lines.setdefault(dim, [])
+        out.append(" ".join(ATTRIBUTES))
+        out += [f"{e} {y!r}" for e, y in trace]
         best_y = min(y for _, y in trace)
         best_e = next(e for e, y in trace if y == best_y)
         run = {"instance": instance_of(r), "evals": _int(r, "evaluations"),
-               "best": {"evals": best_e, "y": best_y, "x": _x(r)},
+               "best": {"evals": best_e, "y": best_y, "x": _x(r, dim)},
                **{a: _int(r, a) for a in attrs}}
         if known:
             run.update(zip(OPTIMUM_ATTRIBUTES, opt))
             run["fitness_targets"] = (list(FITNESS_PRECISIONS) if value == "precision" else
                                       [opt[0] + p * (opt[1] - opt[0])
                                        for p in FITNESS_PRECISIONS])
-        runs.append(run)
+        scenarios.setdefault(dim, []).append(run)
     suites = {r.get("suite") or DEFAULT_SUITE for r in group}
     if len(suites) > 1:
         raise ValueError(f"{solver} on {name}: runs of several suites "
                          f"({', '.join(sorted(suites))}); export them separately")
     suite = suites.pop()
+    dat = {d: f"data_{stem}/IOHprofiler_f{fid}_DIM{d}.dat" for d in scenarios}
     meta = {
         "version": IOH_FORMAT_VERSION, "suite": suite, "function_id": fid,
         "function_name": name, "maximization": False,
@@ -292,11 +329,12 @@ def _function_files(folder: Path, solver: str, name: str, fid: int, group: list[
         "attributes": list(ATTRIBUTES),
         "targets": {"fitness_precisions": list(FITNESS_PRECISIONS),
                     "parameter_targets": list(PARAMETER_TARGETS)},
-        "scenarios": [{"dimension": DIMENSION, "path": dat_rel, "runs": runs}],
+        "scenarios": [{"dimension": d, "path": dat[d], "runs": runs}
+                      for d, runs in scenarios.items()],
     }
     return [(folder / f"IOHprofiler_{stem}.json", json.dumps(meta, indent=1, allow_nan=False)
-             + "\n"),
-            (folder / dat_rel, "\n".join(lines) + "\n")]
+             + "\n")] + [(folder / dat[d], "\n".join(text) + "\n")
+                         for d, text in lines.items()]
 
 
 def _label(r: Mapping[str, Any]) -> str:
@@ -328,11 +366,22 @@ def _trace(r: Mapping[str, Any]) -> list[tuple[int, float]]:
     return trace
 
 
-def _x(r: Mapping[str, Any]) -> list[float]:
+def _x(r: Mapping[str, Any], dim: int = DIMENSION) -> list[float]:
+    """The run's final vector: the faults (``x``), then (v2) its ``fitted_effects`` in the
+    tier's order."""
     try:
-        return [float(r["x"][n]) for n in FAULT_NAMES]
+        x = [float(r["x"][n]) for n in FAULT_NAMES]
     except (KeyError, TypeError, ValueError):
         raise ValueError(f"run {_label(r)}: 'x' lacks one of {', '.join(FAULT_NAMES)}") from None
+    if dim == DIMENSION:
+        return x
+    from ..suite_v2 import tier
+
+    try:
+        return x + [float(r["fitted_effects"][n]) for n in tier(dim).effects]
+    except (KeyError, TypeError, ValueError):
+        raise ValueError(f"run {_label(r)}: 'fitted_effects' lacks one of "
+                         f"{', '.join(tier(dim).effects)}") from None
 
 
 def _info(r: Mapping[str, Any]) -> str:

@@ -31,7 +31,7 @@ from .bootstrap import N_BOOT, bootstrap_estimates, normal_interval
 from .calibration import calibration_factor, calibration_kind
 from .identifiability import report
 from .local import Counter, UncertaintyError, jacobian, refit, sandwich
-from .noise import estimated_sigma, known_sigma
+from .noise import estimated_sigma, known_sigma, weighed
 from .profile import Profile, profile_interval
 
 #: Evaluations a local polish of the fit may take before the intervals are computed.
@@ -297,8 +297,9 @@ def intervals(objective: Objective, x: np.ndarray, *, method: str = "laplace",
         factor[:N_FAULTS] = fac
     low = np.clip(u - factor * np.hypot(u - lo, allowance), 0.0, 1.0)
     high = np.clip(u + factor * np.hypot(hi - u, allowance), 0.0, 1.0)
-    ident = report(J, sigma[objective.signal_index], cov, high - low, space.names, ranges,
-                   space.units)
+    # an output the fitness does not weigh tells nothing: infinite noise on its elements
+    ident = report(J, np.where(weighed(objective), sigma[objective.signal_index], np.inf),
+                   cov, high - low, space.names, ranges, space.units)
     profiles = [None if p is None else
                 {"value": list(space.lower[j] + np.array(p["t"]) * ranges[j]), "q": p["q"],
                  "better": None if p["better"] is None else float(p["better"])}

@@ -22,12 +22,24 @@ def known_sigma() -> np.ndarray:
     return np.array([np.hypot(s.noise_std, s.lsb / np.sqrt(12.0)) for s in SENSORS])
 
 
+def weighed(objective: Objective) -> np.ndarray:
+    """Per residual element (stacked layout), whether the fitness weighs its output (all,
+    unless an information condition of suite ``emafdi-v2`` masks some: ``objective.mask``)."""
+    mask = getattr(objective, "mask", None)   # objective-like test models carry none
+    idx = objective.signal_index
+    return np.ones(idx.size, bool) if mask is None else np.asarray(mask)[idx] > 0.0
+
+
 def estimated_sigma(objective: Objective, residual: np.ndarray, n_params: int) -> np.ndarray:
     """Per-signal standard deviation of the raw residual ``model - data`` (stacked layout),
     shape (4,): the root mean square over that signal's samples, degrees of freedom
-    corrected for the ``n_params`` fitted parameters (shared out by sample count)."""
-    idx = objective.signal_index
+    corrected for the ``n_params`` fitted parameters (shared out by sample count).  Only
+    weighted elements count; a signal the fitness does not weigh (an information condition
+    of suite ``emafdi-v2``: its data are withheld) gets the datasheet level
+    (:func:`known_sigma`), which no interval then uses."""
+    seen = weighed(objective)
+    idx = objective.signal_index[seen]
     n = np.bincount(idx, minlength=len(SIGNALS)).astype(float)
-    ss = np.bincount(idx, weights=residual * residual, minlength=len(SIGNALS))
-    dof = np.maximum(n * (1.0 - n_params / idx.size), 1.0)
-    return np.sqrt(ss / dof)
+    ss = np.bincount(idx, weights=residual[seen] ** 2, minlength=len(SIGNALS))
+    dof = np.maximum(n * (1.0 - n_params / max(idx.size, 1)), 1.0)
+    return np.where(n > 0, np.sqrt(ss / dof), known_sigma())
