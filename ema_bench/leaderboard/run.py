@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import shlex
 import sys
+from dataclasses import asdict
 from pathlib import Path
 
 from .. import jsonio
@@ -25,7 +26,13 @@ from .figures import (
 )
 from .page import write_page
 from .report import load_paper_results, write_leaderboards, write_paper_tables
-from .scaling import group_scores, is_v2_board, scaling_points
+from .scaling import (
+    global_vs_local,
+    group_scores,
+    is_v2_board,
+    saturation_lines,
+    scaling_points,
+)
 from .scores import score_records
 from .store import RUNS_FILE, RunStore, is_error, read_records, run_identity, unique
 from .tasks import Task, failure_record, make_tasks, run_task
@@ -111,6 +118,11 @@ def write_outputs(records: list[dict], out: Path, command: str, plots: bool = Tr
             images.append(p)
             summary["figure5_valley_rise"] = {"raw": valley_rise(land["raw"]),
                                               "normalised": valley_rise(land["normalised"])}
+    if is_v2_board(records):   # the answers the v2 report states, for scripts
+        grouped = group_scores(records)
+        summary["global_vs_local"] = [asdict(r) for r in global_vs_local(records)]
+        summary["saturation"] = {t: saturation_lines(records, grouped, t)
+                                 for t in dict.fromkeys(r["track"] for r in records)}
     written += images
     written.append(write_page(records, out / "leaderboard.html", header, images))
     summary["files"] = [str(p) for p in written]
