@@ -233,6 +233,7 @@ def test_the_saturation_check_by_hand(board):
     line = scaling.saturation_lines(four, scaling.group_scores(four), "twin")[0]
     assert line.startswith("Highest tier (4): SATURATED")
     assert "every instance: nelder-mead" in line
+    assert "only 1 of the tier's 23 instances on this board" in line
 
 
 def test_a_scope_is_declared_from_the_known_ones():

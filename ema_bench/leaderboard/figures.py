@@ -196,7 +196,8 @@ def ert_scaling_plot(records: list[dict], points, path: Path) -> None:
         ax.set_ylim(top=2 * per_dim)
         ax.set_xlabel("dimension (tier)")
         ax.set_ylabel("ERT to the 1 % parameter target / dimension")
-        ax.set_title(f"scaling ({track} track); x: no run reached it", fontsize=9)
+        ax.set_title(f"scaling ({track} track); k/n: runs that reached it, where not all "
+                     "did; x: none did", fontsize=9)
         ax.grid(alpha=0.3, which="both")
         ax.legend(fontsize=6, loc="lower right", ncol=2)
     fig.tight_layout()

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..suite import precision_key
-from ..suite_v2 import CONDITIONS, is_v2_case, parse_case
+from ..suite_v2 import CONDITIONS, instance_names, is_v2_case, parse_case
 from .anytime import AnytimeScore, anytime_score, group_seed, hits, mean_ci, run_area
 
 #: The target of the scaling plot and of the global-vs-local success rates: the best-so-far
@@ -294,9 +294,13 @@ def saturation_lines(records: list[dict], scores: list[AnytimeScore], track: str
         b = rows[0]
         full = [x.solver for x in rows if x.any_run == x.instances]
         saturated |= bool(full)
+        # a board lacking instances could look saturated on the ones it has: say so
+        suite_n = len(instance_names(t))
         per_cond.append(f"{cond}: best {b.solver}, {b.any_run} of {b.instances} instances "
                         f"in at least one run, {b.every_run} in every run"
-                        + (f"; every instance: {', '.join(full)}" if full else ""))
+                        + (f"; every instance: {', '.join(full)}" if full else "")
+                        + (f"; only {b.instances} of the tier's {suite_n} instances on "
+                           "this board" if b.instances < suite_n else ""))
     lines = [f"Highest tier ({top}): "
              + ("SATURATED, a solver reaches the 1 % parameter target on every instance"
                 if saturated else "no solver reaches the 1 % parameter target on every "
