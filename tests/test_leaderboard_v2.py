@@ -242,3 +242,29 @@ def test_a_scope_is_declared_from_the_known_ones():
     assert {"global", "local", "baseline", "unclassified"} == set(SCOPES)
     with pytest.raises(SolverError, match="unknown scope 'globl'"):
         register_solver("typo-scope", description="x", library="numpy", scope="globl")
+
+
+def test_the_paper_tables_read_tier_4_with_the_prior_as_v1s_cases(board, tmp_path):
+    """A v2 board still fills the paper's Tables 2-5: ``small@prior`` is v1's ``small``
+    (tier 4 with the prior is v1's problem); the other conditions and tiers are not.  (The
+    tables are of the reference track: the twin records are relabelled here, which changes
+    no estimate.)"""
+    from ema_bench.leaderboard.report import load_paper_results, write_paper_tables
+    from ema_bench.leaderboard.scores import score_records
+
+    records = [dict(r, track="reference") for r in read_records(board / "runs.jsonl")]
+    text = write_paper_tables(records, score_records(records), tmp_path, "header",
+                              load_paper_results()).read_text()
+    assert "## small (paper Table" in text and "## full" not in text
+    lines = text.splitlines()
+    head = next(line for line in lines if line.startswith("| parameter |"))
+    cells = [c.strip() for c in head.strip("|").split("|")]
+    best = cells[8].removesuffix(" estimate")   # after the paper's and paper-ga's columns
+    assert best in SOLVERS and cells[5] == "paper-ga estimate"
+    na = [c.strip() for c in next(x for x in lines if x.startswith("| Na |")).strip("|")
+          .split("|")]
+    assert na[5] == "-"   # paper-ga did not run here
+    runs = [r for r in records if r["case"] == "small@prior" and r["solver"] == best]
+    assert len(runs) == 2
+    assert float(na[8]) == pytest.approx(float(np.median([r["x"]["Na"] for r in runs])),
+                                         rel=1e-5)

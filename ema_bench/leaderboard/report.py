@@ -15,6 +15,7 @@ import numpy as np
 from ..escape import csv_value, markdown
 from ..faults import CASES, FAULT_NAMES, FAULT_UNITS
 from ..suite import instance_names
+from ..suite_v2 import is_v2_case, parse_case
 from . import scaling
 from .anytime import (
     FITNESS_TARGETS,
@@ -274,9 +275,10 @@ def write_paper_tables(records: list[dict], scores: list[SolverScore], out: Path
     by = defaultdict(list)
     for r in records:
         if r["track"] == "reference":
-            by[(r["case"], r["solver"])].append(r)
+            by[(paper_case(r["case"]), r["solver"])].append(r)
     for case, spec in CASES.items():
-        ref_scores = [s for s in scores if s.track == "reference" and s.case == case]
+        ref_scores = [s for s in scores if s.track == "reference"
+                      and paper_case(s.case) == case]
         if not ref_scores:
             continue
         best = ref_scores[0].solver
@@ -313,6 +315,15 @@ def write_paper_tables(records: list[dict], scores: list[SolverScore], out: Path
     path = out / "paper_tables.md"
     path.write_text("\n".join(lines))
     return path
+
+
+def paper_case(case: str) -> str:
+    """The paper case a run's case is: a v1 case as it is; an emafdi-v2 tier-4 case with the
+    prior (v1's problem, bit for bit) by its instance (``small@prior`` -> ``small``)."""
+    if is_v2_case(case):
+        inst, cond = parse_case(case)
+        return inst.name if inst.tier == 4 and cond.name == "prior" else case
+    return case
 
 
 def load_paper_results() -> dict:
