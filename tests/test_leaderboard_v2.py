@@ -268,3 +268,24 @@ def test_the_paper_tables_read_tier_4_with_the_prior_as_v1s_cases(board, tmp_pat
     assert len(runs) == 2
     assert float(na[8]) == pytest.approx(float(np.median([r["x"]["Na"] for r in runs])),
                                          rel=1e-5)
+
+
+def test_a_malicious_solver_name_stays_text_in_the_v2_tables(board, tmp_path):
+    """Names come from plugins: in the saturation lines, the global-vs-local note and the
+    rankings of a v2 board they are escaped (test_integrity does v1's tables)."""
+    from ema_bench.leaderboard.report import write_leaderboards
+
+    evil = "<img src=x onerror=alert(1)>|x"
+    records = [dict(r, solver=evil) if r["solver"] == "nelder-mead" else r
+               for r in read_records(board / "runs.jsonl")]
+    four = [r for r in records if r["case"] == "small@prior"]   # evil saturates it
+    write_leaderboards(four, tmp_path, "header")
+    md = (tmp_path / "leaderboard_twin.md").read_text()
+    assert "<img" not in md and "&lt;img src=x onerror=alert\\(1)&gt;\\|x" in md
+    assert "every instance: &lt;img" in md
+    # a plugin that declares no scope is named among those in neither group, escaped
+    both = [dict(r, solver=evil) if r["solver"] == "random" else r
+            for r in read_records(board / "runs.jsonl") if r["case"].startswith("small@")]
+    write_leaderboards(both, tmp_path, "header")
+    md = (tmp_path / "leaderboard_twin.md").read_text()
+    assert "<img" not in md and "in neither group: &lt;img src=x" in md

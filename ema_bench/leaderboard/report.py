@@ -227,11 +227,13 @@ def v2_markdown(records: list[dict], grouped: list[AnytimeScore], track: str) ->
     gl = scaling.global_vs_local(records)
     prior = scaling.global_vs_local(records, "prior")
     md = ["## Saturation check", "",
-          *(f"- {line}" for line in scaling.saturation_lines(records, grouped, track)), "",
+          *(f"- {line}" for line in scaling.saturation_lines(records, grouped, track,
+                                                               name=markdown)), "",
           "## Global vs local search without a prior", "", scaling.answer(gl, track), "",
           "Groups: the scope each solver declares where it is registered (`ema-bench "
           "solvers`); in neither group: "
-          + (", ".join(sorted({s for r in gl if r.track == track for s in r.others}))
+          + (", ".join(markdown(s) for s in sorted({s for r in gl if r.track == track
+                                                    for s in r.others}))
              or "none") + ". Each (instance, seed) "
           "pair that every compared solver ran is one pair: the mean of each group's runs' "
           "ECDF areas (and of reaching the 1 % parameter target) on it, the difference "

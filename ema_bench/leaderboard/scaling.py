@@ -277,11 +277,12 @@ def separated(scores: list[AnytimeScore], rank: int = FIFTH) -> dict[tuple[str, 
 
 
 def saturation_lines(records: list[dict], scores: list[AnytimeScore], track: str,
-                     rank: int = FIFTH) -> list[str]:
+                     rank: int = FIFTH, name: Callable[[str], str] = str) -> list[str]:
     """The issue's saturation check on ``track``, as report lines: on the highest tier,
     whether any solver reaches :data:`P_TARGET` on every instance (in at least one run: the
     strict reading), and the tiers whose best and ``rank``-th solvers' ECDF-area intervals
-    are disjoint under every condition the board has of them."""
+    are disjoint under every condition the board has of them.  ``name`` formats a solver's
+    name (:func:`~ema_bench.escape.markdown` for Markdown: names come from plugins)."""
     r = {k: v for k, v in reach(records).items() if k[0] == track}
     if not r:
         return []
@@ -292,11 +293,11 @@ def saturation_lines(records: list[dict], scores: list[AnytimeScore], track: str
         if t != top or not rows:
             continue
         b = rows[0]
-        full = [x.solver for x in rows if x.any_run == x.instances]
+        full = [name(x.solver) for x in rows if x.any_run == x.instances]
         saturated |= bool(full)
         # a board lacking instances could look saturated on the ones it has: say so
         suite_n = len(instance_names(t))
-        per_cond.append(f"{cond}: best {b.solver}, {b.any_run} of {b.instances} instances "
+        per_cond.append(f"{cond}: best {name(b.solver)}, {b.any_run} of {b.instances} instances "
                         f"in at least one run, {b.every_run} in every run"
                         + (f"; every instance: {', '.join(full)}" if full else "")
                         + (f"; only {b.instances} of the tier's {suite_n} instances on "
