@@ -47,6 +47,16 @@ class SolveResult:
 
 SolveFn = Callable[["Problem", int, np.random.SeedSequence], SolveResult]
 
+#: What kind of search a solver is, declared where it is registered (``scope=``) and shown by
+#: ``ema-bench solvers``: the board's "global vs local without a prior" comparison reads it.
+SCOPES = {
+    "global": "searches the whole box (population, swarm, sampling model, restarts there)",
+    "local": "improves from a start point (multi-start included)",
+    "baseline": "no search model: a degenerate reference (random sampling), compared to "
+                "neither group",
+    "unclassified": "not declared (a plugin that names no scope): compared to neither group",
+}
+
 
 @dataclass(frozen=True)
 class SolverInfo:
@@ -55,6 +65,7 @@ class SolverInfo:
     description: str
     library: str  # distribution(s) the algorithm comes from, e.g. "cma" or "scipy"
     config: dict[str, Any] = field(default_factory=dict)  # keywords passed to func
+    scope: str = "unclassified"   # a key of SCOPES: global or local search, or a baseline
 
 
 class SolverError(LookupError):
@@ -66,13 +77,17 @@ _SOLVERS: PluginRegistry[SolverInfo] = PluginRegistry(ENTRY_POINT_GROUP, "solver
 
 
 def register_solver(name: str, /, *, description: str, library: str,
-                    **config: Any) -> Callable[[SolveFn], SolveFn]:
+                    scope: str = "unclassified", **config: Any) -> Callable[[SolveFn], SolveFn]:
     """Decorator: make ``func`` available as solver ``name``.
 
-    Keyword ``config`` is passed to ``func`` on every run: one function registers several
-    configured variants (``register_solver("ng-de", ..., optimizer="TwoPointsDE")(solve)``)."""
+    ``scope`` (a key of :data:`SCOPES`) says whether it is a global or a local search, or a
+    baseline.  Keyword ``config`` is passed to ``func`` on every run: one function registers
+    several configured variants (``register_solver("ng-de", ..., optimizer="TwoPointsDE")``)."""
+    if scope not in SCOPES:
+        raise SolverError(f"solver {name!r}: unknown scope {scope!r}; known: {list(SCOPES)}")
+
     def deco(func: SolveFn) -> SolveFn:
-        _SOLVERS.add(name, SolverInfo(name, func, description, library, dict(config)))
+        _SOLVERS.add(name, SolverInfo(name, func, description, library, dict(config), scope))
         return func
     return deco
 

@@ -38,7 +38,7 @@ MAX_RESTARTS = 9
 
 
 @register_solver("cmaes", description="CMA-ES (pycma) from nominal, sigma0 0.3, IPOP restarts",
-                 library="cma")
+                 library="cma", scope="global")
 def solve(problem, budget: int, seed: np.random.SeedSequence) -> SolveResult:
     cma = import_cma()
 

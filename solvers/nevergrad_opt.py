@@ -96,4 +96,5 @@ for _name, _optimizer, _what in (("ngopt", "NGOpt", "NGOpt (algorithm selector)"
                                  ("ng-de", "TwoPointsDE", "TwoPointsDE"),
                                  ("ng-pso", "RealSpacePSO", "RealSpacePSO (particle swarm)")):
     register_solver(_name, description=f"nevergrad {_what}, {NUM_WORKERS} workers",
-                    library="nevergrad", optimizer=_optimizer, name=_name)(solve)
+                    library="nevergrad", scope="global", optimizer=_optimizer,
+                    name=_name)(solve)

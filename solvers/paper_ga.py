@@ -252,10 +252,10 @@ _OPERATORS = ("rank scaling, stochastic uniform selection, heuristic crossover 1
               "toolbox and logbook")
 
 
-@register_solver("paper-ga-units", library="deap", mutation_space="units",
+@register_solver("paper-ga-units", library="deap", scope="global", mutation_space="units",
                  description="the paper's GA, MATLAB ga semantics with the mutation stepping in "
                              f"the problem's units as MATLAB does ({_OPERATORS})")
-@register_solver(NAME, library="deap",
+@register_solver(NAME, library="deap", scope="global",
                  description="the paper's GA, MATLAB ga semantics with the mutation stepping in "
                              f"the normalised [0, 1] box ({_OPERATORS})")
 def solve(problem: Problem, budget: int, seed: np.random.SeedSequence, *,

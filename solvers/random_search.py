@@ -19,7 +19,7 @@ BATCH = 256
 
 
 @register_solver("random", description="random search: nominal, then Latin-hypercube batches "
-                 "of 256", library="scipy")
+                 "of 256", library="scipy", scope="baseline")
 def solve(problem, budget: int, seed: np.random.SeedSequence) -> SolveResult:
     t0 = time.perf_counter()
     batches = 0

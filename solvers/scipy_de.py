@@ -27,7 +27,7 @@ TOL = 1e-6    # relative spread of the population energies at which scipy declar
 
 
 @register_solver("de", description="differential evolution (scipy, best1bin, vectorised, "
-                 "population 40)", library="scipy")
+                 "population 40)", library="scipy", scope="global")
 def solve(problem, budget: int, seed: np.random.SeedSequence) -> SolveResult:
     from scipy.optimize import differential_evolution
 

@@ -82,7 +82,8 @@ def _capped(fn: Callable, problem, cap: int) -> Callable:
 
 # --- least squares ----------------------------------------------------------------------------
 @register_solver("least-squares", description="scipy least_squares (TRF) on the residuals, "
-                 "multi-start from nominal then LHS", library="scipy")
+                 "multi-start from nominal then LHS", library="scipy",
+                 scope="local")
 def solve_least_squares(problem, budget: int, seed: np.random.SeedSequence) -> SolveResult:
     from scipy.optimize import least_squares
 
@@ -150,4 +151,5 @@ for _name, _method, _what in (
         ("lbfgsb", "L-BFGS-B", "L-BFGS-B, batched finite-difference gradient"),
         ("powell", "Powell", "Powell (bounded)")):
     register_solver(_name, description=f"scipy {_what}, multi-start from nominal then LHS",
-                    library="scipy", method=_method, name=_name)(solve_minimize)
+                    library="scipy", scope="local", method=_method,
+                    name=_name)(solve_minimize)

@@ -106,10 +106,16 @@ def test_solvers_json_and_table():
     assert set(ZOO) <= set(listed)
     for s in listed.values():
         assert s["description"] and s["library"]
+    # every zoo solver declares global or local search, or a baseline (the v2 report's
+    # global-vs-local comparison reads it)
+    assert {s["scope"] for n, s in listed.items() if n in ZOO} <= {"global", "local",
+                                                                    "baseline"}
     r = cli("solvers")
     assert r.returncode == 0
     for name in ZOO:
         assert name in r.stdout
+        line = next(x for x in r.stdout.splitlines() if x.split()[0] == name)
+        assert line.split()[2] == listed[name]["scope"]
 
 
 @pytest.mark.parametrize("args, message", [

@@ -14,7 +14,9 @@ of them, runs once and is counted once.  A run that raises (a broken solver) or 
 dies is recorded as failed, scored as an unsuccessful run at its budget, and listed at the
 end; the sweep goes on.  Writes leaderboard_<track>.md/.csv, paper_tables.md,
 leaderboard.html (sortable tables and plots in one file), convergence, ECDF, fit-overlay and
-Figure 5 plots under OUT.  Progress: a bar in a terminal, one line
+Figure 5 plots under OUT (--suite emafdi-v2: rankings per tier x condition, an ECDF per tier and
+condition, ERT to the 1 % parameter target against dimension, global vs local search without
+a prior, the saturation check; docs/suite-v2.md).  Progress: a bar in a terminal, one line
 per finished run otherwise (--quiet: none).
 
 Examples::

@@ -341,10 +341,13 @@ def run_solvers(args: argparse.Namespace) -> int:
     solvers = available_solvers()
     if args.json:
         print_json([{"name": s.name, "description": s.description, "library": s.library,
-                     "module": s.func.__module__} for s in solvers.values()])
+                     "scope": s.scope, "module": s.func.__module__}
+                    for s in solvers.values()])
         return 0
     width = max((len(n) for n in solvers), default=4)
     lib_w = max((len(s.library) for s in solvers.values()), default=7)
+    scope_w = max((len(s.scope) for s in solvers.values()), default=5)
     for s in solvers.values():
-        print(f"{s.name:<{width}}  {s.library:<{lib_w}}  {s.description}")
+        print(f"{s.name:<{width}}  {s.library:<{lib_w}}  {s.scope:<{scope_w}}  "
+              f"{s.description}")
     return 0

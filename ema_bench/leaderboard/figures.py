@@ -1,8 +1,10 @@
-"""Leaderboard plots: convergence, ECDF of (instance, target) pairs reached, a fit's trace
-overlay, and the paper's Figure 5 (the Na/Fst fitness landscape, raw and normalised)."""
+"""Leaderboard plots: convergence, ECDF of (instance, target) pairs reached (emafdi-v2: per tier
+and condition, and the ERT scaling plot), a fit's trace overlay, and the paper's Figure 5 (the
+Na/Fst fitness landscape, raw and normalised)."""
 
 from __future__ import annotations
 
+import math
 from collections import defaultdict
 from pathlib import Path
 
@@ -12,6 +14,7 @@ from ..faults import CASES, FAULT_NAMES, NOMINAL, check_faults
 from ..instances import make_problem
 from ..plots import plot_traces, plt
 from ..suite import SANITY_CASES
+from ..suite_v2 import build_problem
 from ..traces import Traces
 from .anytime import ecdf_curve
 
@@ -78,23 +81,135 @@ def ecdf_plot(records: list[dict], path: Path) -> None:
     grid = np.unique(np.geomspace(1, budget, 200).astype(int))
     style = _styles(records)
     for ax, track in zip(axes[0], tracks):
-        groups = defaultdict(list)
-        for r in records:
-            if r["track"] == track:
-                groups[r["solver"]].append(r)
-        for solver, rs in sorted(groups.items()):
-            ax.step(grid, ecdf_curve(rs, grid), where="post", label=solver, lw=1.3,
-                    **style[solver])
-        ax.set_xscale("log")
-        ax.set_ylim(0, 1.02)
+        _ecdf_panel(ax, [r for r in records if r["track"] == track], grid, style)
         ax.set_xlabel("evaluations")
         ax.set_title(f"ECDF over (instance, target) pairs ({track} track)")
-        ax.grid(alpha=0.3, which="both")
     axes[0, 0].set_ylabel("fraction of targets reached")
     axes[0, -1].legend(fontsize=7, loc="upper left")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def _ecdf_panel(ax, records: list[dict], grid: np.ndarray, style: dict, per: float = 1.0
+                ) -> None:
+    """One ECDF panel: per solver, the fraction of its (run, target) pairs reached by each
+    evaluation count of ``grid`` (:func:`.anytime.ecdf_curve`), drawn against ``grid / per``
+    on a log axis."""
+    groups = defaultdict(list)
+    for r in records:
+        groups[r["solver"]].append(r)
+    for solver, rs in sorted(groups.items()):
+        ax.step(grid / per, ecdf_curve(rs, grid), where="post", label=solver, lw=1.3,
+                **style[solver])
+    ax.set_xscale("log")
+    ax.set_ylim(0, 1.02)
+    ax.grid(alpha=0.3, which="both")
+
+
+def ecdf_tiers_plot(records: list[dict], track: str, path: Path) -> None:
+    """emafdi-v2: the ECDF of (run, target) pairs reached per solver, one panel per tier
+    (rows) and condition (columns) of ``track``, against evaluations / dimension (COCO's
+    runtime distributions: panels of different tiers share an axis)."""
+    from .scaling import groups
+
+    g = {(t, c): rs for (tr, t, c), rs in groups(records).items() if tr == track}
+    tiers = sorted({t for t, _ in g})
+    conds = list(dict.fromkeys(c for _, c in g))
+    fig, axes = plt.subplots(len(tiers), len(conds), figsize=(4.4 * len(conds),
+                                                              3.2 * len(tiers)),
+                             squeeze=False, sharey=True)
+    style = _styles(records)
+    for i, t in enumerate(tiers):
+        for j, c in enumerate(conds):
+            ax = axes[i, j]
+            rs = g.get((t, c))
+            if not rs:
+                ax.set_axis_off()
+                ax.set_title(f"tier {t}, {c}: not offered")
+                continue
+            budget = max(r["budget"] for r in rs)
+            grid = np.unique(np.geomspace(1, budget, 200).astype(int))
+            _ecdf_panel(ax, rs, grid, style, per=t)
+            ax.set_title(f"tier {t}, {c} ({track}, {len(rs)} runs)", fontsize=9)
+            if i == len(tiers) - 1:
+                ax.set_xlabel("evaluations / dimension")
+            if j == 0:
+                ax.set_ylabel("fraction of targets reached")
+    handles, labels = [], []
+    for ax in axes.flat:
+        for h, lab in zip(*ax.get_legend_handles_labels()):
+            if lab not in labels:
+                handles.append(h)
+                labels.append(lab)
+    fig.legend(handles, labels, fontsize=7, loc="upper center", ncol=min(6, len(labels)))
+    fig.tight_layout(rect=(0, 0, 1, 0.94))
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+#: Line style and marker of each condition in the scaling plot (colour: the solver).
+_CONDITION_STYLE = {"prior": ("-", "o"), "no-prior": ("--", "s"), "step-only": (":", "^")}
+
+
+def ert_scaling_plot(records: list[dict], points, path: Path) -> None:
+    """emafdi-v2, COCO's scaling plot: ERT to the 1 % parameter target divided by the
+    dimension against the dimension, one line per solver (colour) and condition (line style),
+    one panel per track.  ``points``: :func:`.scaling.scaling_points` (the ERT of
+    :mod:`.anytime`).  A point where not every run reached the target is labelled with the
+    successes ``k/n``; a solver with none is drawn as a cross above the budget line (grey:
+    the budget / dimension)."""
+    tracks = list(dict.fromkeys(p.track for p in points))
+    fig, axes = plt.subplots(1, max(1, len(tracks)), figsize=(6.2 * max(1, len(tracks)), 4.6),
+                             squeeze=False)
+    style = _styles(records)
+    per_dim = max((r["budget"] / _dim(r) for r in records), default=1.0)
+    # the crosses above every point (an ERT exceeds the budget when some runs miss)
+    top = 1.6 * max([per_dim] + [p.ert[0] / p.dim for p in points if math.isfinite(p.ert[0])])
+    for ax, track in zip(axes[0], tracks):
+        lines = defaultdict(list)
+        for p in points:
+            if p.track == track:
+                lines[(p.solver, p.condition)].append(p)
+        offset = {k: 1 + 0.02 * (i - len(lines) / 2) for i, k in enumerate(sorted(lines))}
+        for (solver, cond), pts in sorted(lines.items()):
+            pts = sorted(pts, key=lambda p: p.dim)
+            ls, marker = _CONDITION_STYLE.get(cond, ("-.", "d"))
+            color = style[solver]["color"]
+            dims = [p.dim for p in pts]
+            y = [p.ert[0] / p.dim if math.isfinite(p.ert[0]) else np.nan for p in pts]
+            ax.plot(dims, y, ls=ls, marker=marker, color=color, ms=4, lw=1.2,
+                    label=f"{solver}, {cond}")
+            for p, v in zip(pts, y):
+                if not math.isfinite(v):
+                    # spread a little sideways: the crosses of every solver share one height
+                    ax.plot([p.dim * offset[(solver, cond)]], [top], marker="x", color=color,
+                            ms=5, ls="none")
+                elif p.hits < p.runs:
+                    ax.annotate(f"{p.hits}/{p.runs}", (p.dim, v), fontsize=6, color=color,
+                                textcoords="offset points", xytext=(3, 3))
+        dims = sorted({p.dim for p in points})
+        ax.axhline(per_dim, color="0.5", ls=":", lw=1)
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xticks(dims, [str(d) for d in dims])
+        ax.minorticks_off()
+        ax.set_ylim(top=1.4 * top)
+        ax.set_xlabel("dimension (tier)")
+        ax.set_ylabel("ERT to the 1 % parameter target / dimension")
+        ax.set_title(f"scaling ({track} track); k/n: runs that reached it, where not all "
+                     "did; x: none did", fontsize=9)
+        ax.grid(alpha=0.3, which="both")
+        ax.legend(fontsize=6, loc="lower right", ncol=2)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def _dim(record: dict) -> int:
+    from .scaling import group_of
+
+    return group_of(record)[0]
 
 
 def overlay_plot(record: dict, path: Path) -> None:
@@ -103,9 +218,13 @@ def overlay_plot(record: dict, path: Path) -> None:
 
     task = Task(record["solver"], record["case"], record["track"], record["seed"],
                 record["budget"], record["root_seed"])
-    problem = make_problem(task.case, track=task.track, seed=task.node(), budget=1)
+    # a v2 case too (its searched effects: the healthy point has them at 0)
+    problem = build_problem(task.case, track=task.track, seed=task.node(), budget=1)
     x = check_faults([record["x"][n] for n in FAULT_NAMES])
-    outs, _ = problem.simulate(np.vstack([NOMINAL, x]))
+    if problem.dim > len(FAULT_NAMES):   # the effects: from the best point's full vector
+        x = np.asarray(record["trajectory"][-1][2], dtype=float)
+    healthy = np.r_[NOMINAL, np.zeros(problem.dim - len(FAULT_NAMES))]
+    outs, _ = problem.simulate(np.vstack([healthy, x]))
     before = Traces({t: v[0] for t, v in outs.items()})
     after = Traces({t: v[1] for t, v in outs.items()})
     plot_traces([problem.measured, before, after],

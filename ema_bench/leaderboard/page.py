@@ -1,6 +1,8 @@
 """``leaderboard.html``: the leaderboard as one self-contained page (a CI artifact, and the
 page GitHub Pages publishes): the ranking, sanity and per-instance tables of each track,
-sortable (the first click puts the better end first), and the plots embedded.
+sortable (the first click puts the better end first), and the plots embedded.  An emafdi-v2
+board shows instead, per track, the saturation check, the global-vs-local answer and table,
+the ERT scaling table and one ranking per tier and condition.
 
 The page is made to be shared: the command line in its header names no local folder (the
 values of ``--out``, ``--check`` and ``--scheduler`` read ``OUT``, ``DIR`` and ``ADDRESS``),
@@ -13,10 +15,22 @@ import re
 from pathlib import Path
 
 from ..suite import SUITE_ID, instance_names
+from ..suite_v2 import SUITE_ID as V2_ID
 from ..trace_cache import MODEL_VERSION
+from . import scaling
 from .anytime import anytime_scores, sanity_scores
 from .html import Section, Table, write_html
-from .report import _track_note, instance_rows, ranking_rows, sanity_rows
+from .report import (
+    _track_note,
+    global_local_rows,
+    group_heading,
+    group_targets,
+    instance_rows,
+    ranking_rows,
+    sanity_rows,
+    scaling_rows,
+)
+from .scaling import is_v2_board
 
 #: options whose value is a local path or address, and what the page shows instead
 _LOCAL = {"--out": "OUT", "--check": "DIR", "--scheduler": "ADDRESS"}
@@ -39,7 +53,7 @@ def higher_better(columns: list[str]) -> list[str]:
     the per-instance areas (named by instance)."""
     instances = set(instance_names())
     return [c for c in columns
-            if "area" in c or c.startswith("reached") or c.startswith("stayed")
+            if "area" in c or "reached" in c or c.startswith("stayed")
             or c in instances]
 
 
@@ -56,6 +70,10 @@ def _table(caption: str, rows: list[dict[str, object]], note: str = "") -> Table
 
 def write_page(records: list[dict], path: Path, header: str, images: list[Path]) -> Path:
     """Write the page of ``records`` to ``path`` (atomically); returns ``path``."""
+    if is_v2_board(records):
+        return write_html(path, f"ema-bench leaderboard ({V2_ID})", shareable(header),
+                          [*v2_sections(records), Section("Plots", images=images)],
+                          footer=f"suite {V2_ID}, model version {MODEL_VERSION}")
     scores = anytime_scores(records, per_case=True)
     sanity = sanity_scores(records)
     sections = []
@@ -72,3 +90,34 @@ def write_page(records: list[dict], path: Path, header: str, images: list[Path])
     sections.append(Section("Plots", images=images))
     return write_html(path, f"ema-bench leaderboard ({SUITE_ID})", shareable(header),
                       sections, footer=f"suite {SUITE_ID}, model version {MODEL_VERSION}")
+
+
+def v2_sections(records: list[dict]) -> list[Section]:
+    """emafdi-v2, per track: the saturation check and the global-vs-local answer (text), the
+    global-vs-local and ERT scaling tables, then one ranking per tier and condition (the
+    tables of ``leaderboard_<track>.md``, :func:`.report.v2_markdown`)."""
+    grouped = scaling.group_scores(records)
+    gl = scaling.global_vs_local(records)
+    prior = scaling.global_vs_local(records, "prior")
+    points = scaling.scaling_points(grouped)
+    sections = []
+    for track in dict.fromkeys(r["track"] for r in records):
+        text = "\n\n".join([_track_note(track), *scaling.saturation_lines(records, grouped,
+                                                                         track),
+                             scaling.answer(gl, track)])
+        tables = [_table("Global vs local search without a prior (paired per instance and "
+                         "seed)", global_local_rows(gl, prior, track),
+                         "Groups: the scope each solver declares where it is registered "
+                         "(ema-bench solvers). Intervals: 95 % bootstrap over (instance, "
+                         "seed) pairs."),
+                  _table("ERT to the 1 % parameter target per tier", scaling_rows(points,
+                                                                                 track))]
+        for (tr, tier, cond), recs in scaling.groups(records).items():
+            if tr == track:
+                tables.append(_table(
+                    f"Ranking by ECDF area: {group_heading(tier, cond, recs)}",
+                    _floored(ranking_rows(grouped, track, scaling.group_label(tier, cond))),
+                    group_targets(tier, recs) + " Intervals: 95 % bootstrap over runs. "
+                    + PRECISION_NOTE))
+        sections.append(Section(f"{track} track", text, tables=tables))
+    return sections

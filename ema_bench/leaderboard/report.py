@@ -15,8 +15,18 @@ import numpy as np
 from ..escape import csv_value, markdown
 from ..faults import CASES, FAULT_NAMES, FAULT_UNITS
 from ..suite import instance_names
-from .anytime import AnytimeScore, SanityScore, anytime_scores, sanity_scores
+from ..suite_v2 import is_v2_case, parse_case
+from . import scaling
+from .anytime import (
+    FITNESS_TARGETS,
+    AnytimeScore,
+    SanityScore,
+    anytime_scores,
+    hits,
+    sanity_scores,
+)
 from .derive import derived
+from .scaling import GlobalLocal, ScalingPoint
 from .scores import ALL, SolverScore
 
 
@@ -37,11 +47,13 @@ def _ci(v: tuple[float, float, float], digits: int = 3) -> str:
 ERT_COLUMNS = ("f0.01", "f0.0001", "p0.01")
 
 
-def ranking_rows(scores: list[AnytimeScore], track: str) -> list[dict[str, object]]:
-    """The ranking table of a track (non-sanity instances), rank by ECDF area: one dict per
-    solver, display strings and the raw values for sorting (``(text, value)`` pairs)."""
+def ranking_rows(scores: list[AnytimeScore], track: str, cases: str = ALL
+                 ) -> list[dict[str, object]]:
+    """The ranking table of a track (non-sanity instances; ``cases``: an emafdi-v2 tier and
+    condition, :func:`.scaling.group_label`), rank by ECDF area: one dict per solver, display
+    strings and the raw values for sorting (``(text, value)`` pairs)."""
     rows = []
-    for rank, s in enumerate((s for s in scores if s.track == track and s.cases == ALL), 1):
+    for rank, s in enumerate((s for s in scores if s.track == track and s.cases == cases), 1):
         b10, b = sorted(s.precision)[0], sorted(s.precision)[-1]
         row: dict[str, object] = {
             "rank": rank, "solver": s.solver,
@@ -101,9 +113,13 @@ def write_leaderboards(records: list[dict], out: Path, header: str) -> list[Path
     instance); returns the paths written."""
     scores = anytime_scores(records, per_case=True)
     sanity = sanity_scores(records)
+    v2 = scaling.is_v2_board(records)
+    # emafdi-v2: every (tier, condition) scored apart too (CSV rows cases=t7@no-prior)
+    grouped = scaling.group_scores(records) if v2 else []
     written = []
     for track in dict.fromkeys(r["track"] for r in records):
-        rows = [s for s in scores if s.track == track]
+        rows = [s for s in scores if s.track == track] + \
+            [s for s in grouped if s.track == track]
         csv_path = out / f"leaderboard_{track}.csv"
         flat = [s.row() for s in rows]
         fields = list(dict.fromkeys(k for r in flat for k in r))
@@ -112,6 +128,13 @@ def write_leaderboards(records: list[dict], out: Path, header: str) -> list[Path
             w.writeheader()
             for r in flat:
                 w.writerow({k: csv_value(v) for k, v in r.items()})
+        md_path = out / f"leaderboard_{track}.md"
+        if v2:
+            md_path.write_text("\n".join([f"# Leaderboard, {track} track", "", header, "",
+                                          _track_note(track), "",
+                                          *v2_markdown(records, grouped, track)]))
+            written += [md_path, csv_path]
+            continue
         md = [f"# Leaderboard, {track} track", "", header, "", _track_note(track), "",
               "## Ranking: ECDF area over every (instance, target) pair", "",
               "Instances: every one but the sanity case. Targets: fitness within "
@@ -125,10 +148,113 @@ def write_leaderboards(records: list[dict], out: Path, header: str) -> list[Path
               *markdown_table(sanity_rows(sanity, track)), "",
               "## ECDF area per instance", "",
               *markdown_table(instance_rows(scores, track)), ""]
-        md_path = out / f"leaderboard_{track}.md"
         md_path.write_text("\n".join(md))
         written += [md_path, csv_path]
     return written
+
+
+# --- emafdi-v2: tiers x conditions, scaling, global vs local, saturation --------------------
+AREA_NOTE = ("Area: a target reached at evaluation h of budget B counts (ln B - ln h) / ln B, "
+             "a miss 0; mean over runs and targets, 95 % bootstrap interval over runs.")
+
+
+def group_heading(tier: int, cond: str, records: list[dict]) -> str:
+    """``Tier 7, no-prior (dimension 7, budget 8750, 20 instances)``."""
+    budgets = sorted({r["budget"] for r in records})
+    n = len({r["case"] for r in records})
+    return (f"Tier {tier}, {cond} (dimension {tier}, budget "
+            f"{', '.join(map(str, budgets))}, {n} instance{'s' if n != 1 else ''})")
+
+
+def group_targets(tier: int, records: list[dict]) -> str:
+    """What the targets of a (tier, condition) group are."""
+    with_f = any(hits(r).keys() & set(FITNESS_TARGETS) for r in records)
+    fit = ("fitness within 1e-1 .. 1e-4 of the instance's f*-to-nominal gap and "
+           if with_f else "no fitness targets (no shipped f* for these instances yet); ")
+    return (f"Targets: {fit}the best-so-far point within 10, 3, 1 % of range of every "
+            f"judged parameter (tier {tier}: {tier} parameters).")
+
+
+def global_local_rows(rows: list[GlobalLocal], prior: list[GlobalLocal],
+                      track: str) -> list[dict[str, object]]:
+    """The global-vs-local table of a track: one row per tier (``prior``: the same
+    comparison with the prior, for the last column)."""
+    with_prior = {r.tier: r for r in prior if r.track == track}
+    out = []
+    for r in (r for r in rows if r.track == track):
+        p = with_prior.get(r.tier)
+        out.append({
+            "tier": r.tier, "global solvers": ", ".join(r.global_solvers),
+            "local solvers": ", ".join(r.local_solvers), "pairs": r.pairs,
+            "global reached p0.01": (f"{r.global_hits}/{r.global_runs}",
+                                     r.global_hits / r.global_runs),
+            "local reached p0.01": (f"{r.local_hits}/{r.local_runs}",
+                                    r.local_hits / r.local_runs),
+            "global area": r.global_area, "local area": r.local_area,
+            "area global - local [95 % CI]": (_ci(r.area_diff), r.area_diff[0]),
+            "reached global - local [95 % CI]": (_ci(r.rate_diff), r.rate_diff[0]),
+            "with the prior: area global - local": ((_ci(p.area_diff), p.area_diff[0]) if p
+                                                    else ("-", None)),
+            "best global": f"{r.best_global[0]} {_fmt(r.best_global[1])}",
+            "best local": f"{r.best_local[0]} {_fmt(r.best_local[1])}"})
+    return out
+
+
+def scaling_rows(points: list[ScalingPoint], track: str) -> list[dict[str, object]]:
+    """ERT to the 1 % parameter target per solver and condition (rows) and tier (columns),
+    with the runs that reached it."""
+    tiers = sorted({p.dim for p in points if p.track == track})
+    by: dict[tuple[str, str], dict[int, ScalingPoint]] = defaultdict(dict)
+    for p in points:
+        if p.track == track:
+            by[(p.solver, p.condition)][p.dim] = p
+    out = []
+    for (solver, cond), pts in sorted(by.items()):
+        row: dict[str, object] = {"solver": solver, "condition": cond}
+        for t in tiers:
+            p = pts.get(t)
+            row[f"tier {t}: ERT [95 % CI]"] = (_ci(p.ert), p.ert[0]) if p else ("-", None)
+            row[f"tier {t}: reached"] = (f"{p.hits}/{p.runs}", p.hits / p.runs) if p \
+                else ("-", None)
+        out.append(row)
+    return out
+
+
+def v2_markdown(records: list[dict], grouped: list[AnytimeScore], track: str) -> list[str]:
+    """The emafdi-v2 part of a track's leaderboard: the saturation check, global vs local
+    without a prior (table and the answer), the ERT scaling table, and one ranking per tier
+    and condition."""
+    gl = scaling.global_vs_local(records)
+    prior = scaling.global_vs_local(records, "prior")
+    md = ["## Saturation check", "",
+          *(f"- {line}" for line in scaling.saturation_lines(records, grouped, track,
+                                                               name=markdown)), "",
+          "## Global vs local search without a prior", "", scaling.answer(gl, track), "",
+          "Groups: the scope each solver declares where it is registered (`ema-bench "
+          "solvers`); in neither group: "
+          + (", ".join(markdown(s) for s in sorted({s for r in gl if r.track == track
+                                                    for s in r.others}))
+             or "none") + ". Each (instance, seed) "
+          "pair that every compared solver ran is one pair: the mean of each group's runs' "
+          "ECDF areas (and of reaching the 1 % parameter target) on it, the difference "
+          "global - local, 95 % bootstrap interval over the pairs.", "",
+          *markdown_table(global_local_rows(gl, prior, track)), "",
+          "## Scaling: ERT to the 1 % parameter target against dimension", "",
+          "ERT (COCO): evaluations summed over runs (a run that reached the target counted "
+          "until it did, the others at their budget) over the runs that reached it; "
+          "interval: the bootstrap interval of the hit rate per evaluation, inverted. Plot: "
+          "`ert_scaling.png`.", "",
+          *markdown_table(scaling_rows(scaling.scaling_points(grouped), track)), ""]
+    for (tr, tier, cond), recs in scaling.groups(records).items():
+        if tr != track:
+            continue
+        md += [f"## {group_heading(tier, cond, recs)}", "", group_targets(tier, recs) + " "
+               + AREA_NOTE, "",
+               *markdown_table(ranking_rows(grouped, track, scaling.group_label(tier, cond))),
+               ""]
+    md += ["Per-instance scores: `leaderboard_" + track + ".csv` (rows by case; rows "
+           "`t<tier>@<condition>` are the tables above).", ""]
+    return md
 
 
 def _track_note(track: str) -> str:
@@ -151,9 +277,10 @@ def write_paper_tables(records: list[dict], scores: list[SolverScore], out: Path
     by = defaultdict(list)
     for r in records:
         if r["track"] == "reference":
-            by[(r["case"], r["solver"])].append(r)
+            by[(paper_case(r["case"]), r["solver"])].append(r)
     for case, spec in CASES.items():
-        ref_scores = [s for s in scores if s.track == "reference" and s.case == case]
+        ref_scores = [s for s in scores if s.track == "reference"
+                      and paper_case(s.case) == case]
         if not ref_scores:
             continue
         best = ref_scores[0].solver
@@ -190,6 +317,15 @@ def write_paper_tables(records: list[dict], scores: list[SolverScore], out: Path
     path = out / "paper_tables.md"
     path.write_text("\n".join(lines))
     return path
+
+
+def paper_case(case: str) -> str:
+    """The paper case a run's case is: a v1 case as it is; an emafdi-v2 tier-4 case with the
+    prior (v1's problem, bit for bit) by its instance (``small@prior`` -> ``small``)."""
+    if is_v2_case(case):
+        inst, cond = parse_case(case)
+        return inst.name if inst.tier == 4 and cond.name == "prior" else case
+    return case
 
 
 def load_paper_results() -> dict:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import shlex
 import sys
+from dataclasses import asdict
 from pathlib import Path
 
 from .. import jsonio
@@ -16,6 +17,8 @@ from .anytime import anytime_scores
 from .figures import (
     convergence_plot,
     ecdf_plot,
+    ecdf_tiers_plot,
+    ert_scaling_plot,
     landscape,
     landscape_plot,
     overlay_plot,
@@ -23,6 +26,13 @@ from .figures import (
 )
 from .page import write_page
 from .report import load_paper_results, write_leaderboards, write_paper_tables
+from .scaling import (
+    global_vs_local,
+    group_scores,
+    is_v2_board,
+    saturation_lines,
+    scaling_points,
+)
 from .scores import score_records
 from .store import RUNS_FILE, RunStore, is_error, read_records, run_identity, unique
 from .tasks import Task, failure_record, make_tasks, run_task
@@ -75,7 +85,16 @@ def write_outputs(records: list[dict], out: Path, command: str, plots: bool = Tr
     written.append(write_paper_tables(finished, scores, out, header, load_paper_results()))
     summary: dict[str, object] = {"errors": failed}
     images: list[Path] = []
-    if plots:
+    if plots and is_v2_board(records):
+        # emafdi-v2: tiers have their own budgets; one ECDF per tier and condition instead
+        for track in dict.fromkeys(r["track"] for r in records):
+            p = out / f"ecdf_tiers_{track}.png"
+            ecdf_tiers_plot(records, track, p)
+            images.append(p)
+        p = out / "ert_scaling.png"
+        ert_scaling_plot(records, scaling_points(group_scores(records)), p)
+        images.append(p)
+    elif plots:
         p = out / "ecdf.png"
         ecdf_plot(records, p)
         images.append(p)
@@ -88,7 +107,7 @@ def write_outputs(records: list[dict], out: Path, command: str, plots: bool = Tr
                 images.append(p)
         # one fit shown before/after: the best solver's run on the hardest paper case
         ref = [r for r in finished if r["track"] == "reference"] or finished
-        full = [r for r in ref if r["case"] == "full"] or ref
+        full = [r for r in ref if r["case"].partition("@")[0] == "full"] or ref
         p = out / "fit_overlay.png"
         overlay_plot(min(full, key=lambda r: r["fitness"]), p)
         images.append(p)
@@ -99,6 +118,11 @@ def write_outputs(records: list[dict], out: Path, command: str, plots: bool = Tr
             images.append(p)
             summary["figure5_valley_rise"] = {"raw": valley_rise(land["raw"]),
                                               "normalised": valley_rise(land["normalised"])}
+    if is_v2_board(records):   # the answers the v2 report states, for scripts
+        grouped = group_scores(records)
+        summary["global_vs_local"] = [asdict(r) for r in global_vs_local(records)]
+        summary["saturation"] = {t: saturation_lines(records, grouped, t)
+                                 for t in dict.fromkeys(r["track"] for r in records)}
     written += images
     written.append(write_page(records, out / "leaderboard.html", header, images))
     summary["files"] = [str(p) for p in written]
