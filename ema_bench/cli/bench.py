@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from . import CLIError, print_json
 from .args import add_json, count, seed_number
 
 
@@ -44,7 +45,6 @@ def _fmt(v: object, spec: str) -> str:
 
 def run(args: argparse.Namespace) -> int:
     from ..bench import run_bench
-    from . import CLIError, print_json
 
     if min(args.batch, args.repeat, args.naive, args.tts_seeds) < 1:
         raise CLIError("--batch, --repeat, --naive and --tts-seeds must be >= 1")

@@ -29,10 +29,11 @@ from __future__ import annotations
 import argparse
 import sys
 
+from . import CLIError, print_json
+from .args import add_json, add_quiet, check_output, count, seed_number, worker_count
+
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from .args import add_json, add_quiet, count, seed_number, worker_count
-
     p = sub.add_parser("blind", help="blind test of the missing-physics workflow",
                        description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -74,8 +75,6 @@ def default_out(seed: int, cases: int, extra: int = 0) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from . import CLIError
-
     if args.cases < 0 or args.extra < 0 or args.cases + args.extra < 1 or args.workers < 1:
         raise CLIError("--cases and --extra must be >= 0 (not both 0), --workers >= 1")
     only = None
@@ -101,8 +100,6 @@ def _run(args: argparse.Namespace, only: list[str] | None) -> int:
     from ..diagnosis.blind import run_blind
     from ..diagnosis.interval_table import source
     from ..jsonio import dumps
-    from . import print_json
-    from .args import check_output
 
     # before any work: the suite takes minutes per case
     out = check_output(args.out or default_out(args.seed, args.cases, args.extra), "--out",
@@ -127,8 +124,6 @@ def _run(args: argparse.Namespace, only: list[str] | None) -> int:
 def _calibrate(args: argparse.Namespace) -> int:
     from ..calibration_files import inside_package
     from ..diagnosis import interval_calibration as ic
-    from . import CLIError, print_json
-    from .args import check_output
 
     if args.seed not in (0, ic.CALIBRATION_SEED) or args.calibration or args.extra or \
             args.only:

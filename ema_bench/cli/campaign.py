@@ -17,6 +17,9 @@ from __future__ import annotations
 
 import argparse
 
+from . import CLIError, print_json
+from .args import add_json, add_quiet, check_output, count, finite, seed_number, worker_count
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("campaign", help="degradation campaigns: make, track, score (RUL)",
@@ -31,8 +34,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 # --- make (campaign drawing and files) -------------------------------------------------------
 
 def _register_make(actions: argparse._SubParsersAction) -> None:
-    from .args import add_json, add_quiet, count, seed_number
-
     p = actions.add_parser(
         "make", help="draw a campaign and write its inspection traces, manifest and truth",
         description="Draw a fleet of actuators from the named campaign's degradation laws, "
@@ -71,15 +72,8 @@ def _run_make(args: argparse.Namespace) -> int:
         make_campaign,
         prepare_folder,
     )
-    from . import CLIError, print_json
-    from .args import check_output
 
-    if args.units < 1:
-        raise CLIError(f"--units must be >= 1, got {args.units}")
-    if args.every is not None and args.every < 1:
-        raise CLIError(f"--every must be >= 1, got {args.every}")
-    if args.seed < 0:
-        raise CLIError(f"--seed must be >= 0, got {args.seed}")
+    # --units, --every and --seed are bounded by their argparse types
     try:  # before any work
         get_spec(args.name)
         out = args.out or default_out(args.name, args.track, args.split, args.seed, args.units)
@@ -109,8 +103,6 @@ def _run_make(args: argparse.Namespace) -> int:
 # --- track (trackers) ------------------------------------------------------------------------
 
 def _register_track(actions: argparse._SubParsersAction) -> None:
-    from .args import add_json, add_quiet, seed_number, worker_count
-
     p = actions.add_parser(
         "track", help="run a tracker over a campaign: fault estimates and RUL per inspection",
         description="Run a registered tracker over every unit of the campaign in DIR, "
@@ -149,8 +141,6 @@ def _run_track(args: argparse.Namespace) -> int:
         read_track,
         track_campaign,
     )
-    from . import CLIError, print_json
-    from .args import check_output
 
     if args.list:
         trackers = available_trackers()
@@ -166,10 +156,6 @@ def _run_track(args: argparse.Namespace) -> int:
                               ("--out", args.out)) if not v]
     if missing:
         raise CLIError(f"give {', '.join(missing)} (or --list)")
-    if args.seed < 0:
-        raise CLIError(f"--seed must be >= 0, got {args.seed}")
-    if args.workers < 1:
-        raise CLIError(f"--workers must be >= 1, got {args.workers}")
     try:  # before any work
         get_tracker(args.tracker)
         campaign = load_campaign(args.campaign)
@@ -205,8 +191,6 @@ def _run_track(args: argparse.Namespace) -> int:
 # --- score (metrics) -------------------------------------------------------------------------
 
 def _register_score(actions: argparse._SubParsersAction) -> None:
-    from .args import add_json, finite
-
     p = actions.add_parser(
         "score", help="score tracking runs against the campaign's hidden truth",
         description="Score one or more tracking runs (DIR2 of 'ema-bench campaign track') "
@@ -310,7 +294,6 @@ def _run_score(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from ..prognostics.scoring import score_tracking
-    from . import CLIError, print_json
 
     if not 0.0 < args.alpha < 1.0:
         raise CLIError("--alpha must lie in (0, 1)")

@@ -28,20 +28,23 @@ from __future__ import annotations
 
 import argparse
 
+from . import CLIError, print_json
+from .args import (
+    MAX_BUDGET,
+    add_json,
+    add_quiet,
+    check_output,
+    comma_list,
+    count,
+    finite,
+    seed_number,
+    worker_count,
+)
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     from ..uncertainty.coverage import BUDGET, SOLVER
     from ..uncertainty.methods import METHODS, MODEL_FORM_MODES
-    from .args import (
-        MAX_BUDGET,
-        add_json,
-        add_quiet,
-        comma_list,
-        count,
-        finite,
-        seed_number,
-        worker_count,
-    )
 
     p = sub.add_parser("coverage", help="measure the coverage of the fault intervals",
                        description=__doc__,
@@ -82,23 +85,15 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-
-
     from ..calibration_files import inside_package, using
     from ..registry import SolverError, get_solver
     from ..uncertainty import calibration as cal
     from ..uncertainty.methods import METHODS
-    from . import CLIError
-    from .args import check_output
 
-    if args.instances < 1:
-        raise CLIError(f"--instances must be at least 1, got {args.instances}")
     if not 0.0 < args.level < 1.0:
         raise CLIError(f"--level must lie in (0, 1), got {args.level}")
     if not args.noise_scale > 0:
         raise CLIError(f"--noise-scale must be positive, got {args.noise_scale}")
-    if args.budget < 1 or args.workers < 1:
-        raise CLIError("--budget and --workers must be positive")
     try:
         get_solver(args.solver)
     except SolverError as exc:
@@ -124,7 +119,6 @@ def run(args: argparse.Namespace) -> int:
 
 def _run(args: argparse.Namespace, root: int, out) -> int:
     from ..uncertainty.coverage import Settings, run_methods
-    from . import CLIError, print_json
 
     all_settings = [Settings(track=args.track, method=m, level=args.level, solver=args.solver,
                              budget=args.budget, root_seed=root, noise_scale=args.noise_scale,

@@ -7,6 +7,7 @@ import argparse
 from ..effects import EFFECTS
 from ..faults import CASES, FAULTS
 from ..params import EMAParams
+from . import print_json
 from .args import add_json
 
 
@@ -18,8 +19,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from . import print_json
-
     table = {
         "parameters": EMAParams.describe(),
         "faults": [vars(f) for f in FAULTS],

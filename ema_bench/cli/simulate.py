@@ -15,6 +15,7 @@ import time
 
 import numpy as np
 
+from . import CLIError, print_json
 from .args import (
     PLOT_SUFFIXES,
     add_effects,
@@ -106,7 +107,6 @@ def run(args: argparse.Namespace) -> int:
     from ..plots import plot_traces
     from ..protocol import HOLDOUT_TESTS, STANDARD_TESTS
     from ..traces import Traces
-    from . import CLIError, print_json
 
     node = run_node(args)
     effects = effects_vector(effects_of(args))

@@ -34,6 +34,7 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 
+from . import CLIError, print_json
 from .args import (
     MAX_BUDGET,
     PLOT_SUFFIXES,
@@ -108,7 +109,6 @@ def _register_solve(sub: argparse._SubParsersAction) -> None:
 def _check_args(args: argparse.Namespace) -> None:
     from ..instances import check_settings
     from ..registry import SolverError, get_solver
-    from . import CLIError
 
     run_node(args)   # the seeds are valid
     # make_problem's own checks, before any work (the measured path has no case)
@@ -183,7 +183,6 @@ def run(args: argparse.Namespace) -> int:
     from ..faults import FAULTS
     from ..records import run_record
     from ..registry import get_solver, run_solver
-    from . import print_json
 
     t0 = time.perf_counter()
     _check_args(args)
@@ -253,7 +252,6 @@ def _intervals(problem, res, args: argparse.Namespace):
     from ..seeding import stream
     from ..uncertainty import intervals
     from ..uncertainty.local import UncertaintyError
-    from . import CLIError
 
     try:
         return intervals(problem.objective, res.x, method=args.intervals, level=args.level,
@@ -323,7 +321,6 @@ def _plot(problem, res, args: argparse.Namespace) -> None:
     from ..objective import KNOWN_TESTS, N_FAULTS
     from ..plots import plot_traces
     from ..reference import SimulationError
-    from . import CLIError
 
     tests = tuple(KNOWN_TESTS[t] for t in problem.measured.tests)
     try:
@@ -336,7 +333,6 @@ def _plot(problem, res, args: argparse.Namespace) -> None:
 
 def run_solvers(args: argparse.Namespace) -> int:
     from ..registry import available_solvers
-    from . import print_json
 
     solvers = available_solvers()
     if args.json:
