@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 import os
 import re
 import shutil
@@ -599,13 +598,3 @@ def load_truth(path: Path | str, campaign: Campaign | None = None) -> dict[str, 
     (keys are flights as strings), ``faults_after`` (the future at the inspection spacing,
     before EOL), ``faults_at_eol`` and the unit's law ``params``."""
     return read_truth(path, campaign)["units"]
-
-
-def life_summary(truth: dict[str, dict]) -> dict:
-    """Fleet life figures from a truth: EOL quartiles (flights) and failing-fault shares."""
-    eols = [t["eol"] for t in truth.values() if t["eol"] is not None]
-    faults = [t["failing_fault"] for t in truth.values() if t["failing_fault"]]
-    q = np.percentile(eols, [25, 50, 75]).tolist() if eols else [math.nan] * 3
-    return {"units": len(truth), "failing": len(eols), "eol_quartiles": q,
-            "failing_fault": {n: faults.count(n) for n in THRESHOLDS},
-            "inspections": sum(len(t["faults"]) for t in truth.values())}
