@@ -16,7 +16,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from . import CLIError, print_json
+from . import print_json
 from .args import add_json, count, seed_number
 
 
@@ -46,8 +46,6 @@ def _fmt(v: object, spec: str) -> str:
 def run(args: argparse.Namespace) -> int:
     from ..bench import run_bench
 
-    if min(args.batch, args.repeat, args.naive, args.tts_seeds) < 1:
-        raise CLIError("--batch, --repeat, --naive and --tts-seeds must be >= 1")
     show = None if args.json else (lambda msg: print(f"... {msg}", file=sys.stderr))
     r = run_bench(batch=args.batch, repeat=args.repeat, naive_evals=args.naive,
                   tts_seeds=args.tts_seeds, seed=args.seed, startup=not args.quick,

@@ -29,7 +29,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from . import CLIError, print_json
+from . import CLIError, print_result
 from .args import add_json, add_quiet, check_output, count, seed_number, worker_count
 
 
@@ -111,14 +111,8 @@ def _run(args: argparse.Namespace, only: list[str] | None) -> int:
     res["summary"]["interval_calibration"] = source()
     (Path(out) / "summary.json").write_text(dumps(
         {"command": "ema-bench " + " ".join(sys.argv[1:]), **res["summary"]}, indent=1))
-    if args.json:
-        print_json(res)
-        return 0
-    for line in summary_lines(res["summary"], args.seed):
-        print(line)
-    for r in res["records"]:
-        print(case_line(r))
-    return 0
+    return print_result(args, res, summary_lines(res["summary"], args.seed)
+                        + [case_line(r) for r in res["records"]])
 
 
 def _calibrate(args: argparse.Namespace) -> int:
@@ -136,13 +130,10 @@ def _calibrate(args: argparse.Namespace) -> int:
         raise CLIError(f"--out {args.out}: inside the package, whose data is read-only")
     path = check_output(args.out, "--out", folder=True) / ic.TABLE.name
     data = ic.calibrate(path, args.cases, workers=args.workers, quiet=args.quiet)
-    if args.json:
-        print_json(data)
-    else:
-        print(f"{len(data['scores'])} effect intervals of {data['effect_cases']} cases scored; "
-              f"95 % factor {data['factor_95']:.3g}; written to {path} (use it with "
-              f"--calibration {path})")
-    return 0
+    return print_result(args, data, [
+        f"{len(data['scores'])} effect intervals of {data['effect_cases']} cases scored; "
+        f"95 % factor {data['factor_95']:.3g}; written to {path} (use it with "
+        f"--calibration {path})"])
 
 
 def _pct(x: float, digits: int = 0) -> str:

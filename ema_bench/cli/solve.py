@@ -34,7 +34,7 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 
-from . import CLIError, print_json
+from . import CLIError, print_json, print_result
 from .args import (
     MAX_BUDGET,
     PLOT_SUFFIXES,
@@ -335,12 +335,10 @@ def run_solvers(args: argparse.Namespace) -> int:
     from ..registry import available_solvers
 
     solvers = available_solvers()
-    if args.json:
-        print_json([{"name": s.name, "description": s.description, "library": s.library,
-                     "module": s.func.__module__} for s in solvers.values()])
-        return 0
     width = max((len(n) for n in solvers), default=4)
     lib_w = max((len(s.library) for s in solvers.values()), default=7)
-    for s in solvers.values():
-        print(f"{s.name:<{width}}  {s.library:<{lib_w}}  {s.description}")
-    return 0
+    return print_result(args, [{"name": s.name, "description": s.description,
+                                "library": s.library, "module": s.func.__module__}
+                               for s in solvers.values()],
+                        [f"{s.name:<{width}}  {s.library:<{lib_w}}  {s.description}"
+                         for s in solvers.values()])
