@@ -30,7 +30,7 @@ import argparse
 import sys
 
 from . import CLIError, print_result
-from .args import add_json, add_quiet, check_output, count, seed_number, worker_count
+from .args import add_json, add_quiet, check_output, comma_list, count, seed_number, worker_count
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -75,13 +75,13 @@ def default_out(seed: int, cases: int, extra: int = 0) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.cases < 0 or args.extra < 0 or args.cases + args.extra < 1 or args.workers < 1:
+    if args.cases + args.extra < 1:   # each >= 0 and --workers >= 1 by their types
         raise CLIError("--cases and --extra must be >= 0 (not both 0), --workers >= 1")
     only = None
     if args.only is not None:
         from ..diagnosis.blind import KINDS
 
-        only = [c.strip() for c in args.only.split(",") if c.strip()]
+        only = comma_list(args.only)
         unknown = [c for c in only if c not in KINDS]
         if unknown or not only:
             raise CLIError(f"--only: unknown categories {unknown}; known: {', '.join(KINDS)}")

@@ -130,9 +130,8 @@ def _run(args: argparse.Namespace, root: int, out) -> int:
                            quiet=args.quiet or args.json)
     except ValueError as exc:
         raise CLIError(str(exc)) from None
-    summaries = []
-    for method, stem, records in zip(args.method, stems, runs):
-        summaries.append(_summary(records, method, stem, out, args))
+    summaries = [_summary(records, method, stem, out, args)
+                 for method, stem, records in zip(args.method, stems, runs)]
     if args.json:
         print_json(summaries[0] if len(summaries) == 1 else summaries)
         return 0

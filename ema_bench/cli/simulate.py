@@ -104,18 +104,17 @@ def run(args: argparse.Namespace) -> int:
 
     from ..effects import effects_vector
     from ..faults import CASES, faults_to_dict, get_case
+    from ..objective import KNOWN_TESTS
     from ..plots import plot_traces
-    from ..protocol import HOLDOUT_TESTS, STANDARD_TESTS
     from ..traces import Traces
 
     node = run_node(args)
     effects = effects_vector(effects_of(args))
-    known = {t.name: t for t in STANDARD_TESTS + HOLDOUT_TESTS}
     names = comma_list(args.tests)
-    bad = [t for t in names if t not in known]
+    bad = [t for t in names if t not in KNOWN_TESTS]
     if bad or not names:
-        raise CLIError(f"unknown test(s) {bad}; known: {list(known)}")
-    tests = tuple(known[t] for t in names)
+        raise CLIError(f"unknown test(s) {bad}; known: {list(KNOWN_TESTS)}")
+    tests = tuple(KNOWN_TESTS[t] for t in names)
     if args.faults is not None:
         runs = {"custom": faults_of(args)}
     elif args.case == "all":
