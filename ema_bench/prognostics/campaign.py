@@ -498,14 +498,11 @@ def load_campaign(path: Path | str, traces: bool = True) -> Campaign:
     mpath = root / "manifest.json"
     doc = _read_json(mpath, FORMAT, "manifest")
     where = str(mpath)
-    name = _need(doc, "name", str, where)
-    track = _need(doc, "track", str, where)
-    split = _need(doc, "split", str, where)
-    seed = _need(doc, "seed", int, where)
-    every = _need(doc, "inspection_every", int, where)
-    thresholds = _need(doc, "thresholds", dict, where)
-    laws = _need(doc, "laws", dict, where)
-    tests = _need(doc, "tests", list, where)
+    # the settings, each checked in this order (the first missing or mistyped one is named)
+    name, track, split, seed, every, thresholds, laws, tests = (
+        _need(doc, key, kind, where) for key, kind in (
+            ("name", str), ("track", str), ("split", str), ("seed", int),
+            ("inspection_every", int), ("thresholds", dict), ("laws", dict), ("tests", list)))
     if track not in TRACKS or split not in SPLITS or every < 1:
         raise CampaignError(f"{where}: bad track, split or inspection_every "
                             f"({track!r}, {split!r}, {every!r})")
