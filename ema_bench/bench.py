@@ -127,7 +127,6 @@ def time_to_success(solvers: tuple[str, ...] = TTS_SOLVERS, cases: tuple[str, ..
     """Median seconds to the first successful vector, warm and cold (see module doc)."""
     from .instances import make_problem
     from .registry import run_solver
-    from .seeding import run_seed
 
     warm: dict[str, dict[str, float | None]] = {}
     coldd: dict[str, dict[str, float | None]] = {}

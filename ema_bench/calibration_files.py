@@ -20,6 +20,8 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
+from .jsonio import write_atomic
+
 PACKAGE = Path(__file__).resolve().parent
 
 
@@ -97,17 +99,6 @@ def checkout_root(package: Path = PACKAGE) -> Path | None:
             'name = "ema-bench"' in pyproject.read_text(errors="replace"):
         return root
     return None
-
-
-def write_atomic(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary file beside it: a reader sees the old
-    file or the new one, never half of one."""
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        tmp.write_text(text)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
 
 
 def ship(source: str | os.PathLike[str], package: Path = PACKAGE) -> Path:

@@ -12,6 +12,7 @@ import json
 import math
 import os
 from collections.abc import Callable, Mapping
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -60,3 +61,15 @@ def dumps(obj: Any, *, indent: int | None = None, sort_keys: bool = False,
           default: Callable[[Any], Any] | None = None) -> str:
     """Strict JSON text of ``obj`` (see :func:`plain`)."""
     return json.dumps(plain(obj, default), indent=indent, sort_keys=sort_keys, allow_nan=False)
+
+
+def write_atomic(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` through a temporary file beside it (of this process: two
+    processes writing one file do not share it): a reader sees the old file or the new one,
+    never half of one."""
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        tmp.write_text(text)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)

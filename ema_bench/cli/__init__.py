@@ -11,7 +11,7 @@ import argparse
 import importlib
 import re
 import sys
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 
 from ..version import __version__
 
@@ -111,6 +111,17 @@ def print_json(obj: object) -> None:
     from ..jsonio import dumps
 
     sys.stdout.write(dumps(obj, indent=2) + "\n")
+
+
+def print_result(args: argparse.Namespace, obj: object, lines: Iterable[str]) -> int:
+    """A command's result: ``obj`` as JSON (:func:`print_json`) with ``--json``, else the
+    text ``lines``; returns the exit code, 0."""
+    if args.json:
+        print_json(obj)
+    else:
+        for line in lines:
+            print(line)
+    return 0
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -14,6 +14,7 @@ import numpy as np
 
 # already loaded with the package face, which every command imports
 from ..problem import MAX_BUDGET as PROBLEM_MAX_BUDGET
+from . import CLIError
 
 if TYPE_CHECKING:
     from ..traces import Traces
@@ -170,7 +171,6 @@ def load_measured_files(paths: Sequence[str], tests: Sequence[str] | None) -> Tr
     """:func:`~ema_bench.traces.load_measured` for a command line: a file holding an unnamed
     test is told to name it with ``--test``, not with the Python ``test=`` argument."""
     from ..traces import TracesError, load_measured
-    from . import CLIError
 
     try:
         return load_measured(paths, tests)
@@ -195,7 +195,6 @@ def check_output(path: str | os.PathLike[str] | None, option: str, *, folder: bo
     a read-only place, a parent that is a file, or a file suffix not in ``suffixes`` (when
     given).  ``None`` passes through.
     """
-    from . import CLIError
 
     if path is None:
         return None
@@ -231,7 +230,6 @@ def read_run_files(paths: Sequence[str]) -> list[dict]:
     line) when a file is missing, not a file, or not a file of run records."""
     from ..leaderboard.store import read_records
     from ..sweep.schema import SchemaError
-    from . import CLIError
 
     out: list[dict] = []
     for path in paths:

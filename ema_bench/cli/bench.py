@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from . import print_result
 from .args import add_json, count, seed_number
 
 
@@ -44,38 +45,32 @@ def _fmt(v: object, spec: str) -> str:
 
 def run(args: argparse.Namespace) -> int:
     from ..bench import run_bench
-    from . import CLIError, print_json
 
-    if min(args.batch, args.repeat, args.naive, args.tts_seeds) < 1:
-        raise CLIError("--batch, --repeat, --naive and --tts-seeds must be >= 1")
     show = None if args.json else (lambda msg: print(f"... {msg}", file=sys.stderr))
     r = run_bench(batch=args.batch, repeat=args.repeat, naive_evals=args.naive,
                   tts_seeds=args.tts_seeds, seed=args.seed, startup=not args.quick,
                   tts=not args.quick, progress=show)
-    if args.json:
-        print_json(r)
-        return 0
-    print(f"monitor, batched ({r['numba_threads']} threads): {r['monitor_evals_per_s']:9.0f} "
-          "evals/s")
-    print(f"monitor, one thread:        {r['monitor_evals_per_cpu_s']:9.0f} evals/CPU-s "
-          f"(lanes; scalar kernel {r['monitor_evals_per_cpu_s_scalar']:.0f}, "
-          f"{r['lanes_speedup']:.2f}x)")
-    print(f"one-candidate call:         {r['single_call_ms']:9.2f} ms "
-          f"({r['single_call_ms_loaded']:.2f} ms with every core busy)")
-    print(f"numba / C time (scalar):    {_fmt(r['c_time_ratio'], '9.2f')}"
-          f"  (numba lanes / scalar C: {_fmt(r['lanes_c_time_ratio'], '.2f')})"
-          + (f"  ({r['c_unavailable']})" if r["c_unavailable"] else ""))
-    print(f"plain Python, one thread:   {r['naive_python_evals_per_s']:9.2f} evals/CPU-s "
-          f"(numba {r['speedup_vs_naive_python']:.0f}x faster)")
-    print(f"reference episode:          {r['reference_episode_s']:9.3f} s")
-    if "import_s" in r:
-        print(f"import / cache load / cold compile: {r['import_s']:.2f} / "
-              f"{r['cache_load_s']:.2f} / {r['cold_compile_s']:.1f} s")
-    for key, label in (("time_to_success_warm_s", "warm"), ("time_to_success_cold_s", "cold")):
-        for solver, cases in r.get(key, {}).items():
-            cells = "  ".join(f"{c} {_fmt(v, '.2f')}" for c, v in cases.items())
-            print(f"time to success, {label}, {solver:<7} (s): {cells}")
     la = r["load_avg"]
-    print(f"load average: {la['before']:.2f} before, {la['max']:.2f} max, {la['after']:.2f} "
-          "after")
-    return 0
+    return print_result(args, r, [
+        f"monitor, batched ({r['numba_threads']} threads): {r['monitor_evals_per_s']:9.0f} "
+        "evals/s",
+        f"monitor, one thread:        {r['monitor_evals_per_cpu_s']:9.0f} evals/CPU-s "
+        f"(lanes; scalar kernel {r['monitor_evals_per_cpu_s_scalar']:.0f}, "
+        f"{r['lanes_speedup']:.2f}x)",
+        f"one-candidate call:         {r['single_call_ms']:9.2f} ms "
+        f"({r['single_call_ms_loaded']:.2f} ms with every core busy)",
+        f"numba / C time (scalar):    {_fmt(r['c_time_ratio'], '9.2f')}"
+        f"  (numba lanes / scalar C: {_fmt(r['lanes_c_time_ratio'], '.2f')})"
+        + (f"  ({r['c_unavailable']})" if r["c_unavailable"] else ""),
+        f"plain Python, one thread:   {r['naive_python_evals_per_s']:9.2f} evals/CPU-s "
+        f"(numba {r['speedup_vs_naive_python']:.0f}x faster)",
+        f"reference episode:          {r['reference_episode_s']:9.3f} s",
+        *([f"import / cache load / cold compile: {r['import_s']:.2f} / "
+           f"{r['cache_load_s']:.2f} / {r['cold_compile_s']:.1f} s"] if "import_s" in r else []),
+        *(f"time to success, {label}, {solver:<7} (s): "
+          + "  ".join(f"{c} {_fmt(v, '.2f')}" for c, v in cases.items())
+          for key, label in (("time_to_success_warm_s", "warm"),
+                             ("time_to_success_cold_s", "cold"))
+          for solver, cases in r.get(key, {}).items()),
+        f"load average: {la['before']:.2f} before, {la['max']:.2f} max, {la['after']:.2f} "
+        "after"])

@@ -29,10 +29,11 @@ from __future__ import annotations
 import argparse
 import sys
 
+from . import CLIError, print_result
+from .args import add_json, add_quiet, check_output, comma_list, count, seed_number, worker_count
+
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from .args import add_json, add_quiet, count, seed_number, worker_count
-
     p = sub.add_parser("blind", help="blind test of the missing-physics workflow",
                        description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -74,15 +75,13 @@ def default_out(seed: int, cases: int, extra: int = 0) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from . import CLIError
-
-    if args.cases < 0 or args.extra < 0 or args.cases + args.extra < 1 or args.workers < 1:
+    if args.cases + args.extra < 1:   # each >= 0 and --workers >= 1 by their types
         raise CLIError("--cases and --extra must be >= 0 (not both 0), --workers >= 1")
     only = None
     if args.only is not None:
         from ..diagnosis.blind import KINDS
 
-        only = [c.strip() for c in args.only.split(",") if c.strip()]
+        only = comma_list(args.only)
         unknown = [c for c in only if c not in KINDS]
         if unknown or not only:
             raise CLIError(f"--only: unknown categories {unknown}; known: {', '.join(KINDS)}")
@@ -101,8 +100,6 @@ def _run(args: argparse.Namespace, only: list[str] | None) -> int:
     from ..diagnosis.blind import run_blind
     from ..diagnosis.interval_table import source
     from ..jsonio import dumps
-    from . import print_json
-    from .args import check_output
 
     # before any work: the suite takes minutes per case
     out = check_output(args.out or default_out(args.seed, args.cases, args.extra), "--out",
@@ -114,21 +111,13 @@ def _run(args: argparse.Namespace, only: list[str] | None) -> int:
     res["summary"]["interval_calibration"] = source()
     (Path(out) / "summary.json").write_text(dumps(
         {"command": "ema-bench " + " ".join(sys.argv[1:]), **res["summary"]}, indent=1))
-    if args.json:
-        print_json(res)
-        return 0
-    for line in summary_lines(res["summary"], args.seed):
-        print(line)
-    for r in res["records"]:
-        print(case_line(r))
-    return 0
+    return print_result(args, res, summary_lines(res["summary"], args.seed)
+                        + [case_line(r) for r in res["records"]])
 
 
 def _calibrate(args: argparse.Namespace) -> int:
     from ..calibration_files import inside_package
     from ..diagnosis import interval_calibration as ic
-    from . import CLIError, print_json
-    from .args import check_output
 
     if args.seed not in (0, ic.CALIBRATION_SEED) or args.calibration or args.extra or \
             args.only:
@@ -141,13 +130,10 @@ def _calibrate(args: argparse.Namespace) -> int:
         raise CLIError(f"--out {args.out}: inside the package, whose data is read-only")
     path = check_output(args.out, "--out", folder=True) / ic.TABLE.name
     data = ic.calibrate(path, args.cases, workers=args.workers, quiet=args.quiet)
-    if args.json:
-        print_json(data)
-    else:
-        print(f"{len(data['scores'])} effect intervals of {data['effect_cases']} cases scored; "
-              f"95 % factor {data['factor_95']:.3g}; written to {path} (use it with "
-              f"--calibration {path})")
-    return 0
+    return print_result(args, data, [
+        f"{len(data['scores'])} effect intervals of {data['effect_cases']} cases scored; "
+        f"95 % factor {data['factor_95']:.3g}; written to {path} (use it with "
+        f"--calibration {path})"])
 
 
 def _pct(x: float, digits: int = 0) -> str:

@@ -17,6 +17,9 @@ from __future__ import annotations
 
 import argparse
 
+from . import CLIError, print_result
+from .args import add_json, add_quiet, check_output, count, finite, seed_number, worker_count
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("campaign", help="degradation campaigns: make, track, score (RUL)",
@@ -31,8 +34,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 # --- make (campaign drawing and files) -------------------------------------------------------
 
 def _register_make(actions: argparse._SubParsersAction) -> None:
-    from .args import add_json, add_quiet, count, seed_number
-
     p = actions.add_parser(
         "make", help="draw a campaign and write its inspection traces, manifest and truth",
         description="Draw a fleet of actuators from the named campaign's degradation laws, "
@@ -71,15 +72,8 @@ def _run_make(args: argparse.Namespace) -> int:
         make_campaign,
         prepare_folder,
     )
-    from . import CLIError, print_json
-    from .args import check_output
 
-    if args.units < 1:
-        raise CLIError(f"--units must be >= 1, got {args.units}")
-    if args.every is not None and args.every < 1:
-        raise CLIError(f"--every must be >= 1, got {args.every}")
-    if args.seed < 0:
-        raise CLIError(f"--seed must be >= 0, got {args.seed}")
+    # --units, --every and --seed are bounded by their argparse types
     try:  # before any work
         get_spec(args.name)
         out = args.out or default_out(args.name, args.track, args.split, args.seed, args.units)
@@ -95,22 +89,17 @@ def _run_make(args: argparse.Namespace) -> int:
     summary = {"path": str(c.root), "name": c.name, "split": c.split, "track": c.track,
                "seed": c.seed, "units": len(c.units), "inspections": inspections,
                "inspection_every": c.inspection_every, "seconds": seconds}
-    if args.json:
-        print_json(summary)
-        return 0
-    print(f"campaign {c.name}: {len(c.units)} {c.split} units, {c.track} track, seed {c.seed}, "
-          f"an inspection every {c.inspection_every} flights")
-    print(f"  {inspections} inspections written to {c.root}/ in {seconds:.1f} s; hidden "
-          "truth in truth.json")
-    print(f"  next: ema-bench campaign track {c.root} --tracker NAME --out DIR2")
-    return 0
+    return print_result(args, summary, [
+        f"campaign {c.name}: {len(c.units)} {c.split} units, {c.track} track, seed {c.seed}, "
+        f"an inspection every {c.inspection_every} flights",
+        f"  {inspections} inspections written to {c.root}/ in {seconds:.1f} s; hidden "
+        "truth in truth.json",
+        f"  next: ema-bench campaign track {c.root} --tracker NAME --out DIR2"])
 
 
 # --- track (trackers) ------------------------------------------------------------------------
 
 def _register_track(actions: argparse._SubParsersAction) -> None:
-    from .args import add_json, add_quiet, seed_number, worker_count
-
     p = actions.add_parser(
         "track", help="run a tracker over a campaign: fault estimates and RUL per inspection",
         description="Run a registered tracker over every unit of the campaign in DIR, "
@@ -149,27 +138,18 @@ def _run_track(args: argparse.Namespace) -> int:
         read_track,
         track_campaign,
     )
-    from . import CLIError, print_json
-    from .args import check_output
 
     if args.list:
         trackers = available_trackers()
-        if args.json:
-            print_json([{"name": t.name, "description": t.description, "config": t.config,
-                         "module": t.factory.__module__} for t in trackers.values()])
-        else:
-            width = max((len(n) for n in trackers), default=0)
-            for t in trackers.values():
-                print(f"{t.name:<{width}}  {t.description}")
-        return 0
+        width = max((len(n) for n in trackers), default=0)
+        return print_result(args, [{"name": t.name, "description": t.description,
+                                    "config": t.config, "module": t.factory.__module__}
+                                   for t in trackers.values()],
+                            [f"{t.name:<{width}}  {t.description}" for t in trackers.values()])
     missing = [o for o, v in (("DIR", args.campaign), ("--tracker", args.tracker),
                               ("--out", args.out)) if not v]
     if missing:
         raise CLIError(f"give {', '.join(missing)} (or --list)")
-    if args.seed < 0:
-        raise CLIError(f"--seed must be >= 0, got {args.seed}")
-    if args.workers < 1:
-        raise CLIError(f"--workers must be >= 1, got {args.workers}")
     try:  # before any work
         get_tracker(args.tracker)
         campaign = load_campaign(args.campaign)
@@ -191,22 +171,17 @@ def _run_track(args: argparse.Namespace) -> int:
                "steps": steps, "replaced": replaced, "failed": sorted(log.failed),
                "evaluations": sum(r["evaluations"] for rows in log.steps.values()
                                   for r in rows), "seconds": seconds}
-    if args.json:
-        print_json(summary)
-        return 0
-    print(f"tracker {args.tracker} on {campaign.name} ({campaign.root}): {len(campaign.units)} "
-          f"units, {steps} inspections tracked in {seconds:.1f} s")
-    print(f"  replacement called on {len(replaced)} unit(s); {len(log.failed)} failed"
-          + (f" ({', '.join(sorted(log.failed))})" if log.failed else ""))
-    print(f"  written to {out}/track.jsonl; next: ema-bench campaign score {out}")
-    return 0
+    return print_result(args, summary, [
+        f"tracker {args.tracker} on {campaign.name} ({campaign.root}): {len(campaign.units)} "
+        f"units, {steps} inspections tracked in {seconds:.1f} s",
+        f"  replacement called on {len(replaced)} unit(s); {len(log.failed)} failed"
+        + (f" ({', '.join(sorted(log.failed))})" if log.failed else ""),
+        f"  written to {out}/track.jsonl; next: ema-bench campaign score {out}"])
 
 
 # --- score (metrics) -------------------------------------------------------------------------
 
 def _register_score(actions: argparse._SubParsersAction) -> None:
-    from .args import add_json, finite
-
     p = actions.add_parser(
         "score", help="score tracking runs against the campaign's hidden truth",
         description="Score one or more tracking runs (DIR2 of 'ema-bench campaign track') "
@@ -247,7 +222,7 @@ def _fmt(v: float, fmt: str) -> str:
     return fmt.format(v)
 
 
-def _cell(h: dict, key: str, fmt: str) -> str:
+def _cell(h: dict, fmt: str) -> str:
     lo, hi = h["ci"]
     return f"{_fmt(h['value'], fmt)} [{_fmt(lo, fmt)}, {_fmt(hi, fmt)}]"
 
@@ -284,7 +259,7 @@ def score_table(results: list[dict]) -> list[str]:
                   f" (partial: {r['scored_units']} tracked)")
         cells = [markdown(r["tracker"]) + scored, markdown(r["track"]), str(r["units"]),
                  str(r["failing_units"])]
-        cells += [_cell(h[k], k, fmt) for k, _, fmt in _HEAD]
+        cells += [_cell(h[k], fmt) for k, _, fmt in _HEAD]
         cells += [_ratio_cell(h[k]) for k, _ in _RATIOS]
         cells += [f"{d['false_replacements']} / {d['early_replacements']}",
                   str(d["failures_in_service"]), _fmt(d["maintenance_cost"], "{:.2f}"),
@@ -298,7 +273,7 @@ def score_table(results: list[dict]) -> list[str]:
         scored = ("" if not r.get("tracked_only") else
                   f" (on the {r['scored_units']} units of {markdown(r['tracker'])})")
         cells = ["**oracle**" + scored, track, str(r["units"]), str(r["failing_units"])]
-        cells += [_cell({"value": h[k]["oracle"], "ci": h[k]["oracle_ci"]}, k, fmt)
+        cells += [_cell({"value": h[k]["oracle"], "ci": h[k]["oracle_ci"]}, fmt)
                   for k, _, fmt in _HEAD]
         cells += ["1"] * len(_RATIOS) + ["-"] * 4
         lines.append("| " + " | ".join(cells) + " |")
@@ -310,7 +285,6 @@ def _run_score(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from ..prognostics.scoring import score_tracking
-    from . import CLIError, print_json
 
     if not 0.0 < args.alpha < 1.0:
         raise CLIError("--alpha must lie in (0, 1)")
@@ -327,12 +301,7 @@ def _run_score(args: argparse.Namespace) -> int:
     lines = score_table(results)
     if args.markdown:
         Path(args.markdown).write_text("\n".join(lines) + "\n")
-    if args.json:
-        print_json(results[0] if len(results) == 1 else results)
-        return 0
-    for line in lines:
-        print(line)
-    return 0
+    return print_result(args, results[0] if len(results) == 1 else results, lines)
 
 
 def _plots(runs: list[str], results: list[dict], folder, alpha: float, truth_file=None,

@@ -28,20 +28,23 @@ from __future__ import annotations
 
 import argparse
 
+from . import CLIError, print_result
+from .args import (
+    MAX_BUDGET,
+    add_json,
+    add_quiet,
+    check_output,
+    comma_list,
+    count,
+    finite,
+    seed_number,
+    worker_count,
+)
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     from ..uncertainty.coverage import BUDGET, SOLVER
     from ..uncertainty.methods import METHODS, MODEL_FORM_MODES
-    from .args import (
-        MAX_BUDGET,
-        add_json,
-        add_quiet,
-        comma_list,
-        count,
-        finite,
-        seed_number,
-        worker_count,
-    )
 
     p = sub.add_parser("coverage", help="measure the coverage of the fault intervals",
                        description=__doc__,
@@ -82,23 +85,15 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-
-
     from ..calibration_files import inside_package, using
     from ..registry import SolverError, get_solver
     from ..uncertainty import calibration as cal
     from ..uncertainty.methods import METHODS
-    from . import CLIError
-    from .args import check_output
 
-    if args.instances < 1:
-        raise CLIError(f"--instances must be at least 1, got {args.instances}")
     if not 0.0 < args.level < 1.0:
         raise CLIError(f"--level must lie in (0, 1), got {args.level}")
     if not args.noise_scale > 0:
         raise CLIError(f"--noise-scale must be positive, got {args.noise_scale}")
-    if args.budget < 1 or args.workers < 1:
-        raise CLIError("--budget and --workers must be positive")
     try:
         get_solver(args.solver)
     except SolverError as exc:
@@ -124,7 +119,6 @@ def run(args: argparse.Namespace) -> int:
 
 def _run(args: argparse.Namespace, root: int, out) -> int:
     from ..uncertainty.coverage import Settings, run_methods
-    from . import CLIError, print_json
 
     all_settings = [Settings(track=args.track, method=m, level=args.level, solver=args.solver,
                              budget=args.budget, root_seed=root, noise_scale=args.noise_scale,
@@ -136,15 +130,10 @@ def _run(args: argparse.Namespace, root: int, out) -> int:
                            quiet=args.quiet or args.json)
     except ValueError as exc:
         raise CLIError(str(exc)) from None
-    summaries = []
-    for method, stem, records in zip(args.method, stems, runs):
-        summaries.append(_summary(records, method, stem, out, args))
-    if args.json:
-        print_json(summaries[0] if len(summaries) == 1 else summaries)
-        return 0
-    for summary in summaries:
-        _print(summary, root, args)
-    return 0
+    summaries = [_summary(records, method, stem, out, args)
+                 for method, stem, records in zip(args.method, stems, runs)]
+    return print_result(args, summaries[0] if len(summaries) == 1 else summaries,
+                        [line for s in summaries for line in _lines(s, root, args)])
 
 
 def _summary(records: list[dict], method: str, stem: str, out, args: argparse.Namespace
@@ -185,24 +174,25 @@ def _summary(records: list[dict], method: str, stem: str, out, args: argparse.Na
     return summary
 
 
-def _print(summary: dict, root: int, args: argparse.Namespace) -> None:
+def _lines(summary: dict, root: int, args: argparse.Namespace) -> list[str]:
+    """The text table of one method's summary."""
     from ..faults import FAULT_NAMES
 
     table = "" if summary["calibration"] == "none" else f" ({summary['calibration_table']})"
-    print(f"coverage of {100 * args.level:g} % {summary['method']} intervals, {args.track} "
-          f"track, {summary['instances']} seeded instances (root seed {root}; fits: "
-          f"{args.solver}, budget {args.budget}; model form: {summary['model_form']}; "
-          f"calibration: {summary['calibration']}{table})")
-    print(f"{'fault':<6} {'coverage':>9} {'95 % interval':>16} {'median width':>13} "
-          f"{'factor':>7} {'noise only':>10}")
-    for n in FAULT_NAMES:
-        lo, hi = summary["coverage_interval"][n]
-        print(f"{n:<6} {summary['coverage'][n]:9.3f} {f'[{lo:.3f}, {hi:.3f}]':>16} "
-              f"{summary['median_width'][n]:11.3f} % {summary['calibration_factor'][n]:7.3f} "
-              f"{summary['coverage_noise_only'][n]:10.3f}")
-    ev = summary["interval_evaluations"]
-    print(f"interval cost: median {ev['median']:.0f}, max {ev['max']} evaluations per fit; "
-          f"fits with a noise ratio above 1.2 (not at the optimum): {summary['misfits']}; "
-          f"no interval: {summary['errors']}")
-    if "files" in summary:
-        print(f"records, summary and plot: {', '.join(summary['files'])}")
+    ev, band = summary["interval_evaluations"], summary["coverage_interval"]
+    return [
+        f"coverage of {100 * args.level:g} % {summary['method']} intervals, {args.track} "
+        f"track, {summary['instances']} seeded instances (root seed {root}; fits: "
+        f"{args.solver}, budget {args.budget}; model form: {summary['model_form']}; "
+        f"calibration: {summary['calibration']}{table})",
+        f"{'fault':<6} {'coverage':>9} {'95 % interval':>16} {'median width':>13} "
+        f"{'factor':>7} {'noise only':>10}",
+        *(f"{n:<6} {summary['coverage'][n]:9.3f} "
+          f"{f'[{band[n][0]:.3f}, {band[n][1]:.3f}]':>16} "
+          f"{summary['median_width'][n]:11.3f} % {summary['calibration_factor'][n]:7.3f} "
+          f"{summary['coverage_noise_only'][n]:10.3f}" for n in FAULT_NAMES),
+        f"interval cost: median {ev['median']:.0f}, max {ev['max']} evaluations per fit; "
+        f"fits with a noise ratio above 1.2 (not at the optimum): {summary['misfits']}; "
+        f"no interval: {summary['errors']}",
+        *([f"records, summary and plot: {', '.join(summary['files'])}"]
+          if "files" in summary else [])]

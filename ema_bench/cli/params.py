@@ -7,6 +7,7 @@ import argparse
 from ..effects import EFFECTS
 from ..faults import CASES, FAULTS
 from ..params import EMAParams
+from . import print_result
 from .args import add_json
 
 
@@ -18,8 +19,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from . import print_json
-
     table = {
         "parameters": EMAParams.describe(),
         "faults": [vars(f) for f in FAULTS],
@@ -27,20 +26,15 @@ def run(args: argparse.Namespace) -> int:
                       "description": c.description} for n, c in CASES.items()},
         "effects": [vars(e) for e in EFFECTS],
     }
-    if args.json:
-        print_json(table)
-        return 0
-    print("Physical parameters")
-    for row in table["parameters"]:
-        print(f"  {row['name']:<20} {row['value']:<12.6g} {row['unit']:<10} {row['source']}")
-    print("\nFaults (name, unit, lower, upper, nominal)")
-    for f in FAULTS:
-        print(f"  {f.name:<6} {f.unit:<4} {f.lower:<8g} {f.upper:<8g} {f.nominal:<8g} "
-              f"{f.description}")
-    print("\nCases")
-    for n, c in CASES.items():
-        print(f"  {n:<8} {c.faults}  {c.description}")
-    print("\nEffects (off = 0)")
-    for e in EFFECTS:
-        print(f"  {e.name:<17} {e.unit:<10} [{e.lower:g}, {e.upper:g}]  {e.description}")
-    return 0
+    return print_result(args, table, [
+        "Physical parameters",
+        *(f"  {row['name']:<20} {row['value']:<12.6g} {row['unit']:<10} {row['source']}"
+          for row in table["parameters"]),
+        "\nFaults (name, unit, lower, upper, nominal)",
+        *(f"  {f.name:<6} {f.unit:<4} {f.lower:<8g} {f.upper:<8g} {f.nominal:<8g} "
+          f"{f.description}" for f in FAULTS),
+        "\nCases",
+        *(f"  {n:<8} {c.faults}  {c.description}" for n, c in CASES.items()),
+        "\nEffects (off = 0)",
+        *(f"  {e.name:<17} {e.unit:<10} [{e.lower:g}, {e.upper:g}]  {e.description}"
+          for e in EFFECTS)])

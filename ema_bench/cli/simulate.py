@@ -15,6 +15,7 @@ import time
 
 import numpy as np
 
+from . import CLIError, print_result
 from .args import (
     PLOT_SUFFIXES,
     add_effects,
@@ -103,19 +104,17 @@ def run(args: argparse.Namespace) -> int:
 
     from ..effects import effects_vector
     from ..faults import CASES, faults_to_dict, get_case
+    from ..objective import KNOWN_TESTS
     from ..plots import plot_traces
-    from ..protocol import HOLDOUT_TESTS, STANDARD_TESTS
     from ..traces import Traces
-    from . import CLIError, print_json
 
     node = run_node(args)
     effects = effects_vector(effects_of(args))
-    known = {t.name: t for t in STANDARD_TESTS + HOLDOUT_TESTS}
     names = comma_list(args.tests)
-    bad = [t for t in names if t not in known]
+    bad = [t for t in names if t not in KNOWN_TESTS]
     if bad or not names:
-        raise CLIError(f"unknown test(s) {bad}; known: {list(known)}")
-    tests = tuple(known[t] for t in names)
+        raise CLIError(f"unknown test(s) {bad}; known: {list(KNOWN_TESTS)}")
+    tests = tuple(KNOWN_TESTS[t] for t in names)
     if args.faults is not None:
         runs = {"custom": faults_of(args)}
     elif args.case == "all":
@@ -144,21 +143,14 @@ def run(args: argparse.Namespace) -> int:
     if args.plot:
         plot_traces(list(traces.values()), list(traces), args.plot,
                     title=f"{args.model} model, seed {args.seed}")
-    if args.json:
-        print_json({"model": args.model, "seed": args.seed, "runs": results})
-        return 0
-    print(f"{args.model} model, seed {args.seed}" + (", clean" if args.no_noise else ""))
-    print(f"{'case':<8} {'test':<5} {'rms err rad':>11} {'final rad':>9} {'peak w rad/s':>12} "
-          f"{'peak I A':>8} {'max |th_m tau - th_u| rad':>25} {'wall s':>7}")
-    for name, r in results.items():
-        for test in (t for t in ("step", "sine") if t in r):
-            s = r[test]
-            print(f"{name:<8} {test:<5} {s['rms_tracking_error_rad']:11.4f} "
-                  f"{s['final_position_rad']:9.4f} {s['peak_speed_rad_s']:12.1f} "
-                  f"{s['peak_current_A']:8.2f} {s['motor_minus_surface_max_rad']:25.4f} "
-                  f"{r['wall_s']:7.2f}")
-    if args.out:
-        print(f"traces written to {args.out}")
-    if args.plot:
-        print(f"plot written to {args.plot}")
-    return 0
+    return print_result(args, {"model": args.model, "seed": args.seed, "runs": results}, [
+        f"{args.model} model, seed {args.seed}" + (", clean" if args.no_noise else ""),
+        f"{'case':<8} {'test':<5} {'rms err rad':>11} {'final rad':>9} {'peak w rad/s':>12} "
+        f"{'peak I A':>8} {'max |th_m tau - th_u| rad':>25} {'wall s':>7}",
+        *(f"{name:<8} {test:<5} {r[test]['rms_tracking_error_rad']:11.4f} "
+          f"{r[test]['final_position_rad']:9.4f} {r[test]['peak_speed_rad_s']:12.1f} "
+          f"{r[test]['peak_current_A']:8.2f} {r[test]['motor_minus_surface_max_rad']:25.4f} "
+          f"{r['wall_s']:7.2f}"
+          for name, r in results.items() for test in ("step", "sine") if test in r),
+        *([f"traces written to {args.out}"] if args.out else []),
+        *([f"plot written to {args.plot}"] if args.plot else [])])

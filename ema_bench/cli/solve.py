@@ -34,6 +34,7 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 
+from . import CLIError, print_json, print_result
 from .args import (
     MAX_BUDGET,
     PLOT_SUFFIXES,
@@ -108,7 +109,6 @@ def _register_solve(sub: argparse._SubParsersAction) -> None:
 def _check_args(args: argparse.Namespace) -> None:
     from ..instances import check_settings
     from ..registry import SolverError, get_solver
-    from . import CLIError
 
     run_node(args)   # the seeds are valid
     # make_problem's own checks, before any work (the measured path has no case)
@@ -183,7 +183,6 @@ def run(args: argparse.Namespace) -> int:
     from ..faults import FAULTS
     from ..records import run_record
     from ..registry import get_solver, run_solver
-    from . import print_json
 
     t0 = time.perf_counter()
     _check_args(args)
@@ -253,7 +252,6 @@ def _intervals(problem, res, args: argparse.Namespace):
     from ..seeding import stream
     from ..uncertainty import intervals
     from ..uncertainty.local import UncertaintyError
-    from . import CLIError
 
     try:
         return intervals(problem.objective, res.x, method=args.intervals, level=args.level,
@@ -323,7 +321,6 @@ def _plot(problem, res, args: argparse.Namespace) -> None:
     from ..objective import KNOWN_TESTS, N_FAULTS
     from ..plots import plot_traces
     from ..reference import SimulationError
-    from . import CLIError
 
     tests = tuple(KNOWN_TESTS[t] for t in problem.measured.tests)
     try:
@@ -336,18 +333,13 @@ def _plot(problem, res, args: argparse.Namespace) -> None:
 
 def run_solvers(args: argparse.Namespace) -> int:
     from ..registry import available_solvers
-    from . import print_json
 
     solvers = available_solvers()
-    if args.json:
-        print_json([{"name": s.name, "description": s.description, "library": s.library,
-                     "scope": s.scope, "module": s.func.__module__}
-                    for s in solvers.values()])
-        return 0
     width = max((len(n) for n in solvers), default=4)
     lib_w = max((len(s.library) for s in solvers.values()), default=7)
     scope_w = max((len(s.scope) for s in solvers.values()), default=5)
-    for s in solvers.values():
-        print(f"{s.name:<{width}}  {s.library:<{lib_w}}  {s.scope:<{scope_w}}  "
-              f"{s.description}")
-    return 0
+    return print_result(args, [{"name": s.name, "description": s.description,
+                                "library": s.library, "scope": s.scope,
+                                "module": s.func.__module__} for s in solvers.values()],
+                        [f"{s.name:<{width}}  {s.library:<{lib_w}}  {s.scope:<{scope_w}}  "
+                         f"{s.description}" for s in solvers.values()])

@@ -44,7 +44,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -475,8 +475,3 @@ def as_dict(f: Acquisition) -> dict[str, Any]:
     if "freq" in f.detail:
         d["freq"] = f.detail["freq"]
     return d
-
-
-def with_value(f: Acquisition, value: float) -> Acquisition:
-    """``f`` at another value (its detail kept)."""
-    return replace(f, value=float(value))

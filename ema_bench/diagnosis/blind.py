@@ -179,26 +179,25 @@ def _magnitude(rng: np.random.Generator, name: str, lo: float, hi: float) -> flo
     return value
 
 
+def _perm(rng: np.random.Generator, items: Sequence) -> list:
+    """``items`` in a random order of ``rng``."""
+    return [items[i] for i in rng.permutation(len(items))]
+
+
 def _orders(rng: np.random.Generator) -> dict[str, list[tuple[str, ...]]]:
     """The order each category cycles its effects (or decoys) in."""
-    def perm(items: Sequence) -> list:
-        return [items[i] for i in rng.permutation(len(items))]
-
-    return {"single": [(n,) for n in perm(DRAWABLE)],
-            "near_threshold": [(n,) for n in perm(DRAWABLE)],
-            "two_effect": perm(PAIRS),
+    return {"single": [(n,) for n in _perm(rng, DRAWABLE)],
+            "near_threshold": [(n,) for n in _perm(rng, DRAWABLE)],
+            "two_effect": _perm(rng, PAIRS),
             "physical_decoy": [(n,) for n in DECOYS],
-            "acquisition_decoy": [(n,) for n in perm(ACQUISITION)]}
+            "acquisition_decoy": [(n,) for n in _perm(rng, ACQUISITION)]}
 
 
 def _extra_orders(rng: np.random.Generator) -> dict[str, list[tuple[str, ...]]]:
     """The order the third round's categories cycle their effects and faults in."""
-    def perm(items: Sequence) -> list:
-        return [items[i] for i in rng.permutation(len(items))]
-
-    return {"effect_acquisition": [(n,) for n in perm(DRAWABLE)],
-            "three_effect": perm(TRIPLES),
-            "effect_acquisition_fault": [(n,) for n in perm(ACQUISITION_LIBRARY)]}
+    return {"effect_acquisition": [(n,) for n in _perm(rng, DRAWABLE)],
+            "three_effect": _perm(rng, TRIPLES),
+            "effect_acquisition_fault": [(n,) for n in _perm(rng, ACQUISITION_LIBRARY)]}
 
 
 def draw_cases(n: int, seed: int, extra: int = 0) -> list[BlindCase]:

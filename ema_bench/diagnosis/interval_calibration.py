@@ -28,7 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..calibration_files import inside_package, write_atomic
+from ..calibration_files import inside_package
+from ..jsonio import write_atomic
 from ..objective import N_FAULTS
 from ..seeding import run_seed, stream
 from ..uncertainty.calibration import conformal_quantile, score

@@ -128,14 +128,13 @@ def write_report(d: Diagnosis, measured: Traces, out: str | Path, source: str = 
     for t in measured.tests:
         lines.append(f"| {t}{' (held out)' if t in HOLDOUT else ''} | " + " | ".join(
             f"{n0[t][s]:.2e} -> {n1[t][s]:.2e}" for s in SIGNALS) + " |")
-    if d.flagged:
-        lines += ["", "## Residual statistics outside the bootstrap envelopes (base fit)", "",
-                  "| statistic | value | robust z |", "|---|---:|---:|"]
-        lines += [f"| {n} | {v:.3g} | {z:.1f} |" for n, v, z in d.flagged[:15]]
-    if d.flagged_after:
-        lines += ["", "## Still outside the envelopes with the named effects (why partial)", "",
-                  "| statistic | value | robust z |", "|---|---:|---:|"]
-        lines += [f"| {n} | {v:.3g} | {z:.1f} |" for n, v, z in d.flagged_after[:15]]
+    for title, flagged in (
+            ("Residual statistics outside the bootstrap envelopes (base fit)", d.flagged),
+            ("Still outside the envelopes with the named effects (why partial)",
+             d.flagged_after)):
+        if flagged:
+            lines += ["", f"## {title}", "", "| statistic | value | robust z |", "|---|---:|---:|"]
+            lines += [f"| {n} | {v:.3g} | {z:.1f} |" for n, v, z in flagged[:15]]
     if d.screening:
         lines += ["", "## Screening (chi-square scale: linearised score of the effects, "
                   "sum-of-squares drop of the acquisition faults)", "",

@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 import os
 import re
 import shutil
@@ -499,14 +498,11 @@ def load_campaign(path: Path | str, traces: bool = True) -> Campaign:
     mpath = root / "manifest.json"
     doc = _read_json(mpath, FORMAT, "manifest")
     where = str(mpath)
-    name = _need(doc, "name", str, where)
-    track = _need(doc, "track", str, where)
-    split = _need(doc, "split", str, where)
-    seed = _need(doc, "seed", int, where)
-    every = _need(doc, "inspection_every", int, where)
-    thresholds = _need(doc, "thresholds", dict, where)
-    laws = _need(doc, "laws", dict, where)
-    tests = _need(doc, "tests", list, where)
+    # the settings, each checked in this order (the first missing or mistyped one is named)
+    name, track, split, seed, every, thresholds, laws, tests = (
+        _need(doc, key, kind, where) for key, kind in (
+            ("name", str), ("track", str), ("split", str), ("seed", int),
+            ("inspection_every", int), ("thresholds", dict), ("laws", dict), ("tests", list)))
     if track not in TRACKS or split not in SPLITS or every < 1:
         raise CampaignError(f"{where}: bad track, split or inspection_every "
                             f"({track!r}, {split!r}, {every!r})")
@@ -599,13 +595,3 @@ def load_truth(path: Path | str, campaign: Campaign | None = None) -> dict[str, 
     (keys are flights as strings), ``faults_after`` (the future at the inspection spacing,
     before EOL), ``faults_at_eol`` and the unit's law ``params``."""
     return read_truth(path, campaign)["units"]
-
-
-def life_summary(truth: dict[str, dict]) -> dict:
-    """Fleet life figures from a truth: EOL quartiles (flights) and failing-fault shares."""
-    eols = [t["eol"] for t in truth.values() if t["eol"] is not None]
-    faults = [t["failing_fault"] for t in truth.values() if t["failing_fault"]]
-    q = np.percentile(eols, [25, 50, 75]).tolist() if eols else [math.nan] * 3
-    return {"units": len(truth), "failing": len(eols), "eol_quartiles": q,
-            "failing_fault": {n: faults.count(n) for n in THRESHOLDS},
-            "inspections": sum(len(t["faults"]) for t in truth.values())}

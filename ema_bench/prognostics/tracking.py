@@ -41,7 +41,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..faults import FAULT_NAMES
-from ..jsonio import plain
+from ..jsonio import plain, write_atomic
 from ..plugins import PluginRegistry
 from ..seeding import run_seed, stream
 from ..sweep.executors import Job
@@ -394,10 +394,8 @@ def _prepare(out: Path, manifest: dict) -> None:
     if (out / TRACK_FILE).exists():
         raise TrackerError(f"{out}: has a {TRACK_FILE} but no {MANIFEST_FILE}; give another "
                            "output folder")
-    # a temporary file of this process's own: two runs starting on one folder both write
-    tmp = mpath.with_name(f"{mpath.name}.{os.getpid()}.tmp")
-    tmp.write_text(json.dumps(manifest, indent=1) + "\n")
-    os.replace(tmp, mpath)
+    # two runs starting on one folder both write it: each through a file of its own
+    write_atomic(mpath, json.dumps(manifest, indent=1) + "\n")
 
 
 def track_unit(campaign: Campaign, info: TrackerInfo, unit: str, seed: np.random.SeedSequence,

@@ -276,7 +276,8 @@ def write_calibration(runs: Mapping[str, Sequence[Mapping]], path: Path) -> dict
     from calibration runs (key ``kind|method|model_form`` -> records), keeping the entries of
     other keys already in that file.  Never the shipped table: ValueError for a path inside
     the package (:mod:`ema_bench.calibration_files` ships a table, in a checkout)."""
-    from ..calibration_files import inside_package, write_atomic
+    from ..calibration_files import inside_package
+    from ..jsonio import write_atomic
 
     if inside_package(path):
         raise ValueError(f"{path}: inside the package, whose data is read-only; write the "
