@@ -35,7 +35,13 @@ from .effects import EFFECT_INDEX, MAX_DELAY_SAMPLES
 from .faults import F_GPROP
 from .monitor_plant import monitor_consts
 from .physics.ace import CtrlConsts, ace_consts, ace_update
-from .physics.averaged_drive import drive_fast, drive_step_general, sector_consts, sector_index
+from .physics.averaged_drive import (
+    _kt_at,
+    drive_fast,
+    drive_step_general,
+    sector_consts,
+    sector_index,
+)
 from .physics.effect_terms import cogging_torque, sensor_terms
 from .physics.mechanics import MechConsts, mech_fast, mech_step_general
 
@@ -56,12 +62,12 @@ LANE_EFFECT_INDEX = np.array([EFFECT_INDEX[n] for n in LANE_EFFECTS], dtype=np.i
 (_O_THM, _O_WM, _O_THU, _O_WU, _O_CUR, _O_TRT0, _O_TRLEN, _O_KTF, _O_KTT, _O_TRCR, _O_INTEG,
  _O_THLO, _O_KT, _O_RP, _O_IL, _O_HALF, _O_FDYN, _O_KPOS, _O_IREF, _O_TM, _O_TM0, _O_TM1,
  _O_TRIP, _O_IEQ, _O_DSLOW, _O_MSLOW, _O_A0, _O_A1, _O_A2, _O_A3, _O_OFF, _O_GAIN, _O_FB,
- _O_ECC, _O_COG, _O_TCOG,
+ _O_ECC, _O_KTE, _O_KTM, _O_COG, _O_TCOG,
  # the mechanics' constants that the plant effects (viscous friction, aero spring, gear
  # stiffness) change: mech_fast reads them per lane
  _O_K, _O_CM, _O_KA, _O_GH, _O_BC, _O_I11, _O_I12, _O_I22, _O_I11H, _O_I12H, _O_IMF,
  _O_IMFH, _O_IUF,
- _N_BLOCKS) = [LANES * i for i in range(50)]
+ _N_BLOCKS) = [LANES * i for i in range(52)]
 
 
 @njit(cache=True, error_model="numpy")
@@ -112,6 +118,7 @@ def lane_group(p, X, E, idx, cmd, cmd_start, n_out, out_start, ticks_out, steps_
     cogged = False
     mech_own = False   # some lane's mechanics constants differ from lane 0's
     plant = False      # some lane has cogging or eccentricity
+    eccentric = False  # some lane has eccentricity
     for q in range(LANES):
         mc = mcs[q]
         F[_O_HALF + q] = mc.half
@@ -122,9 +129,8 @@ def lane_group(p, X, E, idx, cmd, cmd_start, n_out, out_start, ticks_out, steps_
                      (_O_IMFH, mc.i_m_free_h), (_O_IUF, mc.i_u_free)):
             F[o + q] = v
             mech_own |= v != F[o]
-        # an eccentric lane's drive takes the general path at every step, as the scalar
-        # kernel's drive_step does
         F[_O_ECC + q] = 0.0 if dcs[q].zeta == 0.0 else 1.0
+        eccentric |= dcs[q].zeta != 0.0
         cogged |= F[_O_COG + q] != 0.0
         plant |= F[_O_COG + q] != 0.0 or dcs[q].zeta != 0.0
         F[_O_KPOS + q] = cc0.k_pos if q == 0 else ace_consts(p, X[idx[q], F_GPROP]).k_pos
@@ -156,8 +162,8 @@ def lane_group(p, X, E, idx, cmd, cmd_start, n_out, out_start, ticks_out, steps_
                 c = cmd[k_ctrl]
                 k_ctrl += 1
                 for j in range(steps_tick):
-                    _step(F, M, dc0, mc0, cc0, dcs, mcs, h, c, j == 0, cogged, plant,
-                          mech_own)
+                    _step(F, M, dc0, mc0, cc0, dcs, mcs, h, c, j == 0, cogged, eccentric,
+                          plant, mech_own)
             row = out_start[t] + k
             for q in range(LANES):
                 a0, a1, a2, a3 = F[_O_A0 + q], F[_O_A1 + q], F[_O_A2 + q], F[_O_A3 + q]
@@ -194,11 +200,11 @@ def _delay_lines(F, buf, k, delay, d0, frac):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _step(F, M, dc0, mc0, cc0, dcs, mcs, h, c, tick, cogged, plant, mech_own):
+def _step(F, M, dc0, mc0, cc0, dcs, mcs, h, c, tick, cogged, eccentric, plant, mech_own):
     """One plant step of every lane, the monitor's ``monitor_step`` (with the decoys, the
     resistance rise and the voltage sag off), after the controller sample under command
-    ``c`` (rad) if ``tick``; ``cogged``: some lane has cogging; ``plant``: some lane has
-    cogging or eccentricity; ``mech_own``: some lane's mechanics constants are not lane 0's
+    ``c`` (rad) if ``tick``; ``cogged``, ``eccentric``: some lane has cogging, eccentricity;
+    ``plant``: either; ``mech_own``: some lane's mechanics constants are not lane 0's
     (a plant effect).  Groups without those take the loops with lane 0's constants.  (The
     controller shares the drive's loop: on its own, its loop is short enough that the
     compiler unrolls it before it could vectorise it.)"""
@@ -206,6 +212,13 @@ def _step(F, M, dc0, mc0, cc0, dcs, mcs, h, c, tick, cogged, plant, mech_own):
         for q in range(LANES):
             F[_O_TCOG + q] = cogging_torque(F[_O_COG + q],
                                             F[_O_THM + q] + 0.5 * h * F[_O_WM + q], dc0.pp)
+    if eccentric:   # lane by lane: the torque constants at the step start and mid-step
+        for q in range(LANES):
+            if F[_O_ECC + q] != 0.0:
+                dc = dcs[q]
+                sec = M[q] % 6   # stale if the rotor left the sector: the step is not fast
+                F[_O_KTE + q] = _kt_at(sec, F[_O_THM + q], dc)
+                F[_O_KTM + q] = _kt_at(sec, F[_O_THM + q] + 0.5 * h * F[_O_WM + q], dc)
     if plant:   # vectorised: controller and the drive inside one sector
         for q in range(LANES):
             _drive_fast_lane(F, q, dc0, cc0, h, c, tick, True)
@@ -261,9 +274,11 @@ def _step(F, M, dc0, mc0, cc0, dcs, mcs, h, c, tick, cogged, plant, mech_own):
 @njit(cache=True, inline="always", error_model="numpy")
 def _drive_fast_lane(F, q, dc0, cc0, h, c, tick, plant):
     """Lane ``q``'s controller sample (if ``tick``) and drive step inside one sector
-    (:func:`drive_fast`); a lane whose step is not such a step, or (``plant``) whose rotor is
-    eccentric, is marked for :func:`drive_step_general`.  ``plant``: add the lane's cogging
-    torque (0.0 without cogging, as the scalar kernel adds it)."""
+    (:func:`drive_fast`); a lane whose step is not such a step is marked for
+    :func:`drive_step_general`.  ``plant``: an eccentric lane takes its torque constants
+    from ``_O_KTE``, ``_O_KTM``, every lane adds its cogging torque (0.0 without cogging, as
+    the scalar kernel adds it), and the current ramp is the scalar kernel's own
+    (``one_division`` False: drive_step_general's arithmetic, for eccentric lanes)."""
     if tick:
         cc = CtrlConsts(F[_O_KPOS + q], cc0.w_max, cc0.kpv, cc0.kiv, cc0.t_max, cc0.dtc,
                         cc0.amps_per_nm)
@@ -272,13 +287,17 @@ def _drive_fast_lane(F, q, dc0, cc0, h, c, tick, plant):
         F[_O_INTEG + q] = integ
     else:
         i_ref = F[_O_IREF + q]
-    fast, cur1, t_mean, t_start, t_end, t_rip, i_eq = drive_fast(
-        F[_O_CUR + q], F[_O_TRT0 + q], F[_O_TRLEN + q], F[_O_THLO + q], F[_O_KT + q],
-        F[_O_RP + q], F[_O_IL + q], i_ref, F[_O_THM + q], F[_O_WM + q], dc0, True)
+    kt = F[_O_KT + q]
+    kt_mid = kt
     t_cog = 0.0
     if plant:
-        fast &= F[_O_ECC + q] == 0.0
+        ecc = F[_O_ECC + q] != 0.0
+        kt = F[_O_KTE + q] if ecc else kt
+        kt_mid = F[_O_KTM + q] if ecc else kt
         t_cog = F[_O_TCOG + q]
+    fast, cur1, t_mean, t_start, t_end, t_rip, i_eq = drive_fast(
+        F[_O_CUR + q], F[_O_TRT0 + q], F[_O_TRLEN + q], F[_O_THLO + q], kt, kt_mid,
+        F[_O_RP + q], F[_O_IL + q], i_ref, F[_O_THM + q], F[_O_WM + q], dc0, not plant)
     F[_O_DSLOW + q] = 0.0 if fast else 1.0
     F[_O_CUR + q] = cur1 if fast else F[_O_CUR + q]
     F[_O_TRT0 + q] = F[_O_TRT0 + q] - h if fast else F[_O_TRT0 + q]

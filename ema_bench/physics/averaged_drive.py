@@ -184,7 +184,7 @@ def drive_step(cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr, i_ref, th_m, w_m, d
     if dc.zeta == 0.0:
         th_lo, kt, r_pair, il = sector_consts(m, dc)
         fast, cur1, t_mean, t_start, t_end, t_rip, i_eq = drive_fast(
-            cur, tr_t0, tr_len, th_lo, kt, r_pair, il, i_ref, th_m, w_m, dc, False)
+            cur, tr_t0, tr_len, th_lo, kt, kt, r_pair, il, i_ref, th_m, w_m, dc, False)
         if fast:
             return (cur1, m, tr_t0 - dc.h, tr_len, kt_from, kt_to, tr_cr, t_mean, t_start,
                     t_end, t_rip, i_eq)
@@ -204,11 +204,16 @@ def sector_consts(m, dc):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def drive_fast(cur, tr_t0, tr_len, th_lo, kt, r_pair, il, i_ref, th_m, w_m, dc,
+def drive_fast(cur, tr_t0, tr_len, th_lo, kt, kt_mid, r_pair, il, i_ref, th_m, w_m, dc,
                one_division):
     """The short path of :func:`drive_step`: a step inside one sector (lower boundary ``th_lo``,
-    pair constants ``kt``, ``r_pair``, ``il``) with no commutation in progress and no
-    eccentricity.
+    pair constants ``kt``, ``r_pair``, ``il``) with no commutation in progress.
+
+    ``kt`` is the pair's torque constant at the step start (back-EMF, start torque) and
+    ``kt_mid`` at mid-step (mean and end torque, ripple): the same constant without
+    eccentricity; with it, :func:`_kt_at` at ``th_m`` and at ``th_m + 0.5 h w_m``, as
+    :func:`drive_step_general` takes them (the lanes use that; :func:`drive_step` sends an
+    eccentric rotor to the general path).
 
     Returns ``fast`` (whether the step is such a step; the other values hold only then), the
     end current and the step's torques and equivalent current as :func:`drive_step`.  Free of
@@ -224,7 +229,8 @@ def drive_fast(cur, tr_t0, tr_len, th_lo, kt, r_pair, il, i_ref, th_m, w_m, dc,
     cur1, f, i_mean, i_eq = _ramp(cur, i_ref, kt * w_m + r_pair * cur, il, dc.v_dc, h,
                                   one_division)
     kf = dc.ktf * kt
-    return fast, cur1, kf * i_mean, kf * cur, kf * cur1, abs(kf) * dc.half_band, i_eq
+    km = dc.ktf * kt_mid
+    return fast, cur1, km * i_mean, kf * cur, km * cur1, abs(km) * dc.half_band, i_eq
 
 
 @njit(cache=True, error_model="numpy")
