@@ -16,12 +16,20 @@ array at fixed offsets (``_O_*``).  With it the compiler proves the lanes indepe
 vectorises; with one array per quantity it needs a runtime alias check per pair of arrays,
 gives up beyond a handful and the loop stays scalar (``benchmarks/vectorisation_probe.py``).
 
-Candidates whose only effects are the sensor and controller ones (:data:`LANE_EFFECTS`: the
-position-sensor offset, the current-channel gain and the feedback delay, which act outside the
-plant) take the lanes: the offset and gain per lane in the vector loops, the delay's ring
-buffer lane by lane once per controller sample.  Effects on the plant (eccentricity, cogging,
-friction, springs, the decoys) change constants the vector loops share between lanes, so
-:mod:`ema_bench.monitor` routes those candidates to the scalar kernel.
+Effects (:data:`LANE_EFFECTS`, every effect of suite emafdi-v2's tiers) ride in the lanes,
+bit-identical too.  The sensor and controller ones (position-sensor offset, current-channel
+gain, feedback delay): the offset and gain per lane in the vector loops, the delay's ring
+buffer lane by lane once per controller sample.  The plant ones: viscous friction, the aero
+spring and the gear stiffness change the mechanics' constants, which a group that carries
+them reads per lane (``_O_K`` .. ``_O_IUF``; a group without reads lane 0's, 13 loads fewer);
+cogging's torque and an eccentric rotor's torque constants at the step start and mid-step
+(libm's ``sin`` and ``cos``, the scalar kernel's very calls) are computed lane by lane before
+the drive's vector loop, which then takes them, and the current ramp's arithmetic is then the
+scalar kernel's own (``one_division`` False).  Those five libm calls per step are what a
+tier-12 candidate costs beyond a tier-4 one (about 10 ns each; ``benchmarks/tier_cost.py``).
+The resistance rise, the voltage sag (constants :func:`drive_fast` takes from lane 0) and the
+decoys (a hinge moment the lanes do not compute) send their candidate to the scalar kernel
+(:mod:`ema_bench.monitor`).
 """
 
 from __future__ import annotations
@@ -46,7 +54,7 @@ from .physics.effect_terms import cogging_torque, sensor_terms
 from .physics.mechanics import MechConsts, mech_fast, mech_step_general
 
 LANES = 8   # candidates per group: two AVX2 vectors of doubles, one AVX-512 vector
-#: Effects a lane can carry: they act on the sensors and the controller, not the plant.
+#: Effects a lane can carry (the others send a candidate to the scalar kernel).
 LANE_EFFECTS: tuple[str, ...] = ("sensor_offset", "current_gain", "delay", "eccentricity",
                                   "viscous_friction", "aero_spring", "cogging",
                                   "gear_stiffness")
@@ -208,7 +216,7 @@ def _step(F, M, dc0, mc0, cc0, dcs, mcs, h, c, tick, cogged, eccentric, plant, m
     (a plant effect).  Groups without those take the loops with lane 0's constants.  (The
     controller shares the drive's loop: on its own, its loop is short enough that the
     compiler unrolls it before it could vectorise it.)"""
-    if cogged:   # lane by lane (a call to sin would keep the drive's loop scalar)
+    if cogged:   # lane by lane: libm's sin, as the scalar kernel calls it
         for q in range(LANES):
             F[_O_TCOG + q] = cogging_torque(F[_O_COG + q],
                                             F[_O_THM + q] + 0.5 * h * F[_O_WM + q], dc0.pp)
