@@ -20,13 +20,12 @@ Effects (:data:`LANE_EFFECTS`, every effect of suite emafdi-v2's tiers) ride in 
 bit-identical too.  The sensor and controller ones (position-sensor offset, current-channel
 gain, feedback delay): the offset and gain per lane in the vector loops, the delay's ring
 buffer lane by lane once per controller sample.  The plant ones: viscous friction, the aero
-spring and the gear stiffness change the mechanics' constants, which a group that carries
-them reads per lane (``_O_K`` .. ``_O_IUF``; a group without reads lane 0's, 13 loads fewer);
-cogging's torque and an eccentric rotor's torque constants at the step start and mid-step
-(libm's ``sin`` and ``cos``, the scalar kernel's very calls) are computed lane by lane before
-the drive's vector loop, which then takes them, and the current ramp's arithmetic is then the
-scalar kernel's own (``one_division`` False).  Those five libm calls per step are what a
-tier-12 candidate costs beyond a tier-4 one (about 10 ns each; ``benchmarks/tier_cost.py``).
+spring and the gear stiffness change the mechanics' constants, which every lane reads from
+its own blocks (``_O_K`` .. ``_O_IUF``); cogging's torque and an eccentric rotor's torque
+constants at the step start and mid-step (libm's ``sin`` and ``cos``, the scalar kernel's very
+calls) are computed lane by lane before the drive's vector loop, which then takes them.  Those
+five libm calls per step are most of what a tier-12 candidate costs beyond a tier-4 one
+(about 10 ns each; ``benchmarks/tier_cost.py``).
 The resistance rise, the voltage sag (constants :func:`drive_fast` takes from lane 0) and the
 decoys (a hinge moment the lanes do not compute) send their candidate to the scalar kernel
 (:mod:`ema_bench.monitor`).
@@ -124,9 +123,7 @@ def lane_group(p, X, E, idx, cmd, cmd_start, n_out, out_start, ticks_out, steps_
     buf = np.zeros((_DBUF, LANES))         # the lanes' delay lines, one column each
     delayed = False
     cogged = False
-    mech_own = False   # some lane's mechanics constants differ from lane 0's
-    plant = False      # some lane has cogging or eccentricity
-    eccentric = False  # some lane has eccentricity
+    eccentric = False
     for q in range(LANES):
         mc = mcs[q]
         F[_O_HALF + q] = mc.half
@@ -136,11 +133,9 @@ def lane_group(p, X, E, idx, cmd, cmd_start, n_out, out_start, ticks_out, steps_
                      (_O_I11H, mc.i11h), (_O_I12H, mc.i12h), (_O_IMF, mc.i_m_free),
                      (_O_IMFH, mc.i_m_free_h), (_O_IUF, mc.i_u_free)):
             F[o + q] = v
-            mech_own |= v != F[o]
         F[_O_ECC + q] = 0.0 if dcs[q].zeta == 0.0 else 1.0
         eccentric |= dcs[q].zeta != 0.0
         cogged |= F[_O_COG + q] != 0.0
-        plant |= F[_O_COG + q] != 0.0 or dcs[q].zeta != 0.0
         F[_O_KPOS + q] = cc0.k_pos if q == 0 else ace_consts(p, X[idx[q], F_GPROP]).k_pos
         offset, gain, d = sensor_terms(E[idx[q]], p)
         F[_O_OFF + q] = offset
@@ -170,8 +165,7 @@ def lane_group(p, X, E, idx, cmd, cmd_start, n_out, out_start, ticks_out, steps_
                 c = cmd[k_ctrl]
                 k_ctrl += 1
                 for j in range(steps_tick):
-                    _step(F, M, dc0, mc0, cc0, dcs, mcs, h, c, j == 0, cogged, eccentric,
-                          plant, mech_own)
+                    _step(F, M, dc0, mc0, cc0, dcs, mcs, h, c, j == 0, cogged, eccentric)
             row = out_start[t] + k
             for q in range(LANES):
                 a0, a1, a2, a3 = F[_O_A0 + q], F[_O_A1 + q], F[_O_A2 + q], F[_O_A3 + q]
@@ -208,13 +202,11 @@ def _delay_lines(F, buf, k, delay, d0, frac):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _step(F, M, dc0, mc0, cc0, dcs, mcs, h, c, tick, cogged, eccentric, plant, mech_own):
+def _step(F, M, dc0, mc0, cc0, dcs, mcs, h, c, tick, cogged, eccentric):
     """One plant step of every lane, the monitor's ``monitor_step`` (with the decoys, the
     resistance rise and the voltage sag off), after the controller sample under command
-    ``c`` (rad) if ``tick``; ``cogged``, ``eccentric``: some lane has cogging, eccentricity;
-    ``plant``: either; ``mech_own``: some lane's mechanics constants are not lane 0's
-    (a plant effect).  Groups without those take the loops with lane 0's constants.  (The
-    controller shares the drive's loop: on its own, its loop is short enough that the
+    ``c`` (rad) if ``tick``; ``cogged``, ``eccentric``: some lane has cogging, eccentricity.
+    (The controller shares the drive's loop: on its own, its loop is short enough that the
     compiler unrolls it before it could vectorise it.)"""
     if cogged:   # lane by lane: libm's sin, as the scalar kernel calls it
         for q in range(LANES):
@@ -227,12 +219,8 @@ def _step(F, M, dc0, mc0, cc0, dcs, mcs, h, c, tick, cogged, eccentric, plant, m
                 sec = M[q] % 6   # stale if the rotor left the sector: the step is not fast
                 F[_O_KTE + q] = _kt_at(sec, F[_O_THM + q], dc)
                 F[_O_KTM + q] = _kt_at(sec, F[_O_THM + q] + 0.5 * h * F[_O_WM + q], dc)
-    if plant:   # vectorised: controller and the drive inside one sector
-        for q in range(LANES):
-            _drive_fast_lane(F, q, dc0, cc0, h, c, tick, True)
-    else:       # the same without eccentricity and cogging (fewer loads: faster)
-        for q in range(LANES):
-            _drive_fast_lane(F, q, dc0, cc0, h, c, tick, False)
+    for q in range(LANES):   # vectorised: controller and the drive inside one sector
+        _drive_fast_lane(F, q, dc0, cc0, h, c, tick)
     for q in range(LANES):   # the rest of the drive, lane by lane
         if F[_O_DSLOW + q] != 0.0:
             dc = dcs[q]
@@ -258,12 +246,8 @@ def _step(F, M, dc0, mc0, cc0, dcs, mcs, h, c, tick, cogged, eccentric, plant, m
             F[_O_KT + q] = kt
             F[_O_RP + q] = rp
             F[_O_IL + q] = il
-    if mech_own:   # vectorised: the sliding mechanics, each lane its own constants
-        for q in range(LANES):
-            _mech_fast_lane(F, q, _lane_mech_consts(F, q, mc0))
-    else:          # the same with lane 0's (fewer loads: 15 % faster)
-        for q in range(LANES):
-            _mech_fast_lane(F, q, mc0)
+    for q in range(LANES):   # vectorised: the sliding mechanics
+        _mech_fast_lane(F, q, _lane_mech_consts(F, q, mc0))
     for q in range(LANES):   # the rest of the mechanics, lane by lane
         if F[_O_MSLOW + q] != 0.0:
             th_m, w_m, th_u, w_u, m_thm, m_wm, m_thu = mech_step_general(
@@ -280,13 +264,15 @@ def _step(F, M, dc0, mc0, cc0, dcs, mcs, h, c, tick, cogged, eccentric, plant, m
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _drive_fast_lane(F, q, dc0, cc0, h, c, tick, plant):
+def _drive_fast_lane(F, q, dc0, cc0, h, c, tick):
     """Lane ``q``'s controller sample (if ``tick``) and drive step inside one sector
-    (:func:`drive_fast`); a lane whose step is not such a step is marked for
-    :func:`drive_step_general`.  ``plant``: an eccentric lane takes its torque constants
-    from ``_O_KTE``, ``_O_KTM``, every lane adds its cogging torque (0.0 without cogging, as
-    the scalar kernel adds it), and the current ramp is the scalar kernel's own
-    (``one_division`` False: drive_step_general's arithmetic, for eccentric lanes)."""
+    (:func:`drive_fast`, an eccentric lane with its torque constants from ``_O_KTE`` and
+    ``_O_KTM``, plus the lane's cogging torque, 0.0 without cogging as in the scalar kernel);
+    a lane whose step is not such a step is marked for :func:`drive_step_general`.
+
+    The ramp divides once (``one_division``): the scalar kernel's bits while the bus voltage
+    exceeds the pair's back-EMF and resistive drop; a step where it does not (not reached
+    inside the bounds) is marked too, so the general path computes it the scalar way."""
     if tick:
         cc = CtrlConsts(F[_O_KPOS + q], cc0.w_max, cc0.kpv, cc0.kiv, cc0.t_max, cc0.dtc,
                         cc0.amps_per_nm)
@@ -295,21 +281,20 @@ def _drive_fast_lane(F, q, dc0, cc0, h, c, tick, plant):
         F[_O_INTEG + q] = integ
     else:
         i_ref = F[_O_IREF + q]
-    kt = F[_O_KT + q]
-    kt_mid = kt
-    t_cog = 0.0
-    if plant:
-        ecc = F[_O_ECC + q] != 0.0
-        kt = F[_O_KTE + q] if ecc else kt
-        kt_mid = F[_O_KTM + q] if ecc else kt
-        t_cog = F[_O_TCOG + q]
+    ecc = F[_O_ECC + q] != 0.0
+    kt = F[_O_KTE + q] if ecc else F[_O_KT + q]
+    kt_mid = F[_O_KTM + q] if ecc else kt
+    cur = F[_O_CUR + q]
     fast, cur1, t_mean, t_start, t_end, t_rip, i_eq = drive_fast(
-        F[_O_CUR + q], F[_O_TRT0 + q], F[_O_TRLEN + q], F[_O_THLO + q], kt, kt_mid,
-        F[_O_RP + q], F[_O_IL + q], i_ref, F[_O_THM + q], F[_O_WM + q], dc0, not plant)
+        cur, F[_O_TRT0 + q], F[_O_TRLEN + q], F[_O_THLO + q], kt, kt_mid, F[_O_RP + q],
+        F[_O_IL + q], i_ref, F[_O_THM + q], F[_O_WM + q], dc0, True)
+    back = kt * F[_O_WM + q] + F[_O_RP + q] * cur   # as drive_fast computes it
+    fast &= (back < dc0.v_dc) & (-dc0.v_dc < back)
+    t_cog = F[_O_TCOG + q]
     F[_O_DSLOW + q] = 0.0 if fast else 1.0
-    F[_O_CUR + q] = cur1 if fast else F[_O_CUR + q]
+    F[_O_CUR + q] = cur1 if fast else cur
     F[_O_TRT0 + q] = F[_O_TRT0 + q] - h if fast else F[_O_TRT0 + q]
-    F[_O_TM + q] = t_mean + t_cog   # + 0.0 without cogging, as monitor_step
+    F[_O_TM + q] = t_mean + t_cog
     F[_O_TM0 + q] = t_start + t_cog
     F[_O_TM1 + q] = t_end + t_cog
     F[_O_TRIP + q] = t_rip
@@ -319,7 +304,9 @@ def _drive_fast_lane(F, q, dc0, cc0, h, c, tick, plant):
 @njit(cache=True, inline="always", error_model="numpy")
 def _lane_mech_consts(F, q, mc0):
     """Lane ``q``'s mechanics constants: lane 0's where no fault or lane effect changes them,
-    the lane's own from ``F`` where one does (what :func:`mech_fast` reads)."""
+    the lane's own from ``F`` where one does (what :func:`mech_fast` reads; reading them
+    per lane costs a tier-4 group nothing measurable, and one loop compiles faster than
+    two)."""
     return MechConsts(mc0.tau, mc0.jm, mc0.ju, F[_O_K + q], mc0.c, F[_O_CM + q], F[_O_KA + q],
                       mc0.cu, mc0.fst, F[_O_FDYN + q], F[_O_HALF + q], mc0.w_stick,
                       mc0.th_stop, mc0.k_stop, mc0.c_stop, mc0.h, F[_O_BC + q], F[_O_GH + q],
