@@ -43,9 +43,9 @@ from .faults import F_GPROP
 from .monitor_plant import monitor_consts
 from .physics.ace import CtrlConsts, ace_consts, ace_update
 from .physics.averaged_drive import (
-    _kt_at,
     drive_fast,
     drive_step_general,
+    kt_at,
     sector_consts,
     sector_index,
 )
@@ -217,8 +217,8 @@ def _step(F, M, dc0, mc0, cc0, dcs, mcs, h, c, tick, cogged, eccentric):
             if F[_O_ECC + q] != 0.0:
                 dc = dcs[q]
                 sec = M[q] % 6   # stale if the rotor left the sector: the step is not fast
-                F[_O_KTE + q] = _kt_at(sec, F[_O_THM + q], dc)
-                F[_O_KTM + q] = _kt_at(sec, F[_O_THM + q] + 0.5 * h * F[_O_WM + q], dc)
+                F[_O_KTE + q] = kt_at(sec, F[_O_THM + q], dc)
+                F[_O_KTM + q] = kt_at(sec, F[_O_THM + q] + 0.5 * h * F[_O_WM + q], dc)
     for q in range(LANES):   # vectorised: controller and the drive inside one sector
         _drive_fast_lane(F, q, dc0, cc0, h, c, tick)
     for q in range(LANES):   # the rest of the drive, lane by lane

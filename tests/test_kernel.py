@@ -201,6 +201,25 @@ def test_lanes_carrying_every_tier12_effect_equal_the_scalar_kernel_bit_for_bit(
     _assert_lanes_equal_scalar(X, E, parallel=parallel)
 
 
+def test_lanes_equal_the_scalar_kernel_where_the_bus_voltage_runs_out():
+    """A weak bus (30 % of 270 V: no voltage headroom at speed, outside the model's bounds
+    but a legal ``EMAParams``): the lanes' one-division ramp differs from the scalar kernel's
+    by a rounding there, so such steps take the general path and the outputs stay equal to
+    the bit.  (Without that check the lanes drifted from the scalar kernel here.)"""
+    from ema_bench.params import DEFAULT_PARAMS
+
+    X = _lane_batch(LANES + 1, 61)
+    weak = DEFAULT_PARAMS.replace(V_dc=0.3 * DEFAULT_PARAMS.V_dc)
+    a, ok_a = simulate_monitor(X, params=weak, lanes=False)
+    b, ok_b = simulate_monitor(X, params=weak, lanes=True)
+    assert ok_a.all() and ok_b.all()
+    for t in a:
+        assert np.array_equal(a[t], b[t]), t
+    # and the bus does limit the current there: the outputs differ from the full bus's
+    c, _ = simulate_monitor(X, lanes=True)
+    assert not np.array_equal(c["step"], b["step"])
+
+
 def test_lanes_carry_only_their_effects():
     """The plant effects the lanes do not model (resistance rise, voltage sag, the decoys)
     send their candidate to the scalar kernel, whatever else it carries."""
