@@ -8,10 +8,10 @@ same compiled code as in the reference (:mod:`ema_bench.physics.integrator`,
 :mod:`ema_bench.physics.mechanics`).  One call simulates a batch of candidates, all tests, in
 parallel over candidates (numba ``prange``); batches smaller than twice the thread count run on
 the calling thread, where waking the worker threads would cost more than it saves.  Candidates
-with no effect on the plant run in vectorised lock-step groups of eight
-(:mod:`ema_bench.monitor_lanes`, about twice the candidates per CPU-second, bit-identical
-outputs; the sensor and controller effects ride along); a single candidate, and candidates
-with effects on the plant, run in the scalar kernel here.
+run in vectorised lock-step groups of eight (:mod:`ema_bench.monitor_lanes`, about twice the
+candidates per CPU-second, bit-identical outputs), carrying the sensor, controller and plant
+effects of suite emafdi-v2's tiers (``LANE_EFFECTS``); a single candidate, and candidates with
+another effect on (resistance rise, voltage sag, the decoys), run in the scalar kernel here.
 """
 
 from __future__ import annotations
@@ -114,7 +114,7 @@ def simulate_monitor(
         Run candidates on numba's threads; default: when the batch has at least twice as
         many candidates as threads (for the lanes: at least one group per thread).
     lanes : bool, optional
-        Run the candidates with no effect on the plant in lock-step groups of eight
+        Run the candidates with no effect outside ``LANE_EFFECTS`` in lock-step groups of eight
         (:mod:`ema_bench.monitor_lanes`: vectorised, bit-identical outputs); default: for
         full groups, and for a last group of at least ``LANES_WORTH`` candidates.  False:
         the scalar kernel for all.
@@ -168,7 +168,7 @@ LANES_WORTH = 5
 
 
 def _lane_split(E: np.ndarray, lanes: bool | None) -> tuple[np.ndarray, np.ndarray]:
-    """Rows for the lanes (no effect on but the lane effects) and rows for the scalar
+    """Rows for the lanes (no effect on but ``LANE_EFFECTS``) and rows for the scalar
     kernel."""
     from .monitor_lanes import LANE_EFFECT_INDEX, LANES
 

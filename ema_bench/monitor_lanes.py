@@ -16,12 +16,19 @@ array at fixed offsets (``_O_*``).  With it the compiler proves the lanes indepe
 vectorises; with one array per quantity it needs a runtime alias check per pair of arrays,
 gives up beyond a handful and the loop stays scalar (``benchmarks/vectorisation_probe.py``).
 
-Candidates whose only effects are the sensor and controller ones (:data:`LANE_EFFECTS`: the
-position-sensor offset, the current-channel gain and the feedback delay, which act outside the
-plant) take the lanes: the offset and gain per lane in the vector loops, the delay's ring
-buffer lane by lane once per controller sample.  Effects on the plant (eccentricity, cogging,
-friction, springs, the decoys) change constants the vector loops share between lanes, so
-:mod:`ema_bench.monitor` routes those candidates to the scalar kernel.
+Effects (:data:`LANE_EFFECTS`, every effect of suite emafdi-v2's tiers) ride in the lanes,
+bit-identical too.  The sensor and controller ones (position-sensor offset, current-channel
+gain, feedback delay): the offset and gain per lane in the vector loops, the delay's ring
+buffer lane by lane once per controller sample.  The plant ones: viscous friction, the aero
+spring and the gear stiffness change the mechanics' constants, which every lane reads from
+its own blocks (``_O_K`` .. ``_O_IUF``); cogging's torque and an eccentric rotor's torque
+constants at the step start and mid-step (libm's ``sin`` and ``cos``, the scalar kernel's very
+calls) are computed lane by lane before the drive's vector loop, which then takes them.  Those
+five libm calls per step are most of what a tier-12 candidate costs beyond a tier-4 one
+(about 10 ns each; ``benchmarks/tier_cost.py``).
+The resistance rise, the voltage sag (constants :func:`drive_fast` takes from lane 0) and the
+decoys (a hinge moment the lanes do not compute) send their candidate to the scalar kernel
+(:mod:`ema_bench.monitor`).
 """
 
 from __future__ import annotations
@@ -35,13 +42,21 @@ from .effects import EFFECT_INDEX, MAX_DELAY_SAMPLES
 from .faults import F_GPROP
 from .monitor_plant import monitor_consts
 from .physics.ace import CtrlConsts, ace_consts, ace_update
-from .physics.averaged_drive import drive_fast, drive_step_general, sector_consts, sector_index
-from .physics.effect_terms import sensor_terms
-from .physics.mechanics import mech_fast, mech_step_general
+from .physics.averaged_drive import (
+    drive_fast,
+    drive_step_general,
+    kt_at,
+    sector_consts,
+    sector_index,
+)
+from .physics.effect_terms import cogging_torque, sensor_terms
+from .physics.mechanics import MechConsts, mech_fast, mech_step_general
 
 LANES = 8   # candidates per group: two AVX2 vectors of doubles, one AVX-512 vector
-#: Effects a lane can carry: they act on the sensors and the controller, not the plant.
-LANE_EFFECTS: tuple[str, ...] = ("sensor_offset", "current_gain", "delay")
+#: Effects a lane can carry (the others send a candidate to the scalar kernel).
+LANE_EFFECTS: tuple[str, ...] = ("sensor_offset", "current_gain", "delay", "eccentricity",
+                                  "viscous_friction", "aero_spring", "cogging",
+                                  "gear_stiffness")
 #: Samples in a lane's delay line: a power of two above the longest delay (a mask, not a
 #: division, wraps the index).
 _DBUF = 1 << int(math.ceil(math.log2(MAX_DELAY_SAMPLES + 2)))
@@ -54,7 +69,12 @@ LANE_EFFECT_INDEX = np.array([EFFECT_INDEX[n] for n in LANE_EFFECTS], dtype=np.i
 (_O_THM, _O_WM, _O_THU, _O_WU, _O_CUR, _O_TRT0, _O_TRLEN, _O_KTF, _O_KTT, _O_TRCR, _O_INTEG,
  _O_THLO, _O_KT, _O_RP, _O_IL, _O_HALF, _O_FDYN, _O_KPOS, _O_IREF, _O_TM, _O_TM0, _O_TM1,
  _O_TRIP, _O_IEQ, _O_DSLOW, _O_MSLOW, _O_A0, _O_A1, _O_A2, _O_A3, _O_OFF, _O_GAIN, _O_FB,
- _N_BLOCKS) = [LANES * i for i in range(34)]
+ _O_ECC, _O_KTE, _O_KTM, _O_COG, _O_TCOG,
+ # the mechanics' constants that the plant effects (viscous friction, aero spring, gear
+ # stiffness) change: mech_fast reads them per lane
+ _O_K, _O_CM, _O_KA, _O_GH, _O_BC, _O_I11, _O_I12, _O_I22, _O_I11H, _O_I12H, _O_IMF,
+ _O_IMFH, _O_IUF,
+ _N_BLOCKS) = [LANES * i for i in range(52)]
 
 
 @njit(cache=True, error_model="numpy")
@@ -83,18 +103,17 @@ def lane_group(p, X, E, idx, cmd, cmd_start, n_out, out_start, ticks_out, steps_
     with fewer candidates repeats one (the copies write the same values).  Arguments as
     :func:`ema_bench.monitor.monitor_batch_serial`.
     """
-    # Lane 0's constants serve every lane where they do not depend on the faults (drive_fast
-    # and mech_fast read only those); the fault-dependent ones are per lane.  The lane
-    # effects do not enter the plant's constants.
-    dc0, mc0 = monitor_consts(p, X[idx[0]], E[idx[0]], dt)[:2]
+    # Lane 0's constants serve every lane where they depend neither on the faults nor on the
+    # lane effects (drive_fast and mech_fast read only those); the others are per lane.
+    F = np.zeros(_N_BLOCKS)
+    dc0, mc0, F[_O_COG] = monitor_consts(p, X[idx[0]], E[idx[0]], dt)[:3]
     cc0 = ace_consts(p, X[idx[0], F_GPROP])
     dcs = [dc0]
     mcs = [mc0]
     for q in range(1, LANES):
-        dc, mc = monitor_consts(p, X[idx[q]], E[idx[q]], dt)[:2]
+        dc, mc, F[_O_COG + q] = monitor_consts(p, X[idx[q]], E[idx[q]], dt)[:3]
         dcs.append(dc)
         mcs.append(mc)
-    F = np.zeros(_N_BLOCKS)
     M = np.zeros(LANES, dtype=np.int64)
     alive = np.ones(LANES, dtype=np.bool_)
     done = np.ones(LANES, dtype=np.bool_)
@@ -103,9 +122,20 @@ def lane_group(p, X, E, idx, cmd, cmd_start, n_out, out_start, ticks_out, steps_
     frac = np.zeros(LANES)                 # and the fraction of one
     buf = np.zeros((_DBUF, LANES))         # the lanes' delay lines, one column each
     delayed = False
+    cogged = False
+    eccentric = False
     for q in range(LANES):
-        F[_O_HALF + q] = mcs[q].half
-        F[_O_FDYN + q] = mcs[q].fdyn
+        mc = mcs[q]
+        F[_O_HALF + q] = mc.half
+        F[_O_FDYN + q] = mc.fdyn
+        for o, v in ((_O_K, mc.k), (_O_CM, mc.cm), (_O_KA, mc.ka), (_O_GH, mc.g_h),
+                     (_O_BC, mc.b_c), (_O_I11, mc.i11), (_O_I12, mc.i12), (_O_I22, mc.i22),
+                     (_O_I11H, mc.i11h), (_O_I12H, mc.i12h), (_O_IMF, mc.i_m_free),
+                     (_O_IMFH, mc.i_m_free_h), (_O_IUF, mc.i_u_free)):
+            F[o + q] = v
+        F[_O_ECC + q] = 0.0 if dcs[q].zeta == 0.0 else 1.0
+        eccentric |= dcs[q].zeta != 0.0
+        cogged |= F[_O_COG + q] != 0.0
         F[_O_KPOS + q] = cc0.k_pos if q == 0 else ace_consts(p, X[idx[q], F_GPROP]).k_pos
         offset, gain, d = sensor_terms(E[idx[q]], p)
         F[_O_OFF + q] = offset
@@ -135,7 +165,7 @@ def lane_group(p, X, E, idx, cmd, cmd_start, n_out, out_start, ticks_out, steps_
                 c = cmd[k_ctrl]
                 k_ctrl += 1
                 for j in range(steps_tick):
-                    _step(F, M, dc0, mc0, cc0, dcs, mcs, h, c, j == 0)
+                    _step(F, M, dc0, mc0, cc0, dcs, mcs, h, c, j == 0, cogged, eccentric)
             row = out_start[t] + k
             for q in range(LANES):
                 a0, a1, a2, a3 = F[_O_A0 + q], F[_O_A1 + q], F[_O_A2 + q], F[_O_A3 + q]
@@ -172,31 +202,25 @@ def _delay_lines(F, buf, k, delay, d0, frac):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _step(F, M, dc0, mc0, cc0, dcs, mcs, h, c, tick):
-    """One plant step of every lane, the monitor's ``monitor_step`` with effects off, after
-    the controller sample under command ``c`` (rad) if ``tick``.  (The controller shares the
-    drive's loop: on its own, its loop is short enough that the compiler unrolls it before
-    it could vectorise it.)"""
+def _step(F, M, dc0, mc0, cc0, dcs, mcs, h, c, tick, cogged, eccentric):
+    """One plant step of every lane, the monitor's ``monitor_step`` (with the decoys, the
+    resistance rise and the voltage sag off), after the controller sample under command
+    ``c`` (rad) if ``tick``; ``cogged``, ``eccentric``: some lane has cogging, eccentricity.
+    (The controller shares the drive's loop: on its own, its loop is short enough that the
+    compiler unrolls it before it could vectorise it.)"""
+    if cogged:   # lane by lane: libm's sin, as the scalar kernel calls it
+        for q in range(LANES):
+            F[_O_TCOG + q] = cogging_torque(F[_O_COG + q],
+                                            F[_O_THM + q] + 0.5 * h * F[_O_WM + q], dc0.pp)
+    if eccentric:   # lane by lane: the torque constants at the step start and mid-step
+        for q in range(LANES):
+            if F[_O_ECC + q] != 0.0:
+                dc = dcs[q]
+                sec = M[q] % 6   # stale if the rotor left the sector: the step is not fast
+                F[_O_KTE + q] = kt_at(sec, F[_O_THM + q], dc)
+                F[_O_KTM + q] = kt_at(sec, F[_O_THM + q] + 0.5 * h * F[_O_WM + q], dc)
     for q in range(LANES):   # vectorised: controller and the drive inside one sector
-        if tick:
-            cc = CtrlConsts(F[_O_KPOS + q], cc0.w_max, cc0.kpv, cc0.kiv, cc0.t_max, cc0.dtc,
-                            cc0.amps_per_nm)
-            i_ref, integ = ace_update(c, F[_O_FB + q], F[_O_WM + q], F[_O_INTEG + q], cc)
-            F[_O_IREF + q] = i_ref
-            F[_O_INTEG + q] = integ
-        else:
-            i_ref = F[_O_IREF + q]
-        fast, cur1, t_mean, t_start, t_end, t_rip, i_eq = drive_fast(
-            F[_O_CUR + q], F[_O_TRT0 + q], F[_O_TRLEN + q], F[_O_THLO + q], F[_O_KT + q],
-            F[_O_RP + q], F[_O_IL + q], i_ref, F[_O_THM + q], F[_O_WM + q], dc0, True)
-        F[_O_DSLOW + q] = 0.0 if fast else 1.0
-        F[_O_CUR + q] = cur1 if fast else F[_O_CUR + q]
-        F[_O_TRT0 + q] = F[_O_TRT0 + q] - h if fast else F[_O_TRT0 + q]
-        F[_O_TM + q] = t_mean + 0.0   # + the cogging torque, 0 with effects off
-        F[_O_TM0 + q] = t_start + 0.0
-        F[_O_TM1 + q] = t_end + 0.0
-        F[_O_TRIP + q] = t_rip
-        F[_O_IEQ + q] = i_eq
+        _drive_fast_lane(F, q, dc0, cc0, h, c, tick)
     for q in range(LANES):   # the rest of the drive, lane by lane
         if F[_O_DSLOW + q] != 0.0:
             dc = dcs[q]
@@ -212,9 +236,9 @@ def _step(F, M, dc0, mc0, cc0, dcs, mcs, h, c, tick):
             F[_O_KTF + q] = kt_from
             F[_O_KTT + q] = kt_to
             F[_O_TRCR + q] = tr_cr
-            F[_O_TM + q] = t_mean + 0.0
-            F[_O_TM0 + q] = t_start + 0.0
-            F[_O_TM1 + q] = t_end + 0.0
+            F[_O_TM + q] = t_mean + F[_O_TCOG + q]
+            F[_O_TM0 + q] = t_start + F[_O_TCOG + q]
+            F[_O_TM1 + q] = t_end + F[_O_TCOG + q]
             F[_O_TRIP + q] = t_rip
             F[_O_IEQ + q] = i_eq
             th_lo, kt, rp, il = sector_consts(m, dc)
@@ -223,19 +247,7 @@ def _step(F, M, dc0, mc0, cc0, dcs, mcs, h, c, tick):
             F[_O_RP + q] = rp
             F[_O_IL + q] = il
     for q in range(LANES):   # vectorised: the sliding mechanics
-        fast, th_m1, wm1, th_u1, wu1, m_thm, m_wm, m_thu = mech_fast(
-            F[_O_THM + q], F[_O_WM + q], F[_O_THU + q], F[_O_WU + q], F[_O_TM + q], 0.0,
-            F[_O_HALF + q], F[_O_FDYN + q], mc0)
-        F[_O_MSLOW + q] = 0.0 if fast else 1.0
-        F[_O_THM + q] = th_m1 if fast else F[_O_THM + q]
-        F[_O_WM + q] = wm1 if fast else F[_O_WM + q]
-        F[_O_THU + q] = th_u1 if fast else F[_O_THU + q]
-        F[_O_WU + q] = wu1 if fast else F[_O_WU + q]
-        # a window sum starts at +0 and so is never -0: adding 0.0 leaves it exact
-        F[_O_A0 + q] += m_thu if fast else 0.0
-        F[_O_A1 + q] += m_thm if fast else 0.0
-        F[_O_A2 + q] += m_wm if fast else 0.0
-        F[_O_A3 + q] += F[_O_IEQ + q] if fast else 0.0
+        _mech_fast_lane(F, q, _lane_mech_consts(F, q, mc0))
     for q in range(LANES):   # the rest of the mechanics, lane by lane
         if F[_O_MSLOW + q] != 0.0:
             th_m, w_m, th_u, w_u, m_thm, m_wm, m_thu = mech_step_general(
@@ -249,6 +261,77 @@ def _step(F, M, dc0, mc0, cc0, dcs, mcs, h, c, tick):
             F[_O_A1 + q] += m_thm
             F[_O_A2 + q] += m_wm
             F[_O_A3 + q] += F[_O_IEQ + q]
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _drive_fast_lane(F, q, dc0, cc0, h, c, tick):
+    """Lane ``q``'s controller sample (if ``tick``) and drive step inside one sector
+    (:func:`drive_fast`, an eccentric lane with its torque constants from ``_O_KTE`` and
+    ``_O_KTM``, plus the lane's cogging torque, 0.0 without cogging as in the scalar kernel);
+    a lane whose step is not such a step is marked for :func:`drive_step_general`.
+
+    The ramp divides once (``one_division``): the scalar kernel's bits while the bus voltage
+    exceeds the pair's back-EMF and resistive drop; a step where it does not (not reached
+    inside the bounds) is marked too, so the general path computes it the scalar way."""
+    if tick:
+        cc = CtrlConsts(F[_O_KPOS + q], cc0.w_max, cc0.kpv, cc0.kiv, cc0.t_max, cc0.dtc,
+                        cc0.amps_per_nm)
+        i_ref, integ = ace_update(c, F[_O_FB + q], F[_O_WM + q], F[_O_INTEG + q], cc)
+        F[_O_IREF + q] = i_ref
+        F[_O_INTEG + q] = integ
+    else:
+        i_ref = F[_O_IREF + q]
+    ecc = F[_O_ECC + q] != 0.0
+    kt = F[_O_KTE + q] if ecc else F[_O_KT + q]
+    kt_mid = F[_O_KTM + q] if ecc else kt
+    cur = F[_O_CUR + q]
+    fast, cur1, t_mean, t_start, t_end, t_rip, i_eq = drive_fast(
+        cur, F[_O_TRT0 + q], F[_O_TRLEN + q], F[_O_THLO + q], kt, kt_mid, F[_O_RP + q],
+        F[_O_IL + q], i_ref, F[_O_THM + q], F[_O_WM + q], dc0, True)
+    back = kt * F[_O_WM + q] + F[_O_RP + q] * cur   # as drive_fast computes it
+    fast &= (back < dc0.v_dc) & (-dc0.v_dc < back)
+    t_cog = F[_O_TCOG + q]
+    F[_O_DSLOW + q] = 0.0 if fast else 1.0
+    F[_O_CUR + q] = cur1 if fast else cur
+    F[_O_TRT0 + q] = F[_O_TRT0 + q] - h if fast else F[_O_TRT0 + q]
+    F[_O_TM + q] = t_mean + t_cog
+    F[_O_TM0 + q] = t_start + t_cog
+    F[_O_TM1 + q] = t_end + t_cog
+    F[_O_TRIP + q] = t_rip
+    F[_O_IEQ + q] = i_eq
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _lane_mech_consts(F, q, mc0):
+    """Lane ``q``'s mechanics constants: lane 0's where no fault or lane effect changes them,
+    the lane's own from ``F`` where one does (what :func:`mech_fast` reads; reading them
+    per lane costs a tier-4 group nothing measurable, and one loop compiles faster than
+    two)."""
+    return MechConsts(mc0.tau, mc0.jm, mc0.ju, F[_O_K + q], mc0.c, F[_O_CM + q], F[_O_KA + q],
+                      mc0.cu, mc0.fst, F[_O_FDYN + q], F[_O_HALF + q], mc0.w_stick,
+                      mc0.th_stop, mc0.k_stop, mc0.c_stop, mc0.h, F[_O_BC + q], F[_O_GH + q],
+                      F[_O_I11 + q], F[_O_I12 + q], F[_O_I22 + q], mc0.i_u_stuck,
+                      F[_O_IMF + q], F[_O_IUF + q], F[_O_I11H + q], F[_O_I12H + q],
+                      F[_O_IMFH + q])
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _mech_fast_lane(F, q, mc):
+    """Lane ``q``'s sliding mechanics (:func:`mech_fast`) under constants ``mc``; a lane
+    whose step is not such a step is marked for :func:`mech_step_general`."""
+    fast, th_m1, wm1, th_u1, wu1, m_thm, m_wm, m_thu = mech_fast(
+        F[_O_THM + q], F[_O_WM + q], F[_O_THU + q], F[_O_WU + q], F[_O_TM + q], 0.0,
+        F[_O_HALF + q], F[_O_FDYN + q], mc)
+    F[_O_MSLOW + q] = 0.0 if fast else 1.0
+    F[_O_THM + q] = th_m1 if fast else F[_O_THM + q]
+    F[_O_WM + q] = wm1 if fast else F[_O_WM + q]
+    F[_O_THU + q] = th_u1 if fast else F[_O_THU + q]
+    F[_O_WU + q] = wu1 if fast else F[_O_WU + q]
+    # a window sum starts at +0 and so is never -0: adding 0.0 leaves it exact
+    F[_O_A0 + q] += m_thu if fast else 0.0
+    F[_O_A1 + q] += m_thm if fast else 0.0
+    F[_O_A2 + q] += m_wm if fast else 0.0
+    F[_O_A3 + q] += F[_O_IEQ + q] if fast else 0.0
 
 
 @njit(parallel=True, cache=True, error_model="numpy")

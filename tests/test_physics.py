@@ -25,7 +25,7 @@ from ema_bench.params import (
     EMAParams,
 )
 from ema_bench.physics.ace import ace_consts, ace_update
-from ema_bench.physics.averaged_drive import _kt_at, drive_consts, sector_index
+from ema_bench.physics.averaged_drive import drive_consts, kt_at, sector_index
 from ema_bench.physics.bldc import (
     PHASE_SHIFT,
     bldc_consts,
@@ -227,7 +227,7 @@ def test_monitor_sector_constants_average_to_design_values(na):
     dc = drive_consts(P, na, 0.0, 1.0, V_DC, 5e-5)
     n = 1200
     th = (np.arange(n) + 0.5) * 2.0 * math.pi / n
-    kt = np.array([_kt_at(sector_index(t, PP) % 6, t, dc) for t in th])
+    kt = np.array([kt_at(sector_index(t, PP) % 6, t, dc) for t in th])
     assert kt.mean() == pytest.approx(2.0 * KE * (na + 2.0) / 3.0, rel=1e-12)
     # the pair resistance and inductance of the two kinds of sector
     assert (dc.r_a, dc.r_n) == pytest.approx(((1.0 + na) * R, 2.0 * R), rel=1e-12)
@@ -247,7 +247,7 @@ def test_monitor_sector_matches_three_phase_model(na, zeta):
             assert sector_index(th_m, PP) % 6 == sector(PP * th_m) == s % 6
             ke = emf_constants(th_m, na, zeta, KE, PP)
             c = commutation(PP * th_m)
-            kt = _kt_at(sector_index(th_m, PP) % 6, th_m, dc)
+            kt = kt_at(sector_index(th_m, PP) % 6, th_m, dc)
             assert kt == pytest.approx(sum(k * ci for k, ci in zip(ke, c)), rel=1e-12)
     # and on negative angles (the sine test runs backwards)
     for deg in np.arange(-355.0, 0.0, 10.0):

@@ -78,7 +78,7 @@ def _pair(sec):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _kt_at(sec, th_m, dc):
+def kt_at(sec, th_m, dc):
     """Pair torque constant of sector ``sec`` at motor angle ``th_m`` (eccentricity: each
     phase's constant scaled by ``1 + zeta cos(th_m - phi_x)``)."""
     if dc.zeta == 0.0:
@@ -184,7 +184,7 @@ def drive_step(cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr, i_ref, th_m, w_m, d
     if dc.zeta == 0.0:
         th_lo, kt, r_pair, il = sector_consts(m, dc)
         fast, cur1, t_mean, t_start, t_end, t_rip, i_eq = drive_fast(
-            cur, tr_t0, tr_len, th_lo, kt, r_pair, il, i_ref, th_m, w_m, dc, False)
+            cur, tr_t0, tr_len, th_lo, kt, kt, r_pair, il, i_ref, th_m, w_m, dc, False)
         if fast:
             return (cur1, m, tr_t0 - dc.h, tr_len, kt_from, kt_to, tr_cr, t_mean, t_start,
                     t_end, t_rip, i_eq)
@@ -204,11 +204,16 @@ def sector_consts(m, dc):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def drive_fast(cur, tr_t0, tr_len, th_lo, kt, r_pair, il, i_ref, th_m, w_m, dc,
+def drive_fast(cur, tr_t0, tr_len, th_lo, kt, kt_mid, r_pair, il, i_ref, th_m, w_m, dc,
                one_division):
     """The short path of :func:`drive_step`: a step inside one sector (lower boundary ``th_lo``,
-    pair constants ``kt``, ``r_pair``, ``il``) with no commutation in progress and no
-    eccentricity.
+    pair constants ``kt``, ``r_pair``, ``il``) with no commutation in progress.
+
+    ``kt`` is the pair's torque constant at the step start (back-EMF, start torque) and
+    ``kt_mid`` at mid-step (mean and end torque, ripple): the same constant without
+    eccentricity; with it, :func:`kt_at` at ``th_m`` and at ``th_m + 0.5 h w_m``, as
+    :func:`drive_step_general` takes them (the lanes use that; :func:`drive_step` sends an
+    eccentric rotor to the general path).
 
     Returns ``fast`` (whether the step is such a step; the other values hold only then), the
     end current and the step's torques and equivalent current as :func:`drive_step`.  Free of
@@ -224,7 +229,8 @@ def drive_fast(cur, tr_t0, tr_len, th_lo, kt, r_pair, il, i_ref, th_m, w_m, dc,
     cur1, f, i_mean, i_eq = _ramp(cur, i_ref, kt * w_m + r_pair * cur, il, dc.v_dc, h,
                                   one_division)
     kf = dc.ktf * kt
-    return fast, cur1, kf * i_mean, kf * cur, kf * cur1, abs(kf) * dc.half_band, i_eq
+    km = dc.ktf * kt_mid
+    return fast, cur1, km * i_mean, kf * cur, km * cur1, abs(km) * dc.half_band, i_eq
 
 
 @njit(cache=True, error_model="numpy")
@@ -241,7 +247,7 @@ def drive_step_general(cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr, i_ref, th_m
         th_hi = th_lo + dc.sector_width
     sec = m % 6
     with_a = sec % 3 != 2
-    kt0 = _kt_at(sec, th_m, dc)
+    kt0 = kt_at(sec, th_m, dc)
     r_pair = dc.r_a if with_a else dc.r_n
     il = dc.il_a if with_a else dc.il_n
     cur1, f, i_mean, i_eq = _ramp(cur, i_ref, kt0 * w_m + r_pair * cur, il, dc.v_dc, h,
@@ -252,7 +258,7 @@ def drive_step_general(cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr, i_ref, th_m
         up = th_end >= th_hi
         g = ((th_hi if up else th_lo) - th_m) / (h * w_m)
         th_b = th_hi if up else th_lo
-        kt_from = _kt_at(sec, th_b, dc)
+        kt_from = kt_at(sec, th_b, dc)
         k3 = sec % 3
         if up:   # exchanges (b, c), (a, b), (c, a)
             ltr = dc.ltr_n if k3 == 0 else dc.ltr_a
@@ -263,7 +269,7 @@ def drive_step_general(cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr, i_ref, th_m
             ny = dc.na if k3 == 0 else 1.0
             m -= 1
         sec = m % 6
-        kt_to = _kt_at(sec, th_b, dc)
+        kt_to = kt_at(sec, th_b, dc)
         # the current at the crossing: on its ramp if it had not reached its end yet
         i_tr = abs(cur + (cur1 - cur) * (g if g < f else f) / f) if f > 0.0 else abs(cur1)
         tr_t0 = g * h
@@ -282,7 +288,7 @@ def drive_step_general(cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr, i_ref, th_m
         kt_end = kt_from + dk * fb if b < h else kt_to
         deficit = tr_cr * _ramp_integral(a - tr_t0, b - tr_t0, tr_len) / h
     else:
-        kt_mean = kt0 if dc.zeta == 0.0 else _kt_at(sec, th_m + 0.5 * h * w_m, dc)
+        kt_mean = kt0 if dc.zeta == 0.0 else kt_at(sec, th_m + 0.5 * h * w_m, dc)
         kt_start = kt0
         kt_end = kt_mean
     ktf = dc.ktf
