@@ -19,7 +19,7 @@ from .protocol import STANDARD_TESTS, TestSpec
 from .reference import SimulationError, simulate_reference
 from .seeding import SeedLike, as_seed_sequence, children, stream
 from .suite import instance_faults, is_instance
-from .trace_cache import cache_key, cached_traces, expected_shapes
+from .trace_cache import PUBLIC_META, cache_key, cached_traces, expected_shapes
 from .traces import Traces
 
 TRACKS = ("reference", "twin")
@@ -72,10 +72,6 @@ def check_settings(case: object = "small", track: str = "reference", budget: obj
             check_faults(case)
         except FaultError as exc:
             raise ProblemError(f"bad case: {exc}") from None
-
-
-#: What a problem's measured traces say about how they were made (never the truth).
-_PUBLIC_META = ("model", "noise", "adc")
 
 
 def make_problem(
@@ -176,7 +172,7 @@ def make_problem(
     # outputs a condition withholds (zeroed: their weight is 0, the fitness is unchanged)
     measured = Traces({t: v * keep if signals is not None else v
                        for t, v in measured.data.items()}, dt=measured.dt,
-                      meta={k: v for k, v in measured.meta.items() if k in _PUBLIC_META})
+                      meta={k: v for k, v in measured.meta.items() if k in PUBLIC_META})
     # public: nothing a solver could use to recover the truth (no seed, no effects)
     meta = {"case": label, "track": track}
     if score_effects:

@@ -7,6 +7,11 @@ noise seed, the tests and the parameters.  An entry that cannot be read, is not 
 wrong shape or carries another key is rebuilt, never trusted; writes are atomic, so a crash or
 a concurrent writer never leaves a half-written file behind.
 
+An entry holds the traces and the public part of their record only (:data:`PUBLIC_META`), on
+a miss as on a hit: the folder is readable by any solver, and the data maker's record (faults,
+effects, seed) is the hidden truth.  Entries of earlier versions (``reference/``, which held
+it) are deleted when the cache is next written.
+
 Location: ``$EMA_BENCH_CACHE``, else ``$XDG_CACHE_HOME/ema-bench``, else ``~/.cache/ema-bench``.
 Set ``EMA_BENCH_CACHE=off`` to disable it.
 """
@@ -17,6 +22,7 @@ import hashlib
 import json
 import logging
 import os
+import shutil
 import tempfile
 from collections.abc import Callable, Sequence
 from functools import lru_cache
@@ -52,6 +58,18 @@ def source_hash() -> str:
     return h.hexdigest()[:16]
 
 
+#: What of a data maker's record the cache stores and returns: nothing a solver could use to
+#: recover the truth (no faults, effects or seed).
+PUBLIC_META = ("model", "noise", "adc")
+#: The entries' folder under the cache (``reference/`` held the data makers' records).
+ENTRIES, LEGACY = "measured", "reference"
+
+
+def _public(traces: Traces) -> Traces:
+    return Traces(data=traces.data, dt=traces.dt,
+                  meta={k: v for k, v in traces.meta.items() if k in PUBLIC_META})
+
+
 def cache_dir() -> Path | None:
     """The cache folder, or None when caching is off."""
     env = os.environ.get("EMA_BENCH_CACHE")
@@ -75,7 +93,8 @@ def _valid(traces: Traces, key: str, shapes: dict[str, tuple[int, int]]) -> bool
 
 def cached_traces(make: Callable[[], Traces], key: str, shapes: dict[str, tuple[int, int]],
                   folder: Path | None = None) -> Traces:
-    """``make()``, or the traces cached under ``key`` if a valid entry exists.
+    """``make()``, or the traces cached under ``key`` if a valid entry exists; either way with
+    the public part of their record only (:data:`PUBLIC_META`).
 
     Parameters
     ----------
@@ -90,19 +109,19 @@ def cached_traces(make: Callable[[], Traces], key: str, shapes: dict[str, tuple[
     """
     folder = cache_dir() if folder is None else folder
     if folder is None:
-        return make()
-    path = folder / "reference" / f"{key[:32]}.npz"
+        return _public(make())
+    path = folder / ENTRIES / f"{key[:32]}.npz"
     if path.is_file():
         try:
             traces = load_traces(path)
             if _valid(traces, key, shapes):
-                meta = {k: v for k, v in traces.meta.items() if k != "cache_key"}
-                return Traces(data=traces.data, dt=traces.dt, meta=meta)
+                return _public(traces)
             log.warning("stale or mismatched trace cache entry %s: rebuilding", path)
         except Exception as exc:   # any unreadable entry is rebuilt, whatever broke it
             log.warning("unreadable trace cache entry %s (%s): rebuilding", path, exc)
-    traces = make()
+    traces = _public(make())
     try:
+        shutil.rmtree(folder / LEGACY, ignore_errors=True)   # entries that held the truth
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(suffix=".npz", dir=path.parent)
         os.close(fd)

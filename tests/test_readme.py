@@ -38,8 +38,8 @@ def test_the_fast_loop_is_documented_and_ci_runs_every_test():
     import tomllib
 
     readme = (ROOT / "README.md").read_text()
-    assert 'pytest -q -m "not slow"' in readme
-    assert 'pytest -q -m "not slow"' in (ROOT / "CONTRIBUTING.md").read_text()
+    assert 'pytest -q -m "not slow" -n 2' in readme
+    assert 'pytest -q -m "not slow" -n 2' in (ROOT / "CONTRIBUTING.md").read_text()
     ini = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["pytest"]["ini_options"]
     assert [m for m in ini["markers"] if m.startswith("slow:")]
     assert not {"-m", "-k", "--deselect", "--ignore"} & set(ini.get("addopts", "").split())

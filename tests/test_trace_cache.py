@@ -26,11 +26,33 @@ def test_hit_returns_identical_traces_without_simulating(tmp_path):
     assert len(calls) == 1
     assert second.allclose(first)      # bit-identical (atol = rtol = 0)
     assert "cache_key" not in second.meta
-    assert second.meta["faults"] == first.meta["faults"]
+    assert second.meta == first.meta == {"model": "reference", "noise": True, "adc": True}
+
+
+def test_no_entry_holds_the_truth_and_legacy_entries_go(tmp_path, monkeypatch):
+    """The cache folder is readable by any solver: an entry that kept the data maker's record
+    would hand it the truth (the faults, found by matching the measured data)."""
+    import numpy as np
+
+    from ema_bench.instances import make_problem
+    from ema_bench.traces import load_traces
+
+    legacy = tmp_path / "reference" / "old.npz"   # what earlier versions wrote
+    legacy.parent.mkdir()
+    legacy.write_bytes(b"faults")
+    monkeypatch.setenv("EMA_BENCH_CACHE", str(tmp_path))
+    p = make_problem({"Na": 0.97, "Fst": 0.31, "BLK": 0.02, "Gprop": 1.1e5}, seed=12345,
+                     track="reference", budget=1)
+    (entry,) = (tmp_path / "measured").glob("*.npz")
+    stored = load_traces(entry)
+    assert set(stored.meta) == {"model", "noise", "adc", "cache_key"}
+    assert b"0.97" not in entry.read_bytes() and b"Gprop" not in entry.read_bytes()
+    assert not legacy.parent.exists()
+    assert all(np.array_equal(stored.data[t], p.measured.data[t]) for t in stored.tests)
 
 
 def _entry(tmp_path):
-    (path,) = (tmp_path / "reference").glob("*.npz")
+    (path,) = (tmp_path / "measured").glob("*.npz")
     return path
 
 
@@ -57,7 +79,7 @@ def test_entry_under_another_key_or_shape_is_not_trusted(tmp_path):
     path = _entry(tmp_path)
     # an entry whose stored key differs (a hash-prefix collision, a hand-copied file)
     other = cache_key(case="small", seed=4)
-    target = tmp_path / "reference" / f"{other[:32]}.npz"
+    target = tmp_path / "measured" / f"{other[:32]}.npz"
     path.rename(target)
     cached_traces(_make(calls), other, SHAPES, tmp_path)
     assert len(calls) == 2
