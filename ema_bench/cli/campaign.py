@@ -18,7 +18,16 @@ from __future__ import annotations
 import argparse
 
 from . import CLIError, print_result
-from .args import add_json, add_quiet, check_output, count, finite, seed_number, worker_count
+from .args import (
+    add_json,
+    add_quiet,
+    check_output,
+    comma_list,
+    count,
+    finite,
+    seed_number,
+    worker_count,
+)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -206,6 +215,14 @@ def _register_score(actions: argparse._SubParsersAction) -> None:
     p.add_argument("--tracked-only", action="store_true",
                    help="score only the units each run has tracked to their cut (a partial "
                         "run; the table says how many); default: a missing unit is a miss")
+    p.add_argument("--replay", metavar="K", type=count(0, 10_000), default=0,
+                   help="first re-track K sampled units of each run with its registered "
+                        "tracker and seed, and refuse the run (exit 1, naming unit, "
+                        "inspection and field) if any line differs: the steps are the "
+                        "submitter's, the tracker is deterministic (needs the campaign's "
+                        "traces; ema_bench/prognostics/replay.py)")
+    p.add_argument("--replay-unit", metavar="UNITS", type=comma_list, default=None,
+                   help="comma-separated units to replay instead of a sample")
     p.add_argument("--plots", metavar="DIR", help="write PNG plots here")
     p.add_argument("--markdown", metavar="FILE", help="write the table as Markdown here")
     add_json(p, "the figures (one object per run, with per-unit rows)")
@@ -288,6 +305,9 @@ def _run_score(args: argparse.Namespace) -> int:
 
     if not 0.0 < args.alpha < 1.0:
         raise CLIError("--alpha must lie in (0, 1)")
+    if args.replay or args.replay_unit:
+        if not _replayed(args):
+            return 1
     results = [score_tracking(run, truth=args.truth, alpha=args.alpha,
                               oracle=not args.no_oracle, tracked_only=args.tracked_only)
                for run in args.runs]
@@ -302,6 +322,30 @@ def _run_score(args: argparse.Namespace) -> int:
     if args.markdown:
         Path(args.markdown).write_text("\n".join(lines) + "\n")
     return print_result(args, results[0] if len(results) == 1 else results, lines)
+
+
+def _replayed(args: argparse.Namespace) -> bool:
+    """Replay each run (``--replay``/``--replay-unit``); print what was found (stderr)."""
+    import sys
+
+    from ..prognostics.replay import replay_track
+
+    ok = True
+    for run in args.runs:
+        r = replay_track(run, k=args.replay, units=args.replay_unit)
+        print(f"replay: {run}: {r.tracker}, {len(r.units)} of {r.tracked} units re-tracked "
+              f"({', '.join(r.units)}): " + ("every line agrees" if r.ok else
+                                              f"{len(r.findings)} difference(s)")
+              + (f"; a single forged unit escapes a sample this size with probability "
+                 f"{r.escape_chance:.2f}" if r.ok and args.replay_unit is None else ""),
+              file=sys.stderr)
+        for line in r.findings[:20]:
+            print(f"  {line}", file=sys.stderr)
+        ok = ok and r.ok
+    if not ok:
+        print("error: a run's lines are not what its tracker gives: not scored",
+              file=sys.stderr)
+    return ok
 
 
 def _plots(runs: list[str], results: list[dict], folder, alpha: float, truth_file=None,

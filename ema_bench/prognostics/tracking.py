@@ -311,7 +311,7 @@ def read_track(out: Path | str) -> TrackLog:
     if manifest.get("format") != FORMAT:
         raise TrackerError(f"{mpath}: not a tracking run's manifest (format "
                            f"{manifest.get('format')!r}, expected {FORMAT!r})")
-    steps, failed = _group(read_records(out / TRACK_FILE, schema=_schema))
+    steps, failed = regroup(read_records(out / TRACK_FILE, schema=_schema))
     return TrackLog(steps, failed, manifest)
 
 
@@ -321,7 +321,9 @@ def campaign_path(out: Path | str, manifest: Mapping) -> Path:
     return Path(out) / manifest["campaign"]
 
 
-def _group(records: list[dict]) -> tuple[dict[str, list[dict]], dict[str, dict]]:
+def regroup(records: list[dict]) -> tuple[dict[str, list[dict]], dict[str, dict]]:
+    """Step lines by unit (inspection order, null RULs back to ``inf``) and error lines by
+    unit, as :class:`TrackLog` holds them."""
     steps: dict[str, dict[int, dict]] = {}
     failed: dict[str, dict] = {}
     for r in records:

@@ -1,0 +1,136 @@
+"""Replay of tracking runs (``ema-bench campaign score --replay K``): re-track sampled units
+with the registered tracker and compare every line.
+
+``campaign score`` re-derives every figure from a run's steps and the campaign's truth, so
+it cannot be handed a figure; but the steps themselves are the submitter's.  A
+``track.jsonl`` whose RULs were written from the truth, or moved toward it, scores as
+submitted, and one kept below the oracle looks plausible.  A tracker is deterministic given
+its unit's seed (:func:`~ema_bench.prognostics.tracking.unit_seed`), so re-tracking a unit
+from the campaign's traces gives its lines again: replay picks ``K`` of the tracked units
+(a seeded sample, or the ones named), tracks each from its first inspection through
+:func:`~ema_bench.prognostics.tracking.track_unit`, exactly as ``campaign track`` did, and
+compares every field of every line (numbers to :data:`REPLAY_RTOL`, the rest exactly).  A
+forged line in a sampled unit is found; forging few units leaves them unsampled with a
+probability the report states (replay more, or ``--replay-unit`` the suspicious ones).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+
+from .campaign import load_campaign
+from .tracking import (
+    TrackerError,
+    campaign_path,
+    get_tracker,
+    read_track,
+    regroup,
+    track_unit,
+    unit_seed,
+)
+
+#: Relative agreement of a replayed number with the recorded one (the trackers are
+#: deterministic; this leaves room for another CPU's floating-point rounding only, as the
+#: solver replay of ``ema-bench validate`` does).
+REPLAY_RTOL = 1e-6
+#: The seed of the default sample of units.
+SAMPLE_SEED = 0
+
+
+@dataclass
+class TrackReplay:
+    """What a replay found: the ``units`` re-tracked and one line per disagreement."""
+
+    run: str
+    tracker: str
+    units: list[str]
+    tracked: int
+    findings: list[str] = field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        return not self.findings
+
+    @property
+    def escape_chance(self) -> float:
+        """Chance that a run with one forged unit passes a sample of this size."""
+        return 1.0 - len(self.units) / self.tracked if self.tracked else 1.0
+
+
+def _differences(got: object, want: object, where: str) -> list[str]:
+    if isinstance(want, dict) and isinstance(got, dict):
+        out = [f"{where}.{k}: {'missing' if k not in got else 'not recorded'}"
+               for k in sorted(set(want) ^ set(got))]
+        return out + [d for k in sorted(set(want) & set(got))
+                      for d in _differences(got[k], want[k], f"{where}.{k}")]
+    numbers = (int, float)
+    if (isinstance(want, numbers) and isinstance(got, numbers) and not isinstance(want, bool)
+            and not isinstance(got, bool)):
+        same = (want == got or (math.isnan(want) and math.isnan(got))
+                or math.isclose(got, want, rel_tol=REPLAY_RTOL))
+    else:
+        same = got == want
+    return [] if same else [f"{where}: recorded {want!r}, replayed {got!r}"]
+
+
+def replay_track(run: Path | str, k: int = 2, units: list[str] | None = None,
+                 seed: int = SAMPLE_SEED) -> TrackReplay:
+    """Re-track ``k`` sampled units (or ``units``) of the tracking run in ``run`` and compare.
+
+    Parameters
+    ----------
+    run : path
+        A tracking run folder (``campaign track``): its manifest names the tracker, its root
+        seed and the campaign, whose traces must be there.
+    k : int
+        Units sampled (without replacement, from the units the run tracked) with ``seed``.
+    units : list of str, optional
+        Replay these units instead of a sample.
+    seed : int
+        Seed of the sample.
+
+    Returns
+    -------
+    TrackReplay
+        ``ok`` when every line of every replayed unit agrees.
+    """
+    log = read_track(run)
+    m = log.manifest
+    info = get_tracker(m["tracker"])   # TrackerError naming the known ones
+    camp = load_campaign(campaign_path(run, m))
+    order = list(camp.units)
+    tracked = [u for u in order if u in log.steps or u in log.failed]
+    if units is None:
+        rng = np.random.default_rng(seed)
+        pick = rng.choice(len(tracked), size=min(int(k), len(tracked)), replace=False)
+        units = [tracked[i] for i in sorted(pick)]
+    unknown = [u for u in units if u not in tracked]
+    if unknown:
+        raise TrackerError(f"{run}: no tracked unit {unknown[0]!r}; tracked: "
+                           f"{', '.join(tracked[:5])}{', ...' if len(tracked) > 5 else ''}")
+    report = TrackReplay(str(run), info.name, list(units), len(tracked))
+    if dict(info.config) != m.get("config", {}):
+        report.findings.append(f"the run's tracker config {m.get('config')} is not the "
+                               f"registered {info.name!r}'s {dict(info.config)}")
+        return report
+    for unit in units:
+        rows: list[dict] = []
+        track_unit(camp, info, unit, unit_seed(int(m["seed"]), order.index(unit)),
+                   SimpleNamespace(append=rows.append))
+        steps, failed = regroup(rows)
+        want = {"steps": log.steps.get(unit, []), "failed": log.failed.get(unit)}
+        got = {"steps": steps.get(unit, []), "failed": failed.get(unit)}
+        if len(got["steps"]) != len(want["steps"]):
+            report.findings.append(f"{unit}: {len(want['steps'])} steps recorded, "
+                                   f"{len(got['steps'])} replayed")
+            continue
+        for i, (g, w) in enumerate(zip(got["steps"], want["steps"])):
+            report.findings += _differences(g, w, f"{unit} inspection {w.get('index', i)}")
+        report.findings += _differences(got["failed"], want["failed"], f"{unit} failure")
+    return report
+
