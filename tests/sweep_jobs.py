@@ -12,8 +12,8 @@ Each job runs the command's own code on the sweep engine, only smaller:
 - ``track-exit``: the same with ``exits-on-u001``, whose worker dies on unit ``u001``;
 - ``blind``: ``ema-bench blind`` of 4 cases whose diagnosis (``blind.run_case``, a minute
   per case) is replaced by one that scores a perfect diagnosis after 0.5 s;
-- ``targets``: :func:`~ema_bench.best_known.compute_targets` of 4 instances with polishing
-  stages of 20 to 30 evaluations (set when this file runs as a script, so its spawned
+- ``targets``: ``ema-bench targets`` of 4 entries (``small``, ``full`` x both tracks, seed 0)
+  with polishing stages of 20 to 30 evaluations (set when this file runs as a script, so its spawned
   workers polish alike; a test importing it sets them with ``monkeypatch``, as it replaces
   the blind diagnosis).
 
@@ -37,7 +37,6 @@ TINY_STAGES = (("least-squares", 20, "truth"), ("powell", 20, "previous"),
                ("cmaes", 30, "nominal"))
 if __name__ in ("__main__", "__mp_main__"):   # this script and its spawned workers only
     best_known.STAGES = TINY_STAGES
-TARGET_KEYS = ["small|twin|0", "full|twin|0", "small|reference|0", "full|reference|0"]
 UNITS, FLIGHTS = ("u000", "u001", "u002", "u003"), (0, 10, 20, 30)
 
 
@@ -146,9 +145,8 @@ def run(command: str, out: Path, workers: int) -> int:
                      "--out", str(out)])
     if command == "targets":
         out.mkdir(parents=True, exist_ok=True)
-        best_known.compute_targets(out / "targets.json", workers=workers, quiet=True,
-                                   keys=TARGET_KEYS)
-        return 0
+        return main(["targets", "--cases", "small,full", "--seeds", "1", "--tracks",
+                     "reference,twin", *w, "--quiet", "--out", str(out / "targets.json")])
     raise SystemExit(f"unknown job {command!r}")
 
 
