@@ -515,6 +515,29 @@ def test_npz_with_too_many_members_is_refused(tmp_path):
     assert "526 keys, more than the limit of 512 per file" in str(err)
 
 
+def test_mat_variable_names_are_checked_before_scipy_reads_the_file(tmp_path, monkeypatch):
+    """An unknown or path-like variable name is refused by the walker, before scipy parses a
+    single variable (as for .npz keys); a good file still reaches scipy."""
+    import scipy.io
+
+    good = {"units": np.array([f"{s}={UNITS[s]}" for s in SIGNALS]),
+            "time_step": np.arange(20) * 1e-3, **{f"step_{s}": np.zeros(20) for s in SIGNALS}}
+    calls = []
+    real = scipy.io.loadmat
+    monkeypatch.setattr(scipy.io, "loadmat", lambda *a, **k: calls.append(1) or real(*a, **k))
+    for name, compress, match in (("step_bogus", False, "unknown variable 'step_bogus'"),
+                                  ("step_bogus", True, "unknown variable 'step_bogus'"),
+                                  ("time_", False, "invalid test name ''")):
+        path = tmp_path / f"{name}-{compress}.mat"
+        scipy.io.savemat(path, {**good, name: np.zeros(3)}, do_compression=compress)
+        with pytest.raises(TracesError, match=match):
+            load_traces(path)
+    assert calls == []
+    path = tmp_path / "good.mat"
+    scipy.io.savemat(path, good)
+    assert list(load_traces(path).tests) == ["step"] and calls == [1]
+
+
 def test_mat_variables_past_the_file_limit_are_refused(tmp_path, monkeypatch):
     """Compressed variables each under the per-array limit, together over the file's (the
     limit lowered so that a small file shows it), and a file larger than the limit itself."""

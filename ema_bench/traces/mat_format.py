@@ -12,7 +12,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from .arrays import MAX_ARRAY_BYTES, MAX_FILE_ARRAYS, MAX_FILE_BYTES, _arrays_to_raw
+from .arrays import MAX_ARRAY_BYTES, MAX_FILE_ARRAYS, MAX_FILE_BYTES, _arrays_to_raw, check_keys
 from .errors import _describe, _fail
 from .units import _Raw, _TimeLabel
 
@@ -59,7 +59,9 @@ def _check_mat_sizes(path: Path, data: bytes) -> None:
     scipy sizes its buffers by each data element's declared byte count and cell and struct
     arrays by their declared dimensions, so a few crafted bytes could make it fill gigabytes.
     Here every element must fit in what holds it (the file, a decompressed variable, a
-    matrix), and every matrix's element count in :data:`MAX_ARRAY_BYTES` and in its bytes.
+    matrix), and every matrix's element count in :data:`MAX_ARRAY_BYTES` and in its bytes;
+    the variables' names (in each top-level matrix) must be a traces file's
+    (:func:`~ema_bench.traces.arrays.check_keys`), all before scipy reads the file.
     v4 files are read from memory and bounded by their data; v7.3 files scipy refuses.
     """
     if len(data) < 128 or data[126:128] not in (b"IM", b"MI"):
@@ -67,7 +69,7 @@ def _check_mat_sizes(path: Path, data: bytes) -> None:
     order = "<" if data[126:128] == b"IM" else ">"
     if struct.unpack_from(order + "H", data, 124)[0] != 0x0100:
         return
-    pos, total, count = 128, 0, 0
+    pos, total, count, names = 128, 0, 0, []
     while len(data) - pos >= 8:
         mtype, nbytes = struct.unpack_from(order + "II", data, pos)
         if mtype not in (_MI_MATRIX, _MI_COMPRESSED):
@@ -83,15 +85,16 @@ def _check_mat_sizes(path: Path, data: bytes) -> None:
             # scipy inflates every variable at once: their total is bounded, not each alone
             inflated = _inflate(path, data[pos + 8: end], MAX_FILE_BYTES - total)
             total += len(inflated)
-            _check_mat_elements(path, inflated, 0, len(inflated), order, 0)
+            _check_mat_elements(path, inflated, 0, len(inflated), order, 0, names)
             del inflated
         else:
             total += nbytes
-            _check_mat_elements(path, data, pos, end, order, 0)
+            _check_mat_elements(path, data, pos, end, order, 0, names)
         if total > MAX_FILE_BYTES:
             raise _fail(path, f"its variables hold more than the limit of {MAX_FILE_BYTES} "
                               "bytes per file")
         pos = end
+    check_keys(path, names, "_", "variable")
 
 
 def _inflate(path: Path, blob: bytes, room: int) -> bytes:
@@ -134,16 +137,29 @@ def _mat_elements(
 
 
 def _check_mat_elements(
-    path: Path, buf: bytes, start: int, end: int, order: str, depth: int
+    path: Path, buf: bytes, start: int, end: int, order: str, depth: int,
+    names: list[str] | None = None
 ) -> None:
-    """Check the elements of ``buf[start:end]`` and, recursively, of the matrices there."""
+    """Check the elements of ``buf[start:end]`` and, recursively, of the matrices there;
+    the names of the matrices at ``depth`` 0 (the file's variables) go to ``names``."""
     for mtype, body, nbytes in _mat_elements(path, buf, start, end, order):
         if mtype != _MI_MATRIX:
             continue
+        if depth == 0 and names is not None:
+            names.append(_mat_name(path, buf, body, body + nbytes, order))
         if depth >= _MAT_MAX_DEPTH:
             raise _fail(path, f"variables nested deeper than {_MAT_MAX_DEPTH} levels")
         _check_mat_dims(path, buf, body, body + nbytes, order)
         _check_mat_elements(path, buf, body, body + nbytes, order, depth + 1)
+
+
+def _mat_name(path: Path, buf: bytes, start: int, end: int, order: str) -> str:
+    """The name of a matrix (its third element: array flags, dimensions, name)."""
+    parts = list(itertools.islice(_mat_elements(path, buf, start, end, order), 3))
+    if len(parts) < 3 or parts[2][0] not in (1, 2, 16):   # miINT8, miUINT8, miUTF8
+        raise _fail(path, "a variable without a name; the file is corrupt")
+    _, at, n = parts[2]
+    return buf[at:at + n].decode("latin-1")
 
 
 def _check_mat_dims(path: Path, buf: bytes, start: int, end: int, order: str) -> None:
