@@ -179,6 +179,17 @@ def test_precision_values_targets_and_the_sanity_case(tmp_path):
     assert {"sanity": "True"} in meta["experiment_attributes"]
 
 
+def test_a_record_claiming_a_lower_f_star_exports_the_suites_precisions(tmp_path):
+    """Precisions are computed from the suite's f*, never the record's claim (a record that
+    states a lower f_star would export better precisions than it reached)."""
+    rec = synthetic()[0]
+    forged = {**rec, "targets": {**(rec.get("targets") or {}), "f_star": 0.0,
+                                 "f_nominal": 1e9}}
+    export_ioh([rec], tmp_path / "honest", value="precision")
+    export_ioh([forged], tmp_path / "forged", value="precision")
+    assert read_ioh(tmp_path / "forged")[0]["raw_y"] == read_ioh(tmp_path / "honest")[0]["raw_y"]
+
+
 @pytest.mark.parametrize("change, needle", [
     ({"trace": [[2, 1.0], [5, 0.5]]}, "increase from 1"),
     ({"trace": [[1, 1.0], [1, 0.5]]}, "increase from 1"),

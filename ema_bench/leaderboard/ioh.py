@@ -130,12 +130,10 @@ def instance_of(record: Mapping[str, Any]) -> int:
 
 
 def optimum(record: Mapping[str, Any]) -> tuple[float, float] | None:
-    """``(f*, f_nominal)`` of a run's instance: the record's own (what it was scored on),
-    else the suite's shipped one, else None (root seed other than 0, seed beyond the shipped
-    ones, the sanity case, a custom case)."""
-    t = record.get("targets") or {}
-    if t.get("f_star") is not None and t.get("f_nominal") is not None:
-        return float(t["f_star"]), float(t["f_nominal"])
+    """``(f*, f_nominal)`` of a run's instance: the suite's shipped one, as the board's
+    re-derivation uses, else None (root seed other than 0, seed beyond the shipped ones, the
+    sanity case, a custom case).  Never the record's own claim: a record that states a lower
+    ``f_star`` would export better precisions than it reached."""
     known = best_known_for(str(record["case"]), str(record["track"]), int(record["seed"]),
                            int(record.get("root_seed") or 0))
     return None if known is None else (float(known["f_star"]), float(known["f_nominal"]))
