@@ -13,6 +13,7 @@ import pytest
 
 from ema_bench import suite_v2
 from ema_bench.cli import main
+from ema_bench.leaderboard.ioh import read_ioh
 from ema_bench.objective import Objective, ProblemError
 from ema_bench.seeding import run_seed
 from ema_bench.suite import SuiteError, target_key
@@ -338,9 +339,21 @@ def test_export_writes_one_ioh_function_per_condition_with_a_dimension_per_tier(
                       .read_text())
     assert [s["dimension"] for s in meta["scenarios"]] == [4, 7, 12]
     assert [len(s["runs"][0]["best"]["x"]) for s in meta["scenarios"]] == [4, 7, 12]
-    # precision needs f*: tier 4 has v1's, the others none until the v2 table ships
+    # precision needs f*: tier 4 has v1's, the others the shipped v2 table's (seed 0; a seed
+    # beyond the table's has none, and is refused)
     assert main(["export", str(out / "runs.jsonl"), "--format", "ioh", "--value",
-                 "precision", "--out", str(tmp_path / "p")]) != 0
+                 "precision", "--out", str(tmp_path / "p")]) == 0
+    rec = next(r for r in recs if r["case"] == "t12-s00@surface-current")
+    known = suite_v2.best_known_for(rec["case"], rec["track"], 0)
+    (run,) = [r for r in read_ioh(tmp_path / "p") if r["algorithm"] == rec["solver"]
+              and r["function_name"] == "surface-current@twin" and r["dimension"] == 12]
+    assert run["raw_y"] == pytest.approx(
+        [max(0.0, (y - known["f_star"]) / (known["f_nominal"] - known["f_star"]))
+         for _, y in rec["trace"]], rel=1e-12)
+    later = tmp_path / "seed1.jsonl"
+    later.write_text(json.dumps({**rec, "seed": 1, "key": rec["key"][:-1] + "1"}) + "\n")
+    assert main(["export", str(later), "--format", "ioh", "--value", "precision", "--out",
+                 str(tmp_path / "p1")]) != 0
 
 
 def test_validate_with_replay_accepts_the_v2_board_and_refuses_a_doctored_record(board,
@@ -376,4 +389,9 @@ def test_validate_with_replay_accepts_the_v2_board_and_refuses_a_doctored_record
     full = next(x for x in recs if x["case"] == "t7-s00@no-prior" and x["solver"] == "random")
     claim = dict(full, case="t7-s00@surface-current",
                  key=full["key"].replace("no-prior", "surface-current"))
+    # refused: its targets are not the condition's (f*), nor, given them, its fitness values
+    assert any("f_star" in p for p in check_record(claim))
+    known = suite_v2.best_known_for("t7-s00@surface-current", full["track"], full["seed"])
+    claim["targets"] = {**full["targets"], "f_star": known["f_star"],
+                        "f_nominal": known["f_nominal"]}
     assert any("fitness" in p for p in check_record(claim))

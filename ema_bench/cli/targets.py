@@ -4,8 +4,8 @@ One long multi-solver polishing run per (instance, track, noise seed) of the sui
 least-squares warm-started at the truth, zoo powell from its best, zoo cmaes from nominal
 (2700 evaluations in all; ema_bench/best_known.py documents the method).  It writes the JSON
 the package ships as ema_bench/suite_targets.json (--suite emafdi-v2: the package's
-suite_targets_v2.json, once computed, whose seed-0 reference entries also hold the clean-data fit
-that picks the judged parameters); entries are appended to OUT.partial.jsonl as they
+suite_targets_v2.json, seed 0 shipped, whose seed-0 reference entries also hold the
+clean-data fit that picks the judged parameters); entries are appended to OUT.partial.jsonl as they
 finish, so an interrupted run resumes.  v1: about 3 CPU-s per entry, 460 entries.  v2:
 docs/suite-v2.md gives the cost per entry and tier.  --tiers, --conditions, --per-tier,
 --seeds, --tracks (and for v1 --cases) compute a subset, e.g. to regenerate part of a
