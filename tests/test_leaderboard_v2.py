@@ -237,6 +237,47 @@ def test_the_saturation_check_by_hand(board):
     assert "only 1 of the tier's 23 instances on this board" in line
 
 
+def test_the_pooled_separation_by_hand(board):
+    """Per tier, each solver's runs of every condition pooled: the ranking and the areas from
+    the runs' evidence by hand (_area), the intervals from the bootstrap primitive; then a
+    board where the 5th solver reaches nothing, so best and 5th must be disjoint."""
+    from ema_bench.leaderboard.anytime import group_seed, mean_ci
+
+    records = read_records(board / "runs.jsonl")
+    assert scaling.pooled_separation(records, "twin") == {4: None, 7: None}  # 4 solvers
+    clones = [dict(r, solver=r["solver"] + "-bis") for r in records
+              if r["solver"] in ("cmaes", "de")]
+    six = records + clones
+    got = scaling.pooled_separation(six, "twin")
+    for tier in (4, 7):
+        per: dict[str, list[float]] = {}
+        for r in six:
+            if instance(r["case"].split("@")[0]).tier == tier:
+                per.setdefault(r["solver"], []).append(_area(r))
+        assert all(len(v) == 4 for v in per.values())   # 2 conditions x 2 seeds
+        means = {s: sum(v) / len(v) for s, v in per.items()}
+        ranked = sorted(means, key=lambda s: (-means[s], s))
+        p = got[tier]
+        assert (p.best, p.nth) == (ranked[0], ranked[4])
+        assert p.best_area[0] == pytest.approx(means[ranked[0]], abs=1e-12)
+        assert p.nth_area[0] == pytest.approx(means[ranked[4]], abs=1e-12)
+        lo = mean_ci(per[ranked[0]], group_seed("twin", ranked[0], f"t{tier}"))[1]
+        hi = mean_ci(per[ranked[4]], group_seed("twin", ranked[4], f"t{tier}"))[2]
+        assert p.disjoint == (lo > hi)
+    # nelder-mead against five solvers whose runs reach no target: disjoint on tier 4
+    nm = [r for r in records if r["solver"] == "nelder-mead"]
+    far = [dict(r, solver=f"z{i}", trajectory=[[1, 1e9, [float(x) for x in LOWER]
+                                                + [0.0] * (len(r["trajectory"][0][2]) - 4)]])
+           for i in range(5) for r in nm]
+    sep = scaling.pooled_separation(nm + far, "twin")
+    assert sep[4].best == "nelder-mead" and sep[4].nth_area == (0.0, 0.0, 0.0)
+    assert sep[4].disjoint and sep[4].best_area[1] > 0
+    line = scaling.saturation_lines(nm + far, scaling.group_scores(nm + far), "twin")[2]
+    assert line.startswith("Pooled over each tier's conditions, best and 5th solver's "
+                           "ECDF-area intervals disjoint on 1 tier(s) (4)")
+    assert "tier 4: nelder-mead" in line and "tier 7: nelder-mead" in line
+
+
 def test_a_scope_is_declared_from_the_known_ones():
     from ema_bench.registry import SCOPES, SolverError, register_solver
 

@@ -276,12 +276,49 @@ def separated(scores: list[AnytimeScore], rank: int = FIFTH) -> dict[tuple[str, 
     return out
 
 
+@dataclass(frozen=True)
+class TierSeparation:
+    """Best and ``rank``-th solver of one tier, their ECDF areas pooled over every condition
+    of the tier the board has (mean, 95 % bootstrap interval over runs)."""
+
+    tier: int
+    best: str
+    best_area: tuple[float, float, float]
+    nth: str
+    nth_area: tuple[float, float, float]
+
+    @property
+    def disjoint(self) -> bool:
+        return bool(self.best_area[1] > self.nth_area[2])
+
+
+def pooled_separation(records: list[dict], track: str,
+                      rank: int = FIFTH) -> dict[int, TierSeparation | None]:
+    """Tier -> best vs ``rank``-th solver on ``track``, each solver's runs of all the tier's
+    conditions pooled (the issue's "on at least two tiers" read per tier; None: fewer
+    solvers).  The areas come from :func:`.anytime.run_area`, the intervals from
+    :func:`.anytime.mean_ci` seeded by (track, solver, ``t<tier>``)."""
+    by: dict[int, dict[str, list[float]]] = defaultdict(lambda: defaultdict(list))
+    for (tr, tier, _), recs in groups(records).items():
+        if tr == track:
+            for r in recs:
+                by[tier][r["solver"]].append(run_area(r))
+    out: dict[int, TierSeparation | None] = {}
+    for tier, per in sorted(by.items()):
+        areas = {s: mean_ci(v, group_seed(track, s, f"t{tier}")) for s, v in per.items()}
+        ranked = sorted(areas, key=lambda s: (-np.nan_to_num(areas[s][0], nan=-1.0), s))
+        out[tier] = None if len(ranked) < rank else TierSeparation(
+            tier, ranked[0], areas[ranked[0]], ranked[rank - 1], areas[ranked[rank - 1]])
+    return out
+
+
 def saturation_lines(records: list[dict], scores: list[AnytimeScore], track: str,
                      rank: int = FIFTH, name: Callable[[str], str] = str) -> list[str]:
     """The issue's saturation check on ``track``, as report lines: on the highest tier,
     whether any solver reaches :data:`P_TARGET` on every instance (in at least one run: the
     strict reading), and the tiers whose best and ``rank``-th solvers' ECDF-area intervals
-    are disjoint under every condition the board has of them.  ``name`` formats a solver's
+    are disjoint under every condition the board has of them, then pooled over the
+    tier's conditions (:func:`pooled_separation`).  ``name`` formats a solver's
     name (:func:`~ema_bench.escape.markdown` for Markdown: names come from plugins)."""
     r = {k: v for k, v in reach(records).items() if k[0] == track}
     if not r:
@@ -322,4 +359,18 @@ def saturation_lines(records: list[dict], scores: list[AnytimeScore], track: str
                  + (f" ({', '.join(map(str, disjoint))})" if disjoint else "")
                  + f" (target: at least two; {'; '.join(detail)}; n/a: fewer than {rank} "
                    "solvers).")
+    pooled = pooled_separation(records, track, rank)
+    parts = [f"tier {t}: n/a" if p is None else
+             f"tier {t}: {name(p.best)} {_interval(p.best_area)} vs {name(p.nth)} "
+             f"{_interval(p.nth_area)}, {'yes' if p.disjoint else 'no'}"
+             for t, p in pooled.items()]
+    hit = [t for t, p in pooled.items() if p is not None and p.disjoint]
+    lines.append(f"Pooled over each tier's conditions, best and {rank}{nth} solver's ECDF-area "
+                 f"intervals disjoint on {len(hit)} tier(s)"
+                 + (f" ({', '.join(map(str, hit))})" if hit else "")
+                 + f" (target: at least two; {'; '.join(parts)}).")
     return lines
+
+
+def _interval(v: tuple[float, float, float]) -> str:
+    return f"{v[0]:.3f} [{v[1]:.3f}, {v[2]:.3f}]"
