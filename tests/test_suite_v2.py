@@ -245,6 +245,10 @@ def test_a_v2_sweep_runs_end_to_end_and_validate_refuses_a_doctored_effect(tmp_p
     assert validate(recs, complete=False) == []
     lacking = validate(recs)          # one of the tier's 20 instances: incomplete
     assert len(lacking) == 1 and "lacks 19 runs" in lacking[0].problem
+    # a board declared with --per-tier N needs the tier's first N instances, no more
+    assert validate(recs, per_tier=1) == []
+    (hole,) = validate(recs, per_tier=2)
+    assert "lacks 1 runs of the suite (e.g. t7-s01@no-prior/0)" in hole.problem
     bad = json.loads(json.dumps(r))
     bad["trajectory"][-1][2][5] += 0.01   # the current gain of the best point
     assert any("fitness" in p for p in check_record(bad))

@@ -13,6 +13,7 @@ Examples::
     ema-bench validate my-solver/runs.jsonl
     ema-bench validate shard0/runs.jsonl shard1/runs.jsonl --json
     ema-bench validate leaderboards/quick/runs.jsonl --partial
+    ema-bench validate leaderboards/runs.jsonl --per-tier 10 --replay 12
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ import argparse
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from .args import add_json, seed_number
+    from .args import add_json, count, seed_number
 
     p = sub.add_parser("validate", help="check third-party run records (suite, manifest, "
                                         "budget, re-evaluated fitness)",
@@ -30,6 +31,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("runs", nargs="+", metavar="RUNS.jsonl", help="run records to check")
     p.add_argument("--partial", action="store_true",
                    help="do not require every instance of the suite (a shard, a quick run)")
+    p.add_argument("--per-tier", type=count(1, 1000), default=None, metavar="N",
+                   help="emafdi-v2: require the first N instances of each tier only (a board "
+                        "swept with --per-tier N, e.g. the committed one)")
     p.add_argument("--no-reevaluate", action="store_true",
                    help="skip re-evaluating each reported vector (fast, weaker)")
     p.add_argument("--replay", metavar="K", default=None,
@@ -57,7 +61,8 @@ def run(args: argparse.Namespace) -> int:
     records = unique(read_run_files(args.runs))
     if not records:
         raise CLIError(f"no run records in {', '.join(args.runs)}")
-    found = validate(records, reevaluate=not args.no_reevaluate, complete=not args.partial)
+    found = validate(records, reevaluate=not args.no_reevaluate, complete=not args.partial,
+                     per_tier=args.per_tier)
     SUITE_ID = ", ".join(sorted({suite_of(r.get("case")) for r in records}))  # noqa: N806
     legacy = sum(schema(r) < 2 and not is_error(r) for r in records)
     replayed = _replay(records, "all" if args.replay_key and not args.replay else args.replay,

@@ -365,9 +365,11 @@ def _reevaluate(r: dict, d: Derived) -> list[str]:
     return []
 
 
-def check_complete(records: list[dict]) -> list[Finding]:
+def check_complete(records: list[dict], per_tier: int | None = None) -> list[Finding]:
     """Every solver must cover every non-sanity suite instance, on each track it enters,
-    for the same seeds as its other runs (leaving out hard instances is not allowed)."""
+    for the same seeds as its other runs (leaving out hard instances is not allowed).
+    ``per_tier`` (emafdi-v2): the first N instances of each tier, in the suite's order (a
+    board declared with ``--per-tier N``: the subset is fixed before any run, not chosen)."""
     v1_cases = [c for c in instance_names() if c not in SANITY_CASES]
     have: dict[tuple[str, str], set[tuple[str, int]]] = defaultdict(set)
     for r in records:
@@ -380,7 +382,7 @@ def check_complete(records: list[dict]) -> list[Finding]:
         v2 = {(parse_case(c)[0].tier, parse_case(c)[1].name) for c, _ in runs
               if is_v2_case(c)}
         cases = [case_key(n, cond) for d, cond in sorted(v2)
-                 for n in instance_names_v2(d)] if v2 else v1_cases
+                 for n in instance_names_v2(d)[:per_tier]] if v2 else v1_cases
         lacking = [f"{c}/{s}" for c in cases for s in seeds if (c, s) not in runs]
         if lacking:
             out.append(Finding("*", f"{solver} on the {track} track lacks {len(lacking)} runs "
@@ -388,9 +390,10 @@ def check_complete(records: list[dict]) -> list[Finding]:
     return out
 
 
-def validate(records: list[dict], reevaluate: bool = True, complete: bool = True
-             ) -> list[Finding]:
-    """Every reason to refuse ``records`` (empty: accepted)."""
+def validate(records: list[dict], reevaluate: bool = True, complete: bool = True,
+             per_tier: int | None = None) -> list[Finding]:
+    """Every reason to refuse ``records`` (empty: accepted); ``per_tier``: see
+    :func:`check_complete`."""
     found = [Finding(str(r.get("key", f"record {i}")), p)
              for i, r in enumerate(records) for p in check_record(r, reevaluate)]
-    return found + (check_complete(records) if complete else [])
+    return found + (check_complete(records, per_tier) if complete else [])
