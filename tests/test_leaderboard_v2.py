@@ -86,6 +86,8 @@ def test_a_v2_board_writes_tables_per_tier_and_condition_plots_and_page(board):
     for name in ("ecdf_tiers_twin.png", "ert_scaling.png"):
         assert (board / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert not (board / "ecdf.png").exists()   # one ECDF over mixed tiers: not drawn
+    # the paper case of tier 4 with the prior is v1's problem: its convergence is drawn
+    assert (board / "convergence_twin.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     md = (board / "leaderboard_twin.md").read_text()
     heads = [line for line in md.splitlines() if line.startswith("## Tier")]
     assert heads == ["## Tier 4, prior (dimension 4, budget 160, 1 instance)",

@@ -136,72 +136,84 @@ def ecdf_tiers_plot(records: list[dict], track: str, path: Path) -> None:
                 ax.set_xlabel("evaluations / dimension")
             if j == 0:
                 ax.set_ylabel("fraction of targets reached")
+    fig.tight_layout(rect=(0, 0, 1, _shared_legend(fig, axes)))
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def _shared_legend(fig, axes, ncol: int = 6) -> float:
+    """One legend for every panel, above them (each label once); returns the figure
+    fraction the panels may use (the legend's rows take a fixed height in inches, so a
+    one-row figure's titles are not covered)."""
     handles, labels = [], []
     for ax in axes.flat:
         for h, lab in zip(*ax.get_legend_handles_labels()):
             if lab not in labels:
                 handles.append(h)
                 labels.append(lab)
-    fig.legend(handles, labels, fontsize=7, loc="upper center", ncol=min(6, len(labels)))
-    fig.tight_layout(rect=(0, 0, 1, 0.94))
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-
-
-#: Line style and marker of each condition in the scaling plot (colour: the solver).
-_CONDITION_STYLE = {"prior": ("-", "o"), "no-prior": ("--", "s"), "step-only": (":", "^")}
+    ncol = min(ncol, max(1, len(labels)))
+    fig.legend(handles, labels, fontsize=7, loc="upper center", ncol=ncol)
+    rows = -(-len(labels) // ncol)
+    return 1 - (0.1 + 0.17 * rows) / fig.get_figheight()
 
 
 def ert_scaling_plot(records: list[dict], points, path: Path) -> None:
     """emafdi-v2, COCO's scaling plot: ERT to the 1 % parameter target divided by the
-    dimension against the dimension, one line per solver (colour) and condition (line style),
-    one panel per track.  ``points``: :func:`.scaling.scaling_points` (the ERT of
-    :mod:`.anytime`).  A point where not every run reached the target is labelled with the
-    successes ``k/n``; a solver with none is drawn as a cross above the budget line (grey:
-    the budget / dimension)."""
-    tracks = list(dict.fromkeys(p.track for p in points))
-    fig, axes = plt.subplots(1, max(1, len(tracks)), figsize=(6.2 * max(1, len(tracks)), 4.6),
-                             squeeze=False)
+    dimension against the dimension, one panel per track (rows) and condition (columns),
+    one line per solver (its colour and line style in every panel: 12 solvers and four
+    conditions in one axes could not be told apart).  ``points``:
+    :func:`.scaling.scaling_points` (the ERT of :mod:`.anytime`).  A point where not every
+    run reached the target is labelled with the successes ``k/n``; a solver with none is
+    drawn as a cross above the budget line (grey: the budget / dimension)."""
+    tracks = list(dict.fromkeys(p.track for p in points)) or ["-"]
+    conds = list(dict.fromkeys(p.condition for p in points)) or ["-"]
+    fig, axes = plt.subplots(len(tracks), len(conds), figsize=(4.4 * len(conds),
+                                                               3.6 * len(tracks)),
+                             squeeze=False, sharey=True)
     style = _styles(records)
     per_dim = max((r["budget"] / _dim(r) for r in records), default=1.0)
     # the crosses above every point (an ERT exceeds the budget when some runs miss)
     top = 1.6 * max([per_dim] + [p.ert[0] / p.dim for p in points if math.isfinite(p.ert[0])])
-    for ax, track in zip(axes[0], tracks):
-        lines = defaultdict(list)
-        for p in points:
-            if p.track == track:
-                lines[(p.solver, p.condition)].append(p)
-        offset = {k: 1 + 0.02 * (i - len(lines) / 2) for i, k in enumerate(sorted(lines))}
-        for (solver, cond), pts in sorted(lines.items()):
-            pts = sorted(pts, key=lambda p: p.dim)
-            ls, marker = _CONDITION_STYLE.get(cond, ("-.", "d"))
-            color = style[solver]["color"]
-            dims = [p.dim for p in pts]
-            y = [p.ert[0] / p.dim if math.isfinite(p.ert[0]) else np.nan for p in pts]
-            ax.plot(dims, y, ls=ls, marker=marker, color=color, ms=4, lw=1.2,
-                    label=f"{solver}, {cond}")
-            for p, v in zip(pts, y):
-                if not math.isfinite(v):
-                    # spread a little sideways: the crosses of every solver share one height
-                    ax.plot([p.dim * offset[(solver, cond)]], [top], marker="x", color=color,
-                            ms=5, ls="none")
-                elif p.hits < p.runs:
-                    ax.annotate(f"{p.hits}/{p.runs}", (p.dim, v), fontsize=6, color=color,
-                                textcoords="offset points", xytext=(3, 3))
-        dims = sorted({p.dim for p in points})
-        ax.axhline(per_dim, color="0.5", ls=":", lw=1)
-        ax.set_xscale("log")
-        ax.set_yscale("log")
-        ax.set_xticks(dims, [str(d) for d in dims])
-        ax.minorticks_off()
-        ax.set_ylim(top=1.4 * top)
-        ax.set_xlabel("dimension (tier)")
-        ax.set_ylabel("ERT to the 1 % parameter target / dimension")
-        ax.set_title(f"scaling ({track} track); k/n: runs that reached it, where not all "
-                     "did; x: none did", fontsize=9)
-        ax.grid(alpha=0.3, which="both")
-        ax.legend(fontsize=6, loc="lower right", ncol=2)
-    fig.tight_layout()
+    dims = sorted({p.dim for p in points})
+    for i, track in enumerate(tracks):
+        for j, cond in enumerate(conds):
+            ax = axes[i, j]
+            lines = defaultdict(list)
+            for p in points:
+                if p.track == track and p.condition == cond:
+                    lines[p.solver].append(p)
+            offset = {k: 1 + 0.02 * (n - len(lines) / 2) for n, k in enumerate(sorted(lines))}
+            for solver, pts in sorted(lines.items()):
+                pts = sorted(pts, key=lambda p: p.dim)
+                y = [p.ert[0] / p.dim if math.isfinite(p.ert[0]) else np.nan for p in pts]
+                ax.plot([p.dim for p in pts], y, marker="o", ms=4, lw=1.2, label=solver,
+                        **style[solver])
+                for p, v in zip(pts, y):
+                    if not math.isfinite(v):
+                        # spread a little sideways: the crosses of every solver share a height
+                        ax.plot([p.dim * offset[solver]], [top], marker="x",
+                                color=style[solver]["color"], ms=5, ls="none")
+                    elif p.hits < p.runs:
+                        ax.annotate(f"{p.hits}/{p.runs}", (p.dim, v), fontsize=6,
+                                    color=style[solver]["color"], textcoords="offset points",
+                                    xytext=(3, 3))
+            ax.axhline(per_dim, color="0.5", ls=":", lw=1)
+            ax.set_xscale("log")
+            ax.set_yscale("log")
+            ax.set_xticks(dims, [str(d) for d in dims])
+            ax.minorticks_off()
+            if dims:
+                ax.set_xlim(dims[0] / 1.3, dims[-1] * 1.3)
+            ax.set_ylim(top=1.4 * top)
+            ax.set_title(f"{cond} ({track} track)", fontsize=9)
+            if i == len(tracks) - 1:
+                ax.set_xlabel("dimension (tier)")
+            if j == 0:
+                ax.set_ylabel("ERT to p0.01 / dimension")
+            ax.grid(alpha=0.3, which="both")
+    fig.suptitle("k/n: runs that reached the 1 % parameter target, where not all did; "
+                 "x: none did; dotted: the budget", fontsize=8, y=0.01, va="bottom")
+    fig.tight_layout(rect=(0, 0.03, 1, _shared_legend(fig, axes)))
     fig.savefig(path, dpi=100)
     plt.close(fig)
 
