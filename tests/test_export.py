@@ -267,6 +267,24 @@ def test_cli_exports_the_committed_quick_leaderboard(tmp_path):
         assert run["raw_y"] == [y for _, y in rec["trace"]]
 
 
+def test_cli_exports_the_committed_v2_board_one_function_per_condition_and_track(tmp_path):
+    """The main board (emafdi-v2): one IOH function per condition and track, its tiers as
+    dimensions; the summary names the functions written (it once counted every case)."""
+    board = REPO / "leaderboards" / "runs.jsonl"
+    out = tmp_path / "ioh"
+    res = run_cli("export", "--format", "ioh", board, "--out", out, "--json")
+    assert res.returncode == 0, res.stderr
+    summary = json.loads(res.stdout)
+    recs = [json.loads(line) for line in board.read_text().splitlines()]
+    want = sorted({f"{r['case'].split('@')[1]}@{r['track']}" for r in recs})
+    metas = [json.loads(m.read_text()) for m in out.glob("*/IOHprofiler_f*.json")]
+    assert summary["functions"] == want == sorted({m["function_name"] for m in metas})
+    assert summary["runs"] == len(recs) == sum(len(s["runs"]) for m in metas
+                                               for s in m["scenarios"])
+    dims = {len(r["trajectory"][0][2]) for r in recs}
+    assert {s["dimension"] for m in metas for s in m["scenarios"]} == dims
+
+
 def test_cli_refuses_a_broken_file_in_one_line(tmp_path):
     lines = QUICK_RUNS.read_text().splitlines(keepends=True)
     broken = tmp_path / "runs.jsonl"

@@ -48,7 +48,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..leaderboard.ioh import split_runs
+    from ..leaderboard.ioh import function_name, split_runs
     from ..leaderboard.store import is_error, unique
     from ..suite import SANITY_CASES
     from . import print_json
@@ -72,7 +72,8 @@ def run(args: argparse.Namespace) -> int:
         "format": args.format, "out": str(out), "runs": len(runs),
         "skipped": len(skipped), "skipped_errors": errors, "sanity_left_out": len(sanity),
         "solvers": sorted({str(r["solver"]) for r in runs}),
-        "functions": sorted({f"{r['case']}@{r['track']}" for r in runs}),
+        # the exporter's names (emafdi-v2: condition@track, one dimension per tier)
+        "functions": sorted({function_name(r) for r in runs}),
         "files": [str(f) for f in files],
     }
     if args.json:
