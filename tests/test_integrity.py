@@ -4,7 +4,7 @@ Forgeries of a submitter (who edits ``runs.jsonl``) are refused by ``validate``'
 re-derivation with a one-line message naming the field and both values; a solver (which runs
 in our process) gets a view with no path to the truth, and one that reads memory it was not
 given is caught by replay; names from plugins are refused or escaped.  Real records: the
-committed legacy board, and real runs of the zoo.
+committed legacy quick board (v1, schema 1), and real runs of the zoo.
 """
 
 from __future__ import annotations
@@ -43,8 +43,9 @@ ROOT = Path(__file__).resolve().parents[1]
 
 @pytest.fixture(scope="module")
 def legacy() -> list[dict]:
-    """The committed main board's records of one instance (legacy, schema 1)."""
-    with open(ROOT / "leaderboards" / "runs.jsonl") as fh:
+    """The committed quick board's records of one instance (v1, legacy, schema 1; the main
+    board is emafdi-v2 in schema 2 since issue 33)."""
+    with open(ROOT / "leaderboards" / "quick" / "runs.jsonl") as fh:
         recs = [json.loads(line) for line in fh if '"case": "s00"' in line]
     return recs
 
