@@ -85,6 +85,7 @@ def test_no_v2_board_placeholder_is_left_on_a_complete_board():
     found = [f"{p.relative_to(ROOT)}: {m}" for p in docs for m in MARKER.findall(p.read_text())]
     if _complete():
         assert found == [], "fill these from the full board:\n" + "\n".join(found)
+        assert "The committed v2 board is partial" not in README.read_text()
     else:
         assert any("PARTIAL board committed" in f for f in found), found
 
