@@ -12,7 +12,7 @@ import numpy as np
 
 from ..faults import CASES, FAULT_NAMES, NOMINAL, check_faults
 from ..instances import make_problem
-from ..plots import plot_traces, plt
+from ..plots import plot_traces, plt, save_figure
 from ..suite import SANITY_CASES
 from ..suite_v2 import build_problem
 from ..traces import Traces
@@ -67,9 +67,7 @@ def convergence_plot(records: list[dict], track: str, path: Path) -> None:
         ax.grid(alpha=0.3, which="both")
     axes[0, 0].set_ylabel("best fitness (median, IQR)")
     axes[0, -1].legend(fontsize=7, loc="upper right")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def ecdf_plot(records: list[dict], path: Path) -> None:
@@ -86,9 +84,7 @@ def ecdf_plot(records: list[dict], path: Path) -> None:
         ax.set_title(f"ECDF over (instance, target) pairs ({track} track)")
     axes[0, 0].set_ylabel("fraction of targets reached")
     axes[0, -1].legend(fontsize=7, loc="upper left")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def _ecdf_panel(ax, records: list[dict], grid: np.ndarray, style: dict, per: float = 1.0
@@ -143,9 +139,7 @@ def ecdf_tiers_plot(records: list[dict], track: str, path: Path) -> None:
                 handles.append(h)
                 labels.append(lab)
     fig.legend(handles, labels, fontsize=7, loc="upper center", ncol=min(6, len(labels)))
-    fig.tight_layout(rect=(0, 0, 1, 0.94))
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    save_figure(fig, path, dpi=100, rect=(0, 0, 1, 0.94))
 
 
 #: Line style and marker of each condition in the scaling plot (colour: the solver).
@@ -201,9 +195,7 @@ def ert_scaling_plot(records: list[dict], points, path: Path) -> None:
                      "did; x: none did", fontsize=9)
         ax.grid(alpha=0.3, which="both")
         ax.legend(fontsize=6, loc="lower right", ncol=2)
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    save_figure(fig, path, dpi=100)
 
 
 def _dim(record: dict) -> int:
@@ -268,9 +260,7 @@ def landscape_plot(data: dict[str, np.ndarray], path: Path) -> None:
         ax.set_ylabel("Na [-]")
         ax.set_title(f"{label} fitness (paper Figure 5 grid, {f.shape[0]}x{f.shape[1]})")
         ax.legend(fontsize=7, loc="lower right")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def valley_rise(f: np.ndarray) -> float:
