@@ -32,6 +32,7 @@ import numpy as np
 
 from .faults import NOMINAL, faults_to_dict
 from .instances import TRACKS, make_problem
+from .jsonio import write_atomic
 from .registry import run_solver
 from .scoring import range_error
 from .seeding import run_seed
@@ -232,7 +233,6 @@ def compute_targets(out: Path, workers: int | None = None, quiet: bool = False,
     data = {"suite": suite, "model_version": SUITE_MODEL_VERSION, "method": method,
             "entries": {k: {f: done[k][f] for f in fields if f in done[k]}
                         for k in keys if k in done}}
-    tmp = out.with_name(f"{out.name}.{os.getpid()}.tmp")   # two runs on one file both write
-    tmp.write_text(json.dumps(data, indent=0, sort_keys=True) + "\n")
-    os.replace(tmp, out)
+    # two runs on one file both write: each through its own temporary file
+    write_atomic(out, json.dumps(data, indent=0, sort_keys=True) + "\n")
     return data
