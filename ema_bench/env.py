@@ -54,7 +54,7 @@ change to the models or the instances is a new version, as with Gymnasium's own 
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import gymnasium as gym
@@ -105,10 +105,11 @@ def _layout_sizes() -> list[int]:
     return [spec.n_samples() for spec in STANDARD_TESTS]
 
 
-def observation_box(observation: str) -> spaces.Box:
+def observation_box(observation: str, tests: Sequence = STANDARD_TESTS) -> spaces.Box:
     """Finite bounds (check_env warns on infinite ones): sensor spans for traces; for residuals
-    a box that also holds the traces returned by ``reset``."""
-    sizes = _layout_sizes()
+    a box that also holds the traces returned by ``reset``.  ``tests``: the test specs of the
+    layout (default the standard protocol's)."""
+    sizes = [spec.n_samples() for spec in tests]
     lo = np.array([s.lo for s in SENSORS])
     hi = np.array([s.hi for s in SENSORS])
     margin = _SPAN_MARGIN * (hi - lo)
