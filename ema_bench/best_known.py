@@ -224,11 +224,10 @@ def compute_targets(out: Path, workers: int | None = None, quiet: bool = False,
                   workers=workers, label="best-known optima", unit="instance", quiet=quiet)
         done = {r["key"]: r for r in store.records}
     fields = ("f_star", "f_nominal", "x_star", "fitness_at_truth", "bias_range_error")
-    if suite != SUITE_ID:
-        fields += V2_FIELDS + COST_FIELDS
     method = {"stages": [list(s) for s in STAGES], "root_seed": TARGET_ROOT_SEED,
               "command": "ema-bench targets"}
     if suite != SUITE_ID:
+        fields += V2_FIELDS + COST_FIELDS
         method["clean_stages"] = [list(s) for s in CLEAN_STAGES]
     data = {"suite": suite, "model_version": SUITE_MODEL_VERSION, "method": method,
             "entries": {k: {f: done[k][f] for f in fields if f in done[k]}
