@@ -31,8 +31,6 @@ Examples::
 from __future__ import annotations
 
 import argparse
-import shlex
-import sys
 import tempfile
 from pathlib import Path
 
@@ -159,13 +157,11 @@ def run(args: argparse.Namespace) -> int:
     solvers = args.solvers or list(available_solvers())
     # before any work: a sweep must not fail at its first write, hours in
     out = check_output(args.out or tempfile.mkdtemp(prefix="ema-lb-"), "--out", folder=True)
-    command = "ema-bench " + " ".join(shlex.quote(a) for a in sys.argv[1:]) \
-        if sys.argv[0].endswith("ema-bench") else None
     summary = leaderboard(solvers, cases, args.tracks, seeds, budget, out,
                           executor=args.executor, workers=args.workers,
                           scheduler=args.scheduler, shard=args.shard,
                           root_seed=args.root_seed, plots=not args.no_plots,
-                          quiet=args.quiet, command=command,
+                          quiet=args.quiet,   # the header's command: from sys.argv
                           run=not args.report_only)
     lines: list[str] = []   # the text output (--json: the summary)
     if args.check:

@@ -17,6 +17,7 @@ from ..suite import SANITY_CASES
 from ..suite_v2 import build_problem
 from ..traces import Traces
 from .anytime import ecdf_curve
+from .scaling import group_of, groups
 
 
 def _best_at(trace: list[list[float]], grid: np.ndarray) -> np.ndarray:
@@ -107,8 +108,6 @@ def ecdf_tiers_plot(records: list[dict], track: str, path: Path) -> None:
     """emafdi-v2: the ECDF of (run, target) pairs reached per solver, one panel per tier
     (rows) and condition (columns) of ``track``, against evaluations / dimension (COCO's
     runtime distributions: panels of different tiers share an axis)."""
-    from .scaling import groups
-
     g = {(t, c): rs for (tr, t, c), rs in groups(records).items() if tr == track}
     tiers = sorted({t for t, _ in g})
     conds = list(dict.fromkeys(c for _, c in g))
@@ -157,7 +156,7 @@ def ert_scaling_plot(records: list[dict], points, path: Path) -> None:
     fig, axes = plt.subplots(1, max(1, len(tracks)), figsize=(6.2 * max(1, len(tracks)), 4.6),
                              squeeze=False)
     style = _styles(records)
-    per_dim = max((r["budget"] / _dim(r) for r in records), default=1.0)
+    per_dim = max((r["budget"] / group_of(r)[0] for r in records), default=1.0)
     # the crosses above every point (an ERT exceeds the budget when some runs miss)
     top = 1.6 * max([per_dim] + [p.ert[0] / p.dim for p in points if math.isfinite(p.ert[0])])
     for ax, track in zip(axes[0], tracks):
@@ -196,12 +195,6 @@ def ert_scaling_plot(records: list[dict], points, path: Path) -> None:
         ax.grid(alpha=0.3, which="both")
         ax.legend(fontsize=6, loc="lower right", ncol=2)
     save_figure(fig, path, dpi=100)
-
-
-def _dim(record: dict) -> int:
-    from .scaling import group_of
-
-    return group_of(record)[0]
 
 
 def overlay_plot(record: dict, path: Path) -> None:
