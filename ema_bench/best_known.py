@@ -32,6 +32,7 @@ import numpy as np
 
 from .faults import NOMINAL, faults_to_dict
 from .instances import TRACKS, make_problem
+from .jsonio import write_atomic
 from .registry import run_solver
 from .scoring import range_error
 from .seeding import run_seed
@@ -223,16 +224,14 @@ def compute_targets(out: Path, workers: int | None = None, quiet: bool = False,
                   workers=workers, label="best-known optima", unit="instance", quiet=quiet)
         done = {r["key"]: r for r in store.records}
     fields = ("f_star", "f_nominal", "x_star", "fitness_at_truth", "bias_range_error")
-    if suite != SUITE_ID:
-        fields += V2_FIELDS + COST_FIELDS
     method = {"stages": [list(s) for s in STAGES], "root_seed": TARGET_ROOT_SEED,
               "command": "ema-bench targets"}
     if suite != SUITE_ID:
+        fields += V2_FIELDS + COST_FIELDS
         method["clean_stages"] = [list(s) for s in CLEAN_STAGES]
     data = {"suite": suite, "model_version": SUITE_MODEL_VERSION, "method": method,
             "entries": {k: {f: done[k][f] for f in fields if f in done[k]}
                         for k in keys if k in done}}
-    tmp = out.with_name(f"{out.name}.{os.getpid()}.tmp")   # two runs on one file both write
-    tmp.write_text(json.dumps(data, indent=0, sort_keys=True) + "\n")
-    os.replace(tmp, out)
+    # two runs on one file both write: each through its own temporary file
+    write_atomic(out, json.dumps(data, indent=0, sort_keys=True) + "\n")
     return data

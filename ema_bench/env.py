@@ -54,7 +54,7 @@ change to the models or the instances is a new version, as with Gymnasium's own 
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import gymnasium as gym
@@ -100,15 +100,11 @@ def _check_config(case: Any, track: str, budget: Any, observation: str,
     check_settings(case, track, budget, heterogeneity)
 
 
-def _layout_sizes() -> list[int]:
-    """Samples per test of the standard protocol (the observation layout)."""
-    return [spec.n_samples() for spec in STANDARD_TESTS]
-
-
-def observation_box(observation: str) -> spaces.Box:
+def observation_box(observation: str, tests: Sequence = STANDARD_TESTS) -> spaces.Box:
     """Finite bounds (check_env warns on infinite ones): sensor spans for traces; for residuals
-    a box that also holds the traces returned by ``reset``."""
-    sizes = _layout_sizes()
+    a box that also holds the traces returned by ``reset``.  ``tests``: the test specs of the
+    layout (default the standard protocol's)."""
+    sizes = [spec.n_samples() for spec in tests]
     lo = np.array([s.lo for s in SENSORS])
     hi = np.array([s.hi for s in SENSORS])
     margin = _SPAN_MARGIN * (hi - lo)
@@ -178,7 +174,9 @@ class _EpisodeMixin:
         problem = make_problem(case, track=track, seed=run_seed(self.root_seed, k),
                                budget=self.budget,
                                normalise=self.normalise, heterogeneity=self.heterogeneity)
-        if problem.measured.stacked().shape != (sum(_layout_sizes()) * len(SIGNALS),):
+        # the observation layout: the standard protocol's tests
+        layout = sum(spec.n_samples() for spec in STANDARD_TESTS) * len(SIGNALS)
+        if problem.measured.stacked().shape != (layout,):
             raise ProblemError("the problem's traces do not follow the standard test protocol")
         self._problem = problem
 

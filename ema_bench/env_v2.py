@@ -28,9 +28,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from .env import _RESIDUAL_BOUND, _SPAN_MARGIN, OBSERVATIONS, EMAFaultEnv, reset_options
+from .env import OBSERVATIONS, EMAFaultEnv, observation_box, reset_options
 from .objective import KNOWN_TESTS
-from .physics.sensors import SENSORS
 from .protocol import STANDARD_TESTS
 from .seeding import run_seed
 from .suite_v2 import condition as _condition
@@ -38,20 +37,6 @@ from .suite_v2 import instance, instance_names
 from .suite_v2 import tier as _tier
 
 ENV_ID_V2 = "EMAFault/Identify-v2"
-
-
-def _observation_space_for(observation: str, tests: tuple[str, ...]) -> spaces.Box:
-    """As ``v1``'s, for the given tests."""
-    sizes = [KNOWN_TESTS[t].n_samples() for t in tests]
-    lo = np.array([s.lo for s in SENSORS])
-    hi = np.array([s.hi for s in SENSORS])
-    margin = _SPAN_MARGIN * (hi - lo)
-    low = np.concatenate([np.repeat(lo - margin, n) for n in sizes])
-    high = np.concatenate([np.repeat(hi + margin, n) for n in sizes])
-    if observation == "residuals":
-        bound = max(_RESIDUAL_BOUND, float(np.abs(low).max()), float(high.max()))
-        low, high = np.full_like(low, -bound), np.full_like(high, bound)
-    return spaces.Box(low=low, high=high, dtype=np.float64)
 
 
 class EMAFaultEnvV2(EMAFaultEnv):
@@ -86,7 +71,8 @@ class EMAFaultEnvV2(EMAFaultEnv):
                          render_mode=render_mode, root_seed=root_seed)
         self.tier, self.condition, self.case = t.dim, c.name, case
         self._tests = c.tests or tuple(s.name for s in STANDARD_TESTS)
-        self.observation_space = _observation_space_for(observation, self._tests)
+        self.observation_space = observation_box(observation,
+                                                 tuple(KNOWN_TESTS[n] for n in self._tests))
         self.action_space = spaces.Box(low=0.0, high=1.0, shape=(t.dim,), dtype=np.float64)
 
     def _new_problem(self, rng: np.random.Generator, options: Mapping[str, Any] | None,

@@ -12,8 +12,9 @@ run when the package is imported, drops the package's cached kernels whenever an
 from __future__ import annotations
 
 import hashlib
-import os
 from pathlib import Path
+
+from .jsonio import write_atomic
 
 PACKAGE = Path(__file__).resolve().parent
 STAMP = "numba-sources.stamp"
@@ -50,9 +51,7 @@ def ensure_fresh(package: Path = PACKAGE) -> bool:
                 if f.suffix in _CACHE_SUFFIXES:
                     f.unlink(missing_ok=True)
         stamp_file.parent.mkdir(exist_ok=True)
-        tmp = stamp_file.with_name(f"{STAMP}.{os.getpid()}")
-        tmp.write_text(stamp)
-        os.replace(tmp, stamp_file)
+        write_atomic(stamp_file, stamp)
     except OSError:
         return False
     return True

@@ -66,10 +66,10 @@ def dumps(obj: Any, *, indent: int | None = None, sort_keys: bool = False,
 def write_atomic(path: Path, text: str) -> None:
     """Write ``text`` to ``path`` through a temporary file beside it (of this process: two
     processes writing one file do not share it): a reader sees the old file or the new one,
-    never half of one."""
+    never half of one (UTF-8)."""
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     try:
-        tmp.write_text(text)
+        tmp.write_text(text, encoding="utf-8")
         os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)

@@ -13,6 +13,15 @@ import matplotlib.pyplot as plt  # noqa: E402
 from .traces import DESCRIPTIONS, SIGNALS, UNITS, Traces  # noqa: E402
 
 
+def save_figure(fig: plt.Figure, path: str | os.PathLike, dpi: int = 110,
+                rect: tuple[float, float, float, float] | None = None) -> None:
+    """Lay ``fig`` out (inside ``rect``, figure fractions, when given), save it to ``path``
+    at ``dpi`` dots per inch and close it (a long sweep draws hundreds)."""
+    fig.tight_layout(rect=rect)
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)
+
+
 def plot_traces(traces: Sequence[Traces], labels: Sequence[str], path: str | os.PathLike,
                 title: str = "") -> None:
     """The 8 compared outputs (4 signals x tests) of one or more ``Traces``, overlaid.
@@ -37,6 +46,4 @@ def plot_traces(traces: Sequence[Traces], labels: Sequence[str], path: str | os.
             axes[i, j].grid(alpha=0.3)
     axes[0, 0].legend(fontsize=8)
     fig.suptitle(title or " / ".join(DESCRIPTIONS[s] for s in SIGNALS[:2]), fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)

@@ -92,11 +92,6 @@ def register_solver(name: str, /, *, description: str, library: str,
     return deco
 
 
-def load_plugins() -> None:
-    """Import every module named in the ``ema_bench.solvers`` entry-point group (once)."""
-    _SOLVERS.load_all()
-
-
 def available_solvers() -> dict[str, SolverInfo]:
     """Every registered solver, by name (sorted)."""
     return _SOLVERS.available()

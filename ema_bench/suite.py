@@ -88,15 +88,11 @@ def instance_names(which: str = "all") -> tuple[str, ...]:
 def expand_cases(names: Sequence[str]) -> list[str]:
     """Case names with groups (``all``, ``paper``, ``lhs``, ``quick``) expanded, checked, in
     order and without repeats (``seeded``, a random instance per run, passes through)."""
-    out: list[str] = []
-    for n in names:
-        group = instance_names(n) if n in GROUPS else (n,)
-        for c in group:
-            if c != "seeded":
-                instance_faults(c)   # unknown names fail here, before any work
-            if c not in out:
-                out.append(c)
-    return out
+    out = [c for n in names for c in (instance_names(n) if n in GROUPS else (n,))]
+    for c in out:
+        if c != "seeded":
+            instance_faults(c)   # unknown names fail here, before any work
+    return list(dict.fromkeys(out))
 
 
 def instance_faults(name: str) -> np.ndarray:

@@ -161,3 +161,23 @@ def test_shipping_a_table_is_for_a_checkout_only(tmp_path):
     empty.write_text(json.dumps({"scores": []}))
     with pytest.raises(ValueError, match="holds no calibration scores"):
         cf.ship(empty, checkout)
+
+
+def test_the_model_form_biases_are_written_only_where_named(tmp_path, monkeypatch):
+    """``model_form.calibrate`` wrote into the package's ``model_form.json`` by default: now
+    the path has no default, and an installed package (no checkout around it) is refused
+    before any fit (one instance would cost about 15 CPU-s)."""
+    import inspect
+
+    import ema_bench.calibration_files as files
+    from ema_bench.uncertainty import model_form
+
+    assert inspect.signature(model_form.calibrate).parameters["path"].default \
+        is inspect.Parameter.empty
+    monkeypatch.setattr(files, "checkout_root", lambda package=PACKAGE: None)
+    monkeypatch.setattr("ema_bench.calibrate.clean_bias",
+                        lambda *a, **k: pytest.fail("fitted before refusing"))
+    before = package_digest()
+    with pytest.raises(ValueError, match="inside the installed package, not a checkout"):
+        model_form.calibrate(model_form.PATH, ["small"])
+    assert package_digest() == before

@@ -109,12 +109,6 @@ def append_record(path: str | Path, record: dict[str, Any]) -> None:
         store.append(record)
 
 
-def unit_bounds(problem: SolverView) -> tuple[np.ndarray, np.ndarray]:
-    """The normalised box ``[0, 1]^dim`` every adapter searches (physical scales differ by
-    six orders of magnitude)."""
-    return np.zeros(problem.dim), np.ones(problem.dim)
-
-
 def evaluate_unit(problem: SolverView, U: np.ndarray) -> np.ndarray:
     """Fitness of unit-box points ``U`` (n, dim), clipped into the box first (a library's
     bound handling may step 1 ulp outside), as one batched, counted evaluation."""

@@ -74,21 +74,13 @@ def _register_make(actions: argparse._SubParsersAction) -> None:
 def _run_make(args: argparse.Namespace) -> int:
     import time
 
-    from ..prognostics.campaign import (
-        CampaignError,
-        default_out,
-        get_spec,
-        make_campaign,
-        prepare_folder,
-    )
+    from ..prognostics.campaign import default_out, get_spec, make_campaign, prepare_folder
 
-    # --units, --every and --seed are bounded by their argparse types
-    try:  # before any work
-        get_spec(args.name)
-        out = args.out or default_out(args.name, args.track, args.split, args.seed, args.units)
-        prepare_folder(out)
-    except CampaignError as exc:
-        raise CLIError(str(exc)) from None
+    # --units, --every and --seed are bounded by their argparse types; before any work (a
+    # CampaignError is a ValueError: one line by main())
+    get_spec(args.name)
+    out = args.out or default_out(args.name, args.track, args.split, args.seed, args.units)
+    prepare_folder(out)
     check_output(out, "--out", folder=True)
     t0 = time.perf_counter()
     c = make_campaign(args.name, units=args.units, split=args.split, track=args.track,
@@ -139,14 +131,8 @@ def _register_track(actions: argparse._SubParsersAction) -> None:
 def _run_track(args: argparse.Namespace) -> int:
     import time
 
-    from ..prognostics.campaign import CampaignError, load_campaign
-    from ..prognostics.tracking import (
-        TrackerError,
-        available_trackers,
-        get_tracker,
-        read_track,
-        track_campaign,
-    )
+    from ..prognostics.campaign import load_campaign
+    from ..prognostics.tracking import available_trackers, get_tracker, read_track, track_campaign
 
     if args.list:
         trackers = available_trackers()
@@ -159,18 +145,13 @@ def _run_track(args: argparse.Namespace) -> int:
                               ("--out", args.out)) if not v]
     if missing:
         raise CLIError(f"give {', '.join(missing)} (or --list)")
-    try:  # before any work
-        get_tracker(args.tracker)
-        campaign = load_campaign(args.campaign)
-    except (TrackerError, CampaignError) as exc:
-        raise CLIError(str(exc)) from None
+    # before any work (TrackerError, CampaignError: one line by main())
+    get_tracker(args.tracker)
+    campaign = load_campaign(args.campaign)
     check_output(args.out, "--out", folder=True)
     t0 = time.perf_counter()
-    try:
-        out = track_campaign(campaign, args.tracker, args.out, seed=args.seed,
-                             workers=args.workers, quiet=args.quiet)
-    except TrackerError as exc:
-        raise CLIError(str(exc)) from None
+    out = track_campaign(campaign, args.tracker, args.out, seed=args.seed,
+                         workers=args.workers, quiet=args.quiet)
     seconds = round(time.perf_counter() - t0, 2)
     log = read_track(out)
     steps = sum(len(rows) for rows in log.steps.values())
@@ -245,10 +226,7 @@ def _cell(h: dict, fmt: str) -> str:
 
 
 def _ratio_cell(h: dict) -> str:
-    if "ratio" not in h:
-        return "-"
-    lo, hi = h["ratio_ci"]
-    return f"{_fmt(h['ratio'], '{:.2f}')} [{_fmt(lo, '{:.2f}')}, {_fmt(hi, '{:.2f}')}]"
+    return _cell({"value": h["ratio"], "ci": h["ratio_ci"]}, "{:.2f}") if "ratio" in h else "-"
 
 
 #: Headline columns of the table: figure, header, format.

@@ -86,7 +86,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..calibration_files import inside_package, using
-    from ..registry import SolverError, get_solver
+    from ..registry import get_solver
     from ..uncertainty import calibration as cal
     from ..uncertainty.methods import METHODS
 
@@ -94,10 +94,7 @@ def run(args: argparse.Namespace) -> int:
         raise CLIError(f"--level must lie in (0, 1), got {args.level}")
     if not args.noise_scale > 0:
         raise CLIError(f"--noise-scale must be positive, got {args.noise_scale}")
-    try:
-        get_solver(args.solver)
-    except SolverError as exc:
-        raise CLIError(str(exc)) from None
+    get_solver(args.solver)   # SolverError: a LookupError, printed in one line by main()
     bad = [m for m in args.method if m not in METHODS]
     if bad or not args.method or len(set(args.method)) != len(args.method):
         raise CLIError(f"--method takes distinct methods of {list(METHODS)}, got "
@@ -125,11 +122,8 @@ def _run(args: argparse.Namespace, root: int, out) -> int:
                              model_form=args.model_form) for m in args.method]
     stems = [f"{args.track}_{m}" for m in args.method]
     paths = [None if out is None else out / f"{stem}.jsonl" for stem in stems]
-    try:
-        runs = run_methods(all_settings, args.instances, paths, workers=args.workers,
-                           quiet=args.quiet or args.json)
-    except ValueError as exc:
-        raise CLIError(str(exc)) from None
+    runs = run_methods(all_settings, args.instances, paths, workers=args.workers,
+                       quiet=args.quiet or args.json)
     summaries = [_summary(records, method, stem, out, args)
                  for method, stem, records in zip(args.method, stems, runs)]
     return print_result(args, summaries[0] if len(summaries) == 1 else summaries,

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import argparse
 
-from . import print_json
+from . import print_result
 from .args import (
     MAX_BUDGET,
     add_json,
@@ -80,27 +80,21 @@ def run(args: argparse.Namespace) -> int:
                      on_stage=bar.note)
     if args.report:
         write_report(d, measured, args.report, source=", ".join(args.traces))
-    if args.json:
-        out = d.as_dict()
-        out["effects"] = [{k: e[k] for k in ("name", "params", "interval", "gap_before",
-                                              "gap_after", "gap_closed", "partial")}
-                          for e in out["effects"]]
-        print_json(out)
-        return 0
-    print(f"verdict: {d.verdict}. {d.message}")
-    for e in d.effects:
-        (name, v), = e.params.items()
-        print(f"  {name} = {v:.4g} (95 % interval {e.interval[0]:.4g} .. {e.interval[1]:.4g})"
-              f"{', partial' if e.partial else ''}")
-    for a in d.acquisition:
-        print(f"  {a.name} = {a.value:.4g} (95 % interval {a.interval[0]:.4g} .. "
-              f"{a.interval[1]:.4g}): {a.description}{', partial' if a.partial else ''}")
-    if d.effects:
-        from ..diagnosis.interval_table import source
+    from ..diagnosis.interval_table import source
 
-        print(f"  effect intervals calibrated by: {source()}")
-    print("faults before -> after: " + ", ".join(
-        f"{n} {v['before']:.4g} -> {v['after']:.4g}" for n, v in d.faults.items()))
-    if args.report:
-        print(f"report written to {args.report}/report.md")
-    return 0
+    out = d.as_dict()
+    out["effects"] = [{k: e[k] for k in ("name", "params", "interval", "gap_before",
+                                          "gap_after", "gap_closed", "partial")}
+                      for e in out["effects"]]
+    return print_result(args, out, [
+        f"verdict: {d.verdict}. {d.message}",
+        *(f"  {name} = {v:.4g} (95 % interval {e.interval[0]:.4g} .. {e.interval[1]:.4g})"
+          f"{', partial' if e.partial else ''}"
+          for e in d.effects for name, v in e.params.items()),
+        *(f"  {a.name} = {a.value:.4g} (95 % interval {a.interval[0]:.4g} .. "
+          f"{a.interval[1]:.4g}): {a.description}{', partial' if a.partial else ''}"
+          for a in d.acquisition),
+        *([f"  effect intervals calibrated by: {source()}"] if d.effects else []),
+        "faults before -> after: " + ", ".join(
+            f"{n} {v['before']:.4g} -> {v['after']:.4g}" for n, v in d.faults.items()),
+        *([f"report written to {args.report}/report.md"] if args.report else [])])

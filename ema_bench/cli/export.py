@@ -51,7 +51,7 @@ def run(args: argparse.Namespace) -> int:
     from ..leaderboard.ioh import function_name, split_runs
     from ..leaderboard.store import is_error, unique
     from ..suite import SANITY_CASES
-    from . import print_json
+    from . import print_result
     from .args import check_output, read_run_files
 
     out = check_output(args.out, "--out", folder=True)
@@ -76,15 +76,10 @@ def run(args: argparse.Namespace) -> int:
         "functions": sorted({function_name(r) for r in runs}),
         "files": [str(f) for f in files],
     }
-    if args.json:
-        print_json(summary)
-    else:
-        print(f"{len(runs)} runs of {len(summary['solvers'])} solvers on "
-              f"{len(summary['functions'])} functions -> {out} ({len(files)} files)")
-        if skipped:
-            print(f"skipped {len(skipped)} runs: {errors} failed with an error, "
-                  f"{len(skipped) - errors} made no evaluation")
-        if sanity:
-            print(f"left out {len(sanity)} runs of the sanity case (--include-sanity to "
-                  "export them)")
-    return 0
+    return print_result(args, summary, [
+        f"{len(runs)} runs of {len(summary['solvers'])} solvers on "
+        f"{len(summary['functions'])} functions -> {out} ({len(files)} files)",
+        *([f"skipped {len(skipped)} runs: {errors} failed with an error, "
+           f"{len(skipped) - errors} made no evaluation"] if skipped else []),
+        *([f"left out {len(sanity)} runs of the sanity case (--include-sanity to export "
+           "them)"] if sanity else [])])

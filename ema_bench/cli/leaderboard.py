@@ -31,8 +31,6 @@ Examples::
 from __future__ import annotations
 
 import argparse
-import shlex
-import sys
 import tempfile
 from pathlib import Path
 
@@ -128,7 +126,7 @@ def run(args: argparse.Namespace) -> int:
     from ..leaderboard.tasks import make_tasks
     from ..registry import available_solvers
     from ..suite import expand_cases
-    from . import CLIError, print_json
+    from . import CLIError, print_result
     from .args import check_output
 
     if args.check is not None:
@@ -150,8 +148,7 @@ def run(args: argparse.Namespace) -> int:
                            "--suite emafdi-v2")
         cases = expand_cases(args.cases or preset["cases"])
         budget = args.budget if args.budget is not None else preset["budget"]
-    if seeds < 1 or (not callable(budget) and budget < 1):
-        raise CLIError("--seeds and --budget must be >= 1")
+    # --seeds, --budget and --budget-per-dim are >= 1 by their argparse types
     if args.out is None and args.check is None:
         # no default: a sweep written into the committed leaderboards/ by accident would
         # mix with (and be resumed from) the published runs
@@ -160,15 +157,13 @@ def run(args: argparse.Namespace) -> int:
     solvers = args.solvers or list(available_solvers())
     # before any work: a sweep must not fail at its first write, hours in
     out = check_output(args.out or tempfile.mkdtemp(prefix="ema-lb-"), "--out", folder=True)
-    command = "ema-bench " + " ".join(shlex.quote(a) for a in sys.argv[1:]) \
-        if sys.argv[0].endswith("ema-bench") else None
     summary = leaderboard(solvers, cases, args.tracks, seeds, budget, out,
                           executor=args.executor, workers=args.workers,
                           scheduler=args.scheduler, shard=args.shard,
                           root_seed=args.root_seed, plots=not args.no_plots,
-                          quiet=args.quiet, command=command,
+                          quiet=args.quiet,   # the header's command: from sys.argv
                           run=not args.report_only)
-    status = 0
+    lines: list[str] = []   # the text output (--json: the summary)
     if args.check:
         tasks = make_tasks(solvers, cases, args.tracks, seeds, budget, args.root_seed,
                            args.shard)
@@ -190,25 +185,20 @@ def run(args: argparse.Namespace) -> int:
         regressions = compare(now, committed)
         summary["regressions"] = [str(r) for r in regressions]
         summary["baseline"] = used
-        status = 1 if regressions else 0
-        if not args.json:
-            against = (f"{args.check} (budget {_shown(budget, args)}, {seeds} seeds; "
-                       f"committed runs at this budget: {used['same_budget']}, re-scored "
-                       f"from a larger budget: {used['re_scored']})")
-            if regressions:
-                print(f"REGRESSIONS against {against}:")
-                for r in regressions:
-                    print("  " + str(r))
-            else:
-                print(f"no regression against {against}")
-    if args.json:
-        print_json({"out": str(out), **summary})
-    else:
-        print(f"{summary['runs']} runs ({summary['ran']} new) -> {out}")
-        for f in summary.get("files", []):
-            print(f"  {f}")
-        _print_failures(summary["errors"])
-    return status
+        against = (f"{args.check} (budget {_shown(budget, args)}, {seeds} seeds; "
+                   f"committed runs at this budget: {used['same_budget']}, re-scored "
+                   f"from a larger budget: {used['re_scored']})")
+        lines = ([f"REGRESSIONS against {against}:", *(f"  {r}" for r in regressions)]
+                 if regressions else [f"no regression against {against}"])
+    errors = summary["errors"]   # the runs that failed, one line each (scored as unsuccessful)
+    print_result(args, {"out": str(out), **summary}, [
+        *lines, f"{summary['runs']} runs ({summary['ran']} new) -> {out}",
+        *(f"  {f}" for f in summary.get("files", [])),
+        *([f"{len(errors)} runs FAILED with an error (scored as unsuccessful at their "
+           "budget; rerun the command to retry them):"] if errors else []),
+        *(f"  {e['key']} (budget {e['budget']}): {e['error_type']}: {e['error']}"
+          for e in errors)])
+    return 1 if summary.get("regressions") else 0
 
 
 def _v2_sweep(args: argparse.Namespace):
@@ -220,12 +210,9 @@ def _v2_sweep(args: argparse.Namespace):
     if args.cases:
         raise CLIError("--suite emafdi-v2 picks its instances with --tiers, --conditions and "
                        "--per-tier, not --cases")
-    try:
-        tiers = [int(t) for t in (args.tiers or suite_v2.TIERS)]
-        cases = suite_v2.cases(tiers, args.conditions or list(suite_v2.CONDITIONS),
-                               args.per_tier)
-    except ValueError as exc:   # SuiteError, or a tier that is not a number
-        raise CLIError(str(exc)) from None
+    # SuiteError, or a tier that is not a number: a ValueError, one line by main()
+    tiers = [int(t) for t in (args.tiers or suite_v2.TIERS)]
+    cases = suite_v2.cases(tiers, args.conditions or list(suite_v2.CONDITIONS), args.per_tier)
     if args.budget is not None:
         return cases, args.budget
     per_dim = args.budget_per_dim or suite_v2.BUDGET_PER_DIM
@@ -240,11 +227,3 @@ def _shown(budget, args: argparse.Namespace) -> str:
 
     return f"{args.budget_per_dim or BUDGET_PER_DIM} x tier"
 
-
-def _print_failures(errors: list[dict]) -> None:
-    """The runs that failed, one line each (they are scored as unsuccessful)."""
-    if errors:
-        print(f"{len(errors)} runs FAILED with an error (scored as unsuccessful at their "
-              "budget; rerun the command to retry them):")
-    for e in errors:
-        print(f"  {e['key']} (budget {e['budget']}): {e['error_type']}: {e['error']}")

@@ -108,16 +108,13 @@ def _register_solve(sub: argparse._SubParsersAction) -> None:
 
 def _check_args(args: argparse.Namespace) -> None:
     from ..instances import check_settings
-    from ..registry import SolverError, get_solver
+    from ..registry import get_solver
 
     run_node(args)   # the seeds are valid
     # make_problem's own checks, before any work (the measured path has no case)
     check_settings(_case(args) if args.measured is None else "small", args.track,
                    args.budget, args.heterogeneity)
-    try:
-        get_solver(args.solver)   # imports this solver's plugin only
-    except SolverError as exc:
-        raise CLIError(str(exc)) from None
+    get_solver(args.solver)   # imports this solver's plugin only (SolverError: one line)
     if args.measured is not None and args.effect:
         raise CLIError("--effect changes the simulated data; it cannot apply to --measured "
                        "traces")
@@ -218,7 +215,6 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print_json(out)
         return 0
-
     units = {f.name: f.unit for f in FAULTS}
     print(f"{res.solver} on {out['case']} ({out['track']} track, seed {args.seed}): "
           f"fitness {res.fitness:.6g} after {res.evaluations} of {args.budget} evaluations, "

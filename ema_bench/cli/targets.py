@@ -65,33 +65,31 @@ def _keys(args: argparse.Namespace) -> list[str] | None:
     bad = [t for t in tracks if t not in TRACKS]
     if bad:
         raise CLIError(f"unknown track(s) {bad}; known: {list(TRACKS)}")
-    try:
-        if args.suite == "emafdi-v2":
-            if args.cases:
-                raise CLIError("--suite emafdi-v2 picks its instances with --tiers, "
-                               "--conditions and --per-tier, not --cases")
-            keys = suite_v2.target_keys(args.seeds or suite_v2.TARGET_SEEDS, tracks,
-                                        [int(t) for t in args.tiers] if args.tiers else None,
-                                        args.conditions, args.per_tier)
-            if not keys:
-                raise CLIError("no v2 case there needs its own entries (tier 4 with full "
-                               "information uses v1's table)")
-            return keys
-        if args.tiers or args.conditions or args.per_tier:
-            raise CLIError("--tiers, --conditions and --per-tier need --suite emafdi-v2")
-        if not (args.cases or args.seeds or args.tracks):
-            return None
-        cases = [c for c in expand_cases(args.cases or ["all"]) if c not in SANITY_CASES]
-        return [target_key(c, t, k) for k in range(args.seeds or TARGET_SEEDS)
-                for c in cases for t in tracks]
-    except ValueError as exc:   # SuiteError, FaultError, a tier that is not a number
-        raise CLIError(str(exc)) from None
+    # SuiteError, FaultError, a tier that is not a number: ValueErrors, one line by main()
+    if args.suite == "emafdi-v2":
+        if args.cases:
+            raise CLIError("--suite emafdi-v2 picks its instances with --tiers, "
+                           "--conditions and --per-tier, not --cases")
+        keys = suite_v2.target_keys(args.seeds or suite_v2.TARGET_SEEDS, tracks,
+                                    [int(t) for t in args.tiers] if args.tiers else None,
+                                    args.conditions, args.per_tier)
+        if not keys:
+            raise CLIError("no v2 case there needs its own entries (tier 4 with full "
+                           "information uses v1's table)")
+        return keys
+    if args.tiers or args.conditions or args.per_tier:
+        raise CLIError("--tiers, --conditions and --per-tier need --suite emafdi-v2")
+    if not (args.cases or args.seeds or args.tracks):
+        return None
+    cases = [c for c in expand_cases(args.cases or ["all"]) if c not in SANITY_CASES]
+    return [target_key(c, t, k) for k in range(args.seeds or TARGET_SEEDS)
+            for c in cases for t in tracks]
 
 
 def run(args: argparse.Namespace) -> int:
     from .. import suite_v2
     from ..suite import describe, read_targets, shipped_targets
-    from . import CLIError, print_json
+    from . import CLIError, print_result
     from .args import check_output
 
     v2 = args.suite == "emafdi-v2"
@@ -116,24 +114,21 @@ def run(args: argparse.Namespace) -> int:
         summary["cost_by_tier"] = _cost_by_tier(entries)
     else:
         summary = {**describe(), **summary}
-    if args.json:
-        print_json(summary)
-    else:
-        print(f"suite {summary['suite']} (model version {summary['model_version']}): "
-              f"{len(entries)} best-known optima")
-        for b, k in bias[:5]:
-            print(f"  {k}: best-known point {100 * b:.2f} % of range from the truth")
-        if v2:
-            clean = sum("clean_x" in e for e in entries.values())
-            print(f"  {clean} clean-data fits; parameters without parameter targets on the "
+    lines = [f"suite {summary['suite']} (model version {summary['model_version']}): "
+             f"{len(entries)} best-known optima",
+             *(f"  {k}: best-known point {100 * b:.2f} % of range from the truth"
+               for b, k in bias[:5])]
+    if v2:
+        clean = sum("clean_x" in e for e in entries.values())
+        lines += [f"  {clean} clean-data fits; parameters without parameter targets on the "
                   f"reference track (clean-data bias over 0.3 % of range): "
-                  f"{len(summary['excluded'])} instances")
-            for k, names in summary["excluded"].items():
-                print(f"    {k.split('|')[0]}: {', '.join(names)}")
-            for d, c in summary["cost_by_tier"].items():
-                print(f"  tier {d}: {c['entries']} entries, median {c['cpu_s_median']:.1f} "
-                      f"CPU-s, {c['cpu_s_total']:.0f} CPU-s in all")
-    return 0
+                  f"{len(summary['excluded'])} instances",
+                  *(f"    {k.split('|')[0]}: {', '.join(names)}"
+                    for k, names in summary["excluded"].items()),
+                  *(f"  tier {d}: {c['entries']} entries, median {c['cpu_s_median']:.1f} "
+                    f"CPU-s, {c['cpu_s_total']:.0f} CPU-s in all"
+                    for d, c in summary["cost_by_tier"].items())]
+    return print_result(args, summary, lines)
 
 
 def _excluded(entries: dict) -> dict[str, list[str]]:

@@ -55,7 +55,7 @@ def run(args: argparse.Namespace) -> int:
     from ..leaderboard.validate import LEGACY_UNVERIFIABLE, Finding, validate
     from ..records import schema
     from ..suite_v2 import suite_of
-    from . import CLIError, print_json
+    from . import CLIError, print_result
     from .args import read_run_files
 
     records = unique(read_run_files(args.runs))
@@ -68,28 +68,19 @@ def run(args: argparse.Namespace) -> int:
     replayed = _replay(records, "all" if args.replay_key and not args.replay else args.replay,
                        args.replay_seed, set(args.replay_key or ()) or None)
     found += [Finding(r.key, f"replay: {r.finding}") for r in replayed if r.finding]
-    if args.json:
-        print_json({"suite": SUITE_ID, "records": len(records), "accepted": not found,
-                    "legacy_records": legacy,
-                    "replayed": len(replayed),
-                    "reproduced": sum(r.finding is None for r in replayed),
-                    "replay_wall_s": sum(r.wall_s for r in replayed),
-                    "findings": [{"key": f.key, "problem": f.problem} for f in found]})
-        return 1 if found else 0
-    if legacy:
-        print(f"{legacy} legacy record(s) (schema 1, no trajectory vectors): their "
-              f"{'; '.join(LEGACY_UNVERIFIABLE)} are checked against bounds only and "
-              "verified by --replay")
-    if replayed:
-        ok = sum(r.finding is None for r in replayed)
-        print(f"replay: {ok}/{len(replayed)} records reproduced "
-              f"({sum(r.wall_s for r in replayed):.0f} s)")
-    if found:
-        print(f"REFUSED: {len(found)} finding(s) in {len(records)} records (suite {SUITE_ID}):")
-        for f in found:
-            print(f"  {f}")
-    else:
-        print(f"accepted: {len(records)} records of suite {SUITE_ID}")
+    ok = sum(r.finding is None for r in replayed)
+    print_result(args, {"suite": SUITE_ID, "records": len(records), "accepted": not found,
+                        "legacy_records": legacy, "replayed": len(replayed), "reproduced": ok,
+                        "replay_wall_s": sum(r.wall_s for r in replayed),
+                        "findings": [{"key": f.key, "problem": f.problem} for f in found]}, [
+        *([f"{legacy} legacy record(s) (schema 1, no trajectory vectors): their "
+           f"{'; '.join(LEGACY_UNVERIFIABLE)} are checked against bounds only and verified "
+           "by --replay"] if legacy else []),
+        *([f"replay: {ok}/{len(replayed)} records reproduced "
+           f"({sum(r.wall_s for r in replayed):.0f} s)"] if replayed else []),
+        *([f"REFUSED: {len(found)} finding(s) in {len(records)} records (suite {SUITE_ID}):",
+           *(f"  {f}" for f in found)] if found else
+          [f"accepted: {len(records)} records of suite {SUITE_ID}"])])
     return 1 if found else 0
 
 

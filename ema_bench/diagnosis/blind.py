@@ -544,10 +544,10 @@ def run_blind(n: int, seed: int, out: str | Path | None = None,
         cases = [c for c in cases if c.category in only]
     tasks = [_job(c) for c in cases]
     run = functools.partial(_run_task, runner or run_case, seed, settings)
+    sweep = dict(executor="serial" if workers <= 1 else "processes", workers=workers,
+                 label="blind", unit="case", quiet=quiet, describe=_verdict)
     if out is None:
-        got = run_sweep(tasks, run, executor="serial" if workers <= 1 else "processes",
-                        workers=workers, label="blind", unit="case", quiet=quiet,
-                        describe=_verdict).records
+        got = run_sweep(tasks, run, **sweep).records
     else:
         with Store(Path(out) / CASES_FILE, schema=CASE_SCHEMA) as store:
             # cases of another model version are stale: run again, recorded beside the old
@@ -555,9 +555,7 @@ def run_blind(n: int, seed: int, out: str | Path | None = None,
             for rec in store.records:
                 if is_current(rec) and rec["key"] in drawn:
                     _check_resumed(rec, drawn[rec["key"]], seed, store.path)
-            run_sweep(tasks, run, [store], executor="serial" if workers <= 1
-                      else "processes", workers=workers, label="blind", unit="case",
-                      quiet=quiet, describe=_verdict)
+            run_sweep(tasks, run, [store], **sweep)
             got = [r for r in store.records if is_current(r)]
     by_key = {r["key"]: r for r in got}
     ordered = [by_key[t.key] for t in tasks]

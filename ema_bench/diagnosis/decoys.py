@@ -230,15 +230,9 @@ def outliers(tr: Traces, signal: str, size: float, fraction: float = 0.005,
     return _map_channel(tr, signal, spikes)
 
 
-#: The acquisition-chain decoys, by name.
+#: The acquisition-chain decoys, by name (their function's).
 ACQUISITION_DECOYS: dict[str, Callable[..., Traces]] = {
-    "lowpass": lowpass,
-    "mains_hum": mains_hum,
-    "clipping": clipping,
-    "time_shift": time_shift,
-    "drift": drift,
-    "outliers": outliers,
-}
+    f.__name__: f for f in (lowpass, mains_hum, clipping, time_shift, drift, outliers)}
 
 
 def _noise(signal: str) -> float:
@@ -285,14 +279,11 @@ def _draw_outliers(rng: np.random.Generator) -> dict[str, Any]:
             "fraction": 0.005, "seed": int(rng.integers(2**31))}
 
 
+#: Each decoy's draw of its keyword arguments (``_draw_<name>``).
 _DRAWS: dict[str, Callable[[np.random.Generator], dict[str, Any]]] = {
-    "lowpass": _draw_lowpass,
-    "mains_hum": _draw_mains_hum,
-    "clipping": _draw_clipping,
-    "time_shift": _draw_time_shift,
-    "drift": _draw_drift,
-    "outliers": _draw_outliers,
-}
+    f.__name__.removeprefix("_draw_"): f for f in (
+        _draw_lowpass, _draw_mains_hum, _draw_clipping, _draw_time_shift, _draw_drift,
+        _draw_outliers)}
 
 
 def draw(name: str, rng: np.random.Generator) -> dict[str, Any]:

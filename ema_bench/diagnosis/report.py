@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import jsonio
-from ..plots import plt
+from ..plots import plt, save_figure
 from ..traces import SIGNALS, UNITS, Traces
 from .features import ORDERS, whiten
 from .workflow import HOLDOUT, TRAIN, Diagnosis, Fit
@@ -51,9 +51,7 @@ def _plot_residuals(measured: Traces, before: Fit, after: Fit, path: Path) -> No
         axes[0, j].set_title(f"{t} ({'held out' if t in HOLDOUT else 'training'})")
         axes[-1, j].set_xlabel("time [s]")
     axes[0, 0].legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    save_figure(fig, path, dpi=100)
 
 
 def _plot_spectra(measured: Traces, before: Fit, after: Fit, path: Path) -> None:
@@ -71,9 +69,7 @@ def _plot_spectra(measured: Traces, before: Fit, after: Fit, path: Path) -> None
         ax.set_xticks(orders[::2])
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    save_figure(fig, path, dpi=100)
 
 
 def write_report(d: Diagnosis, measured: Traces, out: str | Path, source: str = "") -> Path:

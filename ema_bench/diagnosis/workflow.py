@@ -714,9 +714,7 @@ def _search(search: _Search, result: Diagnosis) -> Trial | None:
                        if t.train_fitness[1] < t.train_fitness[0]
                        and all(abs(v) > _trivial(n) for n, v in t.values.items())),
                       key=lambda t: t.train_fitness[1])[:s.pair_pool]
-        pairs = []
-        for a, b in combinations(pool, 2):
-            pairs.append(_pair(search, a, b))
+        pairs = [_pair(search, a, b) for a, b in combinations(pool, 2)]
         chosen = _best(search.trials, s.pair_penalty)
         if chosen is None and pairs:
             chosen = _triples(search, pool, pairs)

@@ -12,11 +12,12 @@ import numpy as np
 
 from ..faults import CASES, FAULT_NAMES, NOMINAL, check_faults
 from ..instances import make_problem
-from ..plots import plot_traces, plt
+from ..plots import plot_traces, plt, save_figure
 from ..suite import SANITY_CASES
 from ..suite_v2 import build_problem
 from ..traces import Traces
 from .anytime import ecdf_curve
+from .scaling import group_of, groups
 
 
 def _best_at(trace: list[list[float]], grid: np.ndarray) -> np.ndarray:
@@ -67,9 +68,7 @@ def convergence_plot(records: list[dict], track: str, path: Path) -> None:
         ax.grid(alpha=0.3, which="both")
     axes[0, 0].set_ylabel("best fitness (median, IQR)")
     axes[0, -1].legend(fontsize=7, loc="upper right")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def ecdf_plot(records: list[dict], path: Path) -> None:
@@ -86,9 +85,7 @@ def ecdf_plot(records: list[dict], path: Path) -> None:
         ax.set_title(f"ECDF over (instance, target) pairs ({track} track)")
     axes[0, 0].set_ylabel("fraction of targets reached")
     axes[0, -1].legend(fontsize=7, loc="upper left")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def _ecdf_panel(ax, records: list[dict], grid: np.ndarray, style: dict, per: float = 1.0
@@ -111,8 +108,6 @@ def ecdf_tiers_plot(records: list[dict], track: str, path: Path) -> None:
     """emafdi-v2: the ECDF of (run, target) pairs reached per solver, one panel per tier
     (rows) and condition (columns) of ``track``, against evaluations / dimension (COCO's
     runtime distributions: panels of different tiers share an axis)."""
-    from .scaling import groups
-
     g = {(t, c): rs for (tr, t, c), rs in groups(records).items() if tr == track}
     tiers = sorted({t for t, _ in g})
     conds = list(dict.fromkeys(c for _, c in g))
@@ -136,9 +131,7 @@ def ecdf_tiers_plot(records: list[dict], track: str, path: Path) -> None:
                 ax.set_xlabel("evaluations / dimension")
             if j == 0:
                 ax.set_ylabel("fraction of targets reached")
-    fig.tight_layout(rect=(0, 0, 1, _shared_legend(fig, axes)))
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    save_figure(fig, path, dpi=100, rect=(0, 0, 1, _shared_legend(fig, axes)))
 
 
 def _shared_legend(fig, axes, ncol: int = 6) -> float:
@@ -171,7 +164,7 @@ def ert_scaling_plot(records: list[dict], points, path: Path) -> None:
                                                                3.6 * len(tracks)),
                              squeeze=False, sharey=True)
     style = _styles(records)
-    per_dim = max((r["budget"] / _dim(r) for r in records), default=1.0)
+    per_dim = max((r["budget"] / group_of(r)[0] for r in records), default=1.0)
     # the crosses above every point (an ERT exceeds the budget when some runs miss)
     top = 1.6 * max([per_dim] + [p.ert[0] / p.dim for p in points if math.isfinite(p.ert[0])])
     dims = sorted({p.dim for p in points})
@@ -213,15 +206,8 @@ def ert_scaling_plot(records: list[dict], points, path: Path) -> None:
             ax.grid(alpha=0.3, which="both")
     fig.suptitle("k/n: runs that reached the 1 % parameter target, where not all did; "
                  "x: none did; dotted: the budget", fontsize=8, y=0.01, va="bottom")
-    fig.tight_layout(rect=(0, 0.03, 1, _shared_legend(fig, axes)))
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    save_figure(fig, path, dpi=100, rect=(0, 0.03, 1, _shared_legend(fig, axes)))
 
-
-def _dim(record: dict) -> int:
-    from .scaling import group_of
-
-    return group_of(record)[0]
 
 
 def overlay_plot(record: dict, path: Path) -> None:
@@ -280,9 +266,7 @@ def landscape_plot(data: dict[str, np.ndarray], path: Path) -> None:
         ax.set_ylabel("Na [-]")
         ax.set_title(f"{label} fitness (paper Figure 5 grid, {f.shape[0]}x{f.shape[1]})")
         ax.legend(fontsize=7, loc="lower right")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def valley_rise(f: np.ndarray) -> float:

@@ -26,10 +26,11 @@ import mimetypes
 import numbers
 import os
 import re
-import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+
+from ..jsonio import write_atomic
 
 MISSING = "-"
 
@@ -318,13 +319,6 @@ def write_html(path: Path, title: str, intro: str, sections: Sequence[Section],
     page = render_html(title, intro, sections, footer)
     if not path.parent.is_dir():
         raise FileNotFoundError(errno.ENOENT, "folder of the HTML page not found", str(path.parent))
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as fh:
-            fh.write(page)
-        os.chmod(tmp, 0o644)   # mkstemp makes it owner-only; a page is there to be shared
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    write_atomic(path, page)
+    os.chmod(path, 0o644)   # readable by all, whatever the umask: a page is there to be shared
     return path

@@ -76,20 +76,18 @@ def write_page(records: list[dict], path: Path, header: str, images: list[Path])
                           footer=f"suite {V2_ID}, model version {MODEL_VERSION}")
     scores = anytime_scores(records, per_case=True)
     sanity = sanity_scores(records)
-    sections = []
-    for track in dict.fromkeys(r["track"] for r in records):
-        sections.append(Section(
-            f"{track} track", _track_note(track),
-            tables=[_table("Ranking by ECDF area (every instance but the sanity case)",
-                           _floored(ranking_rows(scores, track)),
-                           "Click a header to sort (the first click puts the better end "
-                           "first). Intervals: 95 % bootstrap over runs. " + PRECISION_NOTE),
-                    _table("Sanity: the healthy actuator (not ranked)",
-                           sanity_rows(sanity, track)),
-                    _table("ECDF area per instance", instance_rows(scores, track))]))
-    sections.append(Section("Plots", images=images))
+    sections = [Section(
+        f"{track} track", _track_note(track),
+        tables=[_table("Ranking by ECDF area (every instance but the sanity case)",
+                       _floored(ranking_rows(scores, track)),
+                       "Click a header to sort (the first click puts the better end "
+                       "first). Intervals: 95 % bootstrap over runs. " + PRECISION_NOTE),
+                _table("Sanity: the healthy actuator (not ranked)", sanity_rows(sanity, track)),
+                _table("ECDF area per instance", instance_rows(scores, track))])
+        for track in dict.fromkeys(r["track"] for r in records)]
     return write_html(path, f"ema-bench leaderboard ({SUITE_ID})", shareable(header),
-                      sections, footer=f"suite {SUITE_ID}, model version {MODEL_VERSION}")
+                      [*sections, Section("Plots", images=images)],
+                      footer=f"suite {SUITE_ID}, model version {MODEL_VERSION}")
 
 
 def v2_sections(records: list[dict]) -> list[Section]:

@@ -129,25 +129,18 @@ def write_leaderboards(records: list[dict], out: Path, header: str) -> list[Path
             for r in flat:
                 w.writerow({k: csv_value(v) for k, v in r.items()})
         md_path = out / f"leaderboard_{track}.md"
-        if v2:
-            md_path.write_text("\n".join([f"# Leaderboard, {track} track", "", header, "",
-                                          _track_note(track), "",
-                                          *v2_markdown(records, grouped, track)]))
-            written += [md_path, csv_path]
-            continue
-        md = [f"# Leaderboard, {track} track", "", header, "", _track_note(track), "",
-              "## Ranking: ECDF area over every (instance, target) pair", "",
-              "Instances: every one but the sanity case. Targets: fitness within "
-              "1e-1 .. 1e-4 of the instance's f*-to-nominal gap (f0.1 .. f0.0001) and the "
-              "best-so-far point within 10, 3, 1 % of every fault's range (p0.1 .. p0.01). "
-              "Area: a target reached at evaluation h of budget B counts (ln B - ln h) / ln B, "
-              "a miss 0; mean over runs and targets, 95 % bootstrap interval over runs. "
-              "Precision: (best fitness - f*) / (f_nominal - f*), median over runs.", "",
-              *markdown_table(ranking_rows(scores, track)), "",
-              "## Sanity: the healthy actuator (nominal case, not ranked)", "",
-              *markdown_table(sanity_rows(sanity, track)), "",
-              "## ECDF area per instance", "",
-              *markdown_table(instance_rows(scores, track)), ""]
+        md = [f"# Leaderboard, {track} track", "", header, "", _track_note(track), ""]
+        md += v2_markdown(records, grouped, track) if v2 else [
+            "## Ranking: ECDF area over every (instance, target) pair", "",
+            "Instances: every one but the sanity case. Targets: fitness within "
+            "1e-1 .. 1e-4 of the instance's f*-to-nominal gap (f0.1 .. f0.0001) and the "
+            "best-so-far point within 10, 3, 1 % of every fault's range (p0.1 .. p0.01). "
+            f"{AREA_NOTE} Precision: (best fitness - f*) / (f_nominal - f*), median over runs.",
+            "", *markdown_table(ranking_rows(scores, track)), "",
+            "## Sanity: the healthy actuator (nominal case, not ranked)", "",
+            *markdown_table(sanity_rows(sanity, track)), "",
+            "## ECDF area per instance", "",
+            *markdown_table(instance_rows(scores, track)), ""]
         md_path.write_text("\n".join(md))
         written += [md_path, csv_path]
     return written

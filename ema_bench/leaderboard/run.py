@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import shlex
 import sys
+from collections.abc import Callable
 from dataclasses import asdict
 from pathlib import Path
 
@@ -94,36 +95,30 @@ def write_outputs(records: list[dict], out: Path, command: str, plots: bool = Tr
     written.append(write_paper_tables(finished, scores, out, header, load_paper_results()))
     summary: dict[str, object] = {"errors": failed}
     images: list[Path] = []
+
+    def draw(name: str, plot: Callable[..., None], *data: object) -> None:
+        """``plot(*data, path)`` to ``out/name``, shown on the page."""
+        images.append(out / name)
+        plot(*data, images[-1])
+
     if plots and is_v2_board(records):
         # emafdi-v2: tiers have their own budgets; one ECDF per tier and condition instead
         for track in dict.fromkeys(r["track"] for r in records):
-            p = out / f"ecdf_tiers_{track}.png"
-            ecdf_tiers_plot(records, track, p)
-            images.append(p)
-        p = out / "ert_scaling.png"
-        ert_scaling_plot(records, scaling_points(group_scores(records)), p)
-        images.append(p)
+            draw(f"ecdf_tiers_{track}.png", ecdf_tiers_plot, records, track)
+        draw("ert_scaling.png", ert_scaling_plot, records, scaling_points(group_scores(records)))
     elif plots:
-        p = out / "ecdf.png"
-        ecdf_plot(records, p)
-        images.append(p)
+        draw("ecdf.png", ecdf_plot, records)
     if plots and finished:
         # emafdi-v2: the paper cases are tier 4 with the prior (v1's problems, bit for bit)
         paper = [{**r, "case": paper_case(r["case"])} for r in finished]
         for track in dict.fromkeys(r["track"] for r in finished):
             if any(r["track"] == track and r["case"] in CASES
                    and r["case"] not in SANITY_CASES for r in paper):
-                p = out / f"convergence_{track}.png"
-                convergence_plot(paper, track, p)
-                images.append(p)
-        p = out / "fit_overlay.png"
-        overlay_plot(overlay_run(finished), p)
-        images.append(p)
+                draw(f"convergence_{track}.png", convergence_plot, paper, track)
+        draw("fit_overlay.png", overlay_plot, overlay_run(finished))
         if landscape_n:
             land = landscape(landscape_n)
-            p = out / "figure5_landscape.png"
-            landscape_plot(land, p)
-            images.append(p)
+            draw("figure5_landscape.png", landscape_plot, land)
             summary["figure5_valley_rise"] = {"raw": valley_rise(land["raw"]),
                                               "normalised": valley_rise(land["normalised"])}
     if is_v2_board(records):   # the answers the v2 report states, for scripts

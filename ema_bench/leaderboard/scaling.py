@@ -326,24 +326,26 @@ def saturation_lines(records: list[dict], scores: list[AnytimeScore], track: str
     top = max(t for _, t, _ in r)
     per_cond = []
     saturated = False
+    held = 0
     for (_, t, cond), rows in r.items():
         if t != top or not rows:
             continue
         b = rows[0]
+        held = max(held, b.instances)
         full = [name(x.solver) for x in rows if x.any_run == x.instances]
         saturated |= bool(full)
-        # a board lacking instances could look saturated on the ones it has: say so
-        suite_n = len(instance_names(t))
         per_cond.append(f"{cond}: best {name(b.solver)}, {b.any_run} of {b.instances} instances "
                         f"in at least one run, {b.every_run} in every run"
-                        + (f"; every instance: {', '.join(full)}" if full else "")
-                        + (f"; only {b.instances} of the tier's {suite_n} instances on "
-                           "this board" if b.instances < suite_n else ""))
+                        + (f", every instance: {', '.join(full)}" if full else ""))
+    # a board lacking instances could look saturated on the ones it has: say so, once
+    suite_n = len(instance_names(top))
     lines = [f"Highest tier ({top}): "
              + ("SATURATED, a solver reaches the 1 % parameter target on every instance"
                 if saturated else "no solver reaches the 1 % parameter target on every "
                                   "instance")
-             + f" ({'; '.join(per_cond)})."]
+             + (f" (only {held} of the tier's {suite_n} instances on this board)"
+                if held < suite_n else "")
+             + f". {'; '.join(per_cond)}."]
     sep = {k: v for k, v in separated(scores, rank).items() if k[0] == track}
     tiers = sorted({t for _, t, _ in sep})
     detail, disjoint = [], []

@@ -240,16 +240,12 @@ def _close(a: object, b: float | None) -> bool:
 
 
 def _exact_claims(r: dict, t: dict, d: Derived) -> list[str]:
-    bad = []
-    if r.get("evals_to_success") != d.evals_to_success:
-        bad.append(_claim("evals_to_success", r.get("evals_to_success"), d.evals_to_success))
-    if t.get("fitness") != d.fitness_hits:
-        bad.append(_claim("targets.fitness", t.get("fitness"), d.fitness_hits))
-    if t.get("parameters") != d.parameter_hits:
-        bad.append(_claim("targets.parameters", t.get("parameters"), d.parameter_hits))
-    if r.get("best_at") != d.best_at:
-        bad.append(_claim("best_at", r.get("best_at"), d.best_at))
-    return bad
+    claims = (("evals_to_success", r.get("evals_to_success"), d.evals_to_success),
+              ("targets.fitness", t.get("fitness"), d.fitness_hits),
+              ("targets.parameters", t.get("parameters"), d.parameter_hits),
+              ("best_at", r.get("best_at"), d.best_at))
+    return [_claim(field, claimed, derived) for field, claimed, derived in claims
+            if claimed != derived]
 
 
 def _legacy_claims(r: dict, t: dict, d: Derived) -> list[str]:

@@ -536,10 +536,8 @@ def _records(root: Path, label: str, items: list, where: str,
         at = f"{where}: unit {label} inspection {i}"
         if not isinstance(item, dict):
             raise CampaignError(f"{at}: not an object")
-        index = _need(item, "index", int, at)
-        flight = _need(item, "flight", int, at)
-        rel = _need(item, "file", str, at)
-        conditions = _need(item, "conditions", dict, at)
+        index, flight, rel, conditions = (_need(item, key, kind, at) for key, kind in (
+            ("index", int), ("flight", int), ("file", str), ("conditions", dict)))
         if index != i:
             raise CampaignError(f"{at}: index {index} out of order (expected {i})")
         if out and flight <= out[-1].flight:

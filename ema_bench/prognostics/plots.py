@@ -11,7 +11,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from ..faults import FAULT_INDEX, FAULT_UNITS
-from ..plots import plt
+from ..plots import plt, save_figure
 
 
 def _truth_path(truth: Mapping) -> tuple[np.ndarray, np.ndarray]:
@@ -66,9 +66,7 @@ def plot_unit(rows: Sequence[Mapping], truth: Mapping, thresholds: Mapping[str, 
         ax.grid(alpha=0.3)
     axes[0, 0].legend(fontsize=7)
     fig.suptitle(title or f"unit {truth['unit']}", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def plot_rul(units: Mapping[str, Sequence[Mapping]], truth: Mapping[str, Mapping],
@@ -101,9 +99,7 @@ def plot_rul(units: Mapping[str, Sequence[Mapping]], truth: Mapping[str, Mapping
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8, loc="upper left")
     ax.set_title(title or "RUL predictions over life", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def plot_errors(errors: Mapping[str, Sequence[float]], path: str | os.PathLike,
@@ -123,9 +119,7 @@ def plot_errors(errors: Mapping[str, Sequence[float]], path: str | os.PathLike,
     ax.set_ylabel("RUL error at the cut [flights] (late > 0)")
     ax.grid(alpha=0.3, axis="y")
     ax.set_title(title or "RUL error over the fleet", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 #: Trackers drawn dashed in :func:`plot_alpha_lambda`: the no-sensing references.
@@ -152,6 +146,4 @@ def plot_alpha_lambda(curves: Mapping[str, Mapping[str, Mapping]], path: str | o
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     ax.set_title(title or "alpha-lambda over lambda (diagnostic)", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)

@@ -214,11 +214,6 @@ def register_tracker(name: str, /, *, description: str, **config: Any
     return deco
 
 
-def load_tracker_plugins() -> None:
-    """Import every module named in the ``ema_bench.trackers`` entry-point group (once)."""
-    _TRACKERS.load_all()
-
-
 def available_trackers() -> dict[str, TrackerInfo]:
     """Every registered tracker, by name (sorted)."""
     return _TRACKERS.available()

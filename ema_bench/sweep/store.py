@@ -59,15 +59,19 @@ def key_identity(record: dict) -> tuple:
     return record["key"], model_version(record)
 
 
+def _keep(kept: dict[Hashable, dict], ident: Hashable, record: dict) -> None:
+    """Keep ``record`` as ``kept[ident]`` unless a successful record is there already."""
+    old = kept.get(ident)
+    if old is None or is_error(old):
+        kept[ident] = record
+
+
 def unique(records: Iterable[dict], identity: Identity = key_identity) -> list[dict]:
     """One record per identity, in order of first appearance: the first successful
     record, else the last error record (a retry's error is the newest news)."""
     kept: dict[Hashable, dict] = {}
     for r in records:
-        ident = identity(r)
-        old = kept.get(ident)
-        if old is None or is_error(old):
-            kept[ident] = r
+        _keep(kept, identity(r), r)
     return list(kept.values())
 
 
@@ -176,10 +180,7 @@ class Store:
         records, intact, self._line = _parse(data, str(self.path), self._offset, self._line,
                                              self.schema)
         for r in records:
-            ident = self.identity(r)
-            old = self._records.get(ident)
-            if old is None or is_error(old):
-                self._records[ident] = r
+            _keep(self._records, self.identity(r), r)
             task = self.task_of(r)
             if task is None:
                 continue

@@ -72,12 +72,7 @@ class Traces:
     def __post_init__(self) -> None:
         if not isinstance(self.data, Mapping) or len(self.data) == 0:
             raise TracesError("traces need at least one test (a non-empty mapping name -> array)")
-        try:
-            dt = float(self.dt)
-        except (TypeError, ValueError) as exc:
-            raise TracesError(f"dt must be a number of seconds, got {self.dt!r}") from exc
-        if not (math.isfinite(dt) and dt > 0.0):
-            raise TracesError(f"dt must be positive and finite, got {dt!r} s")
+        dt = _check_positive("dt", self.dt)
         blocks = {}
         for name, values in self.data.items():
             _check_test_name(name)
@@ -198,6 +193,17 @@ class Traces:
             os.replace(tmp, path)
         finally:
             tmp.unlink(missing_ok=True)
+
+
+def _check_positive(what: str, value: float) -> float:
+    """``value`` as a float of seconds; TracesError unless it is a positive, finite number."""
+    try:
+        value = float(value)
+    except (TypeError, ValueError) as exc:
+        raise TracesError(f"{what} must be a number of seconds, got {value!r}") from exc
+    if not (math.isfinite(value) and value > 0.0):
+        raise TracesError(f"{what} must be positive and finite, got {value!r} s")
+    return value
 
 
 def _check_test_name(name: Any) -> None:

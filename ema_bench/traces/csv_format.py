@@ -77,15 +77,12 @@ def _read_csv(path: Path, test: str | None) -> tuple[_Raw, dict[str, Any], _Time
             raise _unnamed_test(path, "no 'test' column")
         return {test: (values[:, time_col], values[:, sig_cols])}, meta, time_label
     names = [row[test_col].strip() for row in rows]
-    raw: _Raw = {}
-    order = list(dict.fromkeys(names))
-    for name in order:
-        if not _TEST_NAME_RE.match(name) or name in _RESERVED_NAMES:
-            i = names.index(name)
-            raise _fail(path, f"line {line_numbers[i]}: invalid test name {name!r} in column "
-                              "'test'")
     names_arr = np.array(names)
-    for name in order:
+    raw: _Raw = {}
+    for name in dict.fromkeys(names):   # in order of first appearance
+        if not _TEST_NAME_RE.match(name) or name in _RESERVED_NAMES:
+            raise _fail(path, f"line {line_numbers[names.index(name)]}: invalid test name "
+                              f"{name!r} in column 'test'")
         idx = np.flatnonzero(names_arr == name)
         raw[name] = (values[idx, time_col], values[np.ix_(idx, sig_cols)])
     return raw, meta, time_label

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from .container import OUTPUT_DT, SIGNALS, Traces
+from .container import OUTPUT_DT, SIGNALS, Traces, _check_positive
 from .csv_format import _read_csv
 from .errors import TracesError, _fail
 from .mat_format import _read_mat
@@ -164,16 +164,6 @@ def _agreed_meta(metas: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
             if merged.setdefault(key, value) != value:
                 clashes.add(key)
     return {k: v for k, v in merged.items() if k not in clashes}
-
-
-def _check_positive(what: str, value: float) -> float:
-    try:
-        value = float(value)
-    except (TypeError, ValueError) as exc:
-        raise TracesError(f"{what} must be a number of seconds, got {value!r}") from exc
-    if not (math.isfinite(value) and value > 0.0):
-        raise TracesError(f"{what} must be positive and finite, got {value!r} s")
-    return value
 
 
 def _select_test(path: Path, raw: _Raw, test: str | None) -> _Raw:

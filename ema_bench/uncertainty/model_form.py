@@ -9,7 +9,7 @@ over the calibration instances (the suite's paper cases and Latin-hypercube inst
 measured on; :func:`~ema_bench.uncertainty.methods.intervals` adds it in quadrature to the
 noise half-width.  The biases ship as ``model_form.json`` (those of
 ``benchmarks/results/clean_bias_suite.txt``, made by ``python benchmarks/clean_bias.py``);
-:func:`calibrate` recomputes them, about 5 CPU-minutes.
+:func:`calibrate` recomputes them (about 5 CPU-minutes) into a file it is given.
 """
 
 from __future__ import annotations
@@ -39,10 +39,20 @@ def allowance(level: float) -> np.ndarray:
     return np.quantile(np.abs(_biases()), level, axis=0, method="higher")
 
 
-def calibrate(instances: list[str] | None = None, evals: int = 6000,
-              path: Path | str = PATH) -> dict[str, object]:
+def calibrate(path: Path | str, instances: list[str] | None = None,
+              evals: int = 6000) -> dict[str, object]:
     """Recompute the clean-data biases of the calibration ``instances`` (default: the
-    suite's paper cases and Latin-hypercube instances) and write them to ``path``."""
+    suite's paper cases and Latin-hypercube instances) and write them to ``path``.
+
+    ``path`` has no default: shipped data is read-only, so the shipped ``model_form.json``
+    (:data:`PATH`) is regenerated only by naming it, in a checkout; a path inside an
+    installed package raises ValueError (one line) before any work."""
+    from ..calibration_files import checkout_root, inside_package
+
+    if inside_package(path) and checkout_root() is None:
+        raise ValueError(f"{path} is inside the installed package, not a checkout: shipped "
+                         "data is read-only; write the biases elsewhere, or regenerate them "
+                         "in a git checkout of ema-bench")
     from ..calibrate import clean_bias
     from ..suite import instance_faults, instance_names
 

@@ -18,7 +18,7 @@ from scipy.stats import chi2
 
 from ..faults import FAULT_NAMES, LOWER, UPPER
 from ..objective import Objective
-from ..plots import plt
+from ..plots import plt, save_figure
 from .methods import Intervals
 
 #: Half-width of the zoom window of :func:`plot_region`, in interval half-widths.
@@ -127,9 +127,7 @@ def plot_profiles(iv: Intervals, path: str | os.PathLike,
                frameon=False)
     fig.suptitle(f"Profile likelihood, level {iv.level:g} (fit fitness {iv.fitness:.3g})",
                  fontsize=10)
-    fig.tight_layout(rect=(0.0, 0.07 / nrows, 1.0, 1.0))
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, rect=(0.0, 0.07 / nrows, 1.0, 1.0))
 
 
 def _fitness_grid(objective: Objective, base: np.ndarray, ix: int, iy: int,
@@ -249,9 +247,7 @@ def plot_region(objective: Objective, iv: Intervals, path: str | os.PathLike,
         ax.legend(fontsize=7, loc="lower right")
     fig.suptitle(f"{pair[0]}/{pair[1]} confidence region: {iv.method} intervals, level "
                  f"{iv.level:g}", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def plot_coverage(records: Sequence[Mapping], path: str | os.PathLike
@@ -319,7 +315,5 @@ def plot_coverage(records: Sequence[Mapping], path: str | os.PathLike
     axes[0, 0].set_ylabel("interval and estimate - truth [% of range]")
     fig.suptitle(f"Coverage: {s['track']} track, {s['method']} intervals, level "
                  f"{s['level']:g}, n = {len(records)} (red: misses the truth)", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
     return counts
