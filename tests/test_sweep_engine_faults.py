@@ -116,6 +116,8 @@ def first_line(command: str, out: Path):
 
 
 def workers_of(proc: subprocess.Popen) -> list[int]:
+    """The sweep's spawned workers (a scan of /proc: about 2 ms of CPU, so a wait checks the
+    cheap condition, a first record, before it)."""
     return [k for k in _children(proc.pid) if "spawn_main" in _cmdline(k)]
 
 
@@ -128,7 +130,7 @@ def test_a_killed_worker_is_replaced_and_its_task_run_again(tmp_path, command, r
     out = tmp_path / "out"
     proc = start(command, out, 2)
     try:
-        wait_for(lambda: len(workers_of(proc)) == 2 and first_line(command, out)(), proc,
+        wait_for(lambda: first_line(command, out)() and len(workers_of(proc)) == 2, proc,
                  "two workers and a first record")
         victim = workers_of(proc)[0]
         os.kill(victim, signal.SIGKILL)
@@ -146,7 +148,7 @@ def test_a_killed_sweep_leaves_no_worker_and_a_rerun_completes(tmp_path, command
     out = tmp_path / "out"
     proc = start(command, out, 2)
     try:
-        wait_for(lambda: len(workers_of(proc)) == 2 and first_line(command, out)(), proc,
+        wait_for(lambda: first_line(command, out)() and len(workers_of(proc)) == 2, proc,
                  "two workers and a first record")
         kids = _children(proc.pid)
     finally:
