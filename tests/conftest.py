@@ -1,5 +1,7 @@
 """Session set-up: the reference-trace cache lives in a fresh folder for the test run (child
-processes of CLI tests inherit it), so tests neither read nor fill the user's cache.
+processes of CLI tests inherit it), so tests neither read nor fill the user's cache; OpenBLAS's
+idle threads sleep at once instead of spinning and dask's workers do not profile themselves
+(children inherit both).
 
 Under mutmut (docs/mutation-testing.md) two more things, before anything imports numba or the
 solver zoo:
@@ -26,6 +28,17 @@ from pathlib import Path
 
 import pytest
 from inprocess import run_cli
+
+# OpenBLAS's idle threads spin (sched_yield) for about 2**28 cycles after each threaded call
+# before they sleep: CPU time spent on nothing, in this process and in every child that
+# inherits the variable (about a tenth of a diagnosis's CPU time on a loaded 2-core machine).
+# The shortest wait (2**4 cycles) keeps the number of threads, and with it every number, as
+# it is; it must be set before numpy loads OpenBLAS (no plugin imports numpy before this
+# file); a user's own setting wins.
+os.environ.setdefault("OPENBLAS_THREAD_TIMEOUT", "4")
+# dask's workers sample their own stacks every 10 ms for the dashboard's profile, which no
+# test reads (and the executor starts no dashboard): off for the clusters the tests start
+os.environ.setdefault("DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED", "False")
 
 if "EMA_BENCH_CACHE" not in os.environ:
     # removed when the session that made it ends (a fork, e.g. a mutmut child, inherits the

@@ -82,10 +82,13 @@ def alone(tmp_path_factory) -> tuple[Path, Path]:
     if build.returncode != 0:
         pytest.skip(f"cannot build the wheel here: {build.stderr.strip()[-300:]}")
     (wheel,) = (tmp / "dist").glob("ema_bench-*.whl")
-    venv.create(tmp / "venv", with_pip=True)
+    # no pip of its own (ensurepip costs about 4 CPU-s): this interpreter's pip installs into
+    # it (--python, pip >= 22.3), the wheel and its declared dependencies as ever
+    venv.create(tmp / "venv", with_pip=False)
     bin_ = tmp / "venv" / "bin"
     # --no-compile: no .pyc for numba, scipy and matplotlib up front (a minute on CI)
-    _run([str(bin_ / "python"), "-m", "pip", "install", "-q", "--no-compile", str(wheel)], tmp)
+    _run([sys.executable, "-m", "pip", "--python", str(bin_ / "python"), "install", "-q",
+          "--no-compile", str(wheel)], tmp)
     work = tmp / "work"
     work.mkdir()
     return bin_, work
