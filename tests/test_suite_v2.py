@@ -218,7 +218,7 @@ def test_gymnasium_v2_takes_tier_and_condition_and_hands_out_no_nominal():
         gym.make("EMAFault/Identify-v2", tier=12, condition="step-only")
 
 
-def test_a_v2_sweep_runs_end_to_end_and_validate_refuses_a_doctored_effect(tmp_path):
+def test_a_v2_sweep_runs_end_to_end_and_validate_refuses_a_doctored_effect(tmp_path, capsys):
     """``ema-bench leaderboard --suite emafdi-v2`` (its real argument parsing and run, in
     this process: a child process would add seconds of imports; tier 7, no prior, one
     instance, tiny budget): records of suite emafdi-v2 with 7-D vectors and the tier's
@@ -249,6 +249,16 @@ def test_a_v2_sweep_runs_end_to_end_and_validate_refuses_a_doctored_effect(tmp_p
     assert validate(recs, per_tier=1) == []
     (hole,) = validate(recs, per_tier=2)
     assert "lacks 1 runs of the suite (e.g. t7-s01@no-prior/0)" in hole.problem
+    # the command says the board is complete on a prefix only, never plainly "accepted"
+    runs = str(out / "runs.jsonl")
+    assert main(["validate", runs, "--per-tier", "1"]) == 0
+    said = capsys.readouterr().out
+    assert "accepted: 1 records of suite emafdi-v2 (complete on the first 1 instances of " \
+           "each tier only)" in said
+    assert main(["validate", runs, "--per-tier", "1", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["per_tier"] == 1
+    assert main(["validate", runs]) == 1
+    capsys.readouterr()
     bad = json.loads(json.dumps(r))
     bad["trajectory"][-1][2][5] += 0.01   # the current gain of the best point
     assert any("fitness" in p for p in check_record(bad))

@@ -70,6 +70,7 @@ def run(args: argparse.Namespace) -> int:
     found += [Finding(r.key, f"replay: {r.finding}") for r in replayed if r.finding]
     ok = sum(r.finding is None for r in replayed)
     print_result(args, {"suite": SUITE_ID, "records": len(records), "accepted": not found,
+                        "per_tier": args.per_tier,
                         "legacy_records": legacy, "replayed": len(replayed), "reproduced": ok,
                         "replay_wall_s": sum(r.wall_s for r in replayed),
                         "findings": [{"key": f.key, "problem": f.problem} for f in found]}, [
@@ -80,7 +81,9 @@ def run(args: argparse.Namespace) -> int:
            f"({sum(r.wall_s for r in replayed):.0f} s)"] if replayed else []),
         *([f"REFUSED: {len(found)} finding(s) in {len(records)} records (suite {SUITE_ID}):",
            *(f"  {f}" for f in found)] if found else
-          [f"accepted: {len(records)} records of suite {SUITE_ID}"])])
+          [f"accepted: {len(records)} records of suite {SUITE_ID}"
+           + (f" (complete on the first {args.per_tier} instances of each tier only)"
+              if args.per_tier and not args.partial else "")])])
     return 1 if found else 0
 
 
