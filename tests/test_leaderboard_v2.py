@@ -333,3 +333,21 @@ def test_a_malicious_solver_name_stays_text_in_the_v2_tables(board, tmp_path):
     write_leaderboards(both, tmp_path, "header")
     md = (tmp_path / "leaderboard_twin.md").read_text()
     assert "<img" not in md and "in neither group: &lt;img src=x" in md
+
+
+def test_padding_a_solver_with_copies_of_its_runs_moves_no_pooled_interval(board):
+    """The cheapest way to narrow a solver's pooled interval is to append copies of its
+    runs: the report's selection keeps one record per run, so nothing moves."""
+    from ema_bench.leaderboard.run import select
+    from ema_bench.leaderboard.tasks import make_tasks
+    from ema_bench.suite_v2 import cases
+
+    records = read_records(board / "runs.jsonl")
+    tasks = make_tasks(list(SOLVERS), cases([4, 7], ["prior", "no-prior"], 1), ["twin"], 2,
+                       lambda c: PER_DIM * instance(c.split("@")[0]).tier)
+    clean = select(records, tasks)
+    assert len(clean) == len(records) == 32
+    padded = records + [r for r in records if r["solver"] == "random"] * 5
+    assert select(padded, tasks) == clean
+    assert scaling.pooled_separation(select(padded, tasks), "twin") == \
+        scaling.pooled_separation(records, "twin")
