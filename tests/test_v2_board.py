@@ -51,7 +51,7 @@ def test_the_readme_selection_step_writes_the_committed_records_back(tmp_path, m
     committed = (BOARD / "runs.jsonl").read_bytes()
     lines = committed.decode().splitlines()
     outside = json.loads(lines[0])
-    outside["case"] = "s19@prior"                     # a tier-4 instance past --per-tier 10
+    outside["case"] = "s19@prior"                     # a tier-4 instance past --per-tier 8
     outside["key"] = outside["key"].replace("|" + json.loads(lines[0])["case"] + "|",
                                             "|s19@prior|")
     sweep = tmp_path / "sweep.jsonl"

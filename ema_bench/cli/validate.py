@@ -13,7 +13,7 @@ Examples::
     ema-bench validate my-solver/runs.jsonl
     ema-bench validate shard0/runs.jsonl shard1/runs.jsonl --json
     ema-bench validate leaderboards/quick/runs.jsonl --partial
-    ema-bench validate leaderboards/runs.jsonl --per-tier 10 --replay 12
+    ema-bench validate leaderboards/runs.jsonl --per-tier 8 --replay 12
 """
 
 from __future__ import annotations
