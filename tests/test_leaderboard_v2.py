@@ -204,6 +204,15 @@ def test_the_answer_sentence_follows_the_intervals():
     assert "not tested" in scaling.answer(rows, "twin")
 
 
+def test_a_tier_of_one_pair_is_said_without_an_interval():
+    """One (instance, seed) pair gives no bootstrap interval: the sentence says "-" (as the
+    table does), not "+nan", and the tier counts as not separated."""
+    nan = float("nan")
+    text = scaling.answer([_gl(12, (0.027, nan, nan))], "reference")
+    assert "not separated on tier 12 (ECDF-area difference global - local +0.027 [-, -] " \
+           "over 10 pairs)" in text and "nan" not in text
+
+
 def _score(cases: str, solver: str, area: tuple[float, float, float]) -> AnytimeScore:
     return AnytimeScore("reference", solver, cases, 10, 0, area, math.nan, 0.0)
 

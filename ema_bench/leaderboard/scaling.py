@@ -204,7 +204,9 @@ def global_vs_local(records: list[dict], condition: str = "no-prior",
 
 
 def _signed(v: tuple[float, float, float]) -> str:
-    return f"{v[0]:+.3f} [{v[1]:+.3f}, {v[2]:+.3f}]"
+    # one pair has no bootstrap interval (NaN bounds): "-" as in the table, never "+nan"
+    lo, hi = (f"{b:+.3f}" if math.isfinite(b) else "-" for b in v[1:])
+    return f"{v[0]:+.3f} [{lo}, {hi}]"
 
 
 def _tiers(rows: list[GlobalLocal]) -> str:
