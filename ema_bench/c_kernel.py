@@ -28,8 +28,11 @@ from .protocol import STANDARD_TESTS, TestSpec, steps_per
 from .traces import OUTPUT_DT
 
 SOURCE_NAME = "benchmarks/c/monitor.c"
-# -ffp-contract=off: no fused multiply-add (numba's LLVM does not contract without fastmath)
-CFLAGS = ("-O2", "-march=native", "-ffp-contract=off", "-fPIC", "-shared")
+# -O3 vectorises the lanes' loops; -ffp-contract=off: no fused multiply-add (numba's LLVM does
+# not contract without fastmath); -fno-trapping-math -fno-math-errno let GCC vectorise floor
+# (round to an integer) and change no result
+CFLAGS = ("-O3", "-march=native", "-ffp-contract=off", "-fno-trapping-math", "-fno-math-errno",
+          "-fPIC", "-shared")
 # the order of the C enum IDX_*: parameter positions, then effect positions
 _PARAM_ORDER = ("V_dc", "R", "L", "Ke", "pole_pairs", "hyst_band", "J_m", "J_u", "tau", "K_s",
                 "C_s", "C_m", "C_u", "K_aero", "theta_stop", "K_stop", "C_stop",
@@ -104,9 +107,15 @@ def _library(path: Path) -> ctypes.CDLL:
 def simulate_c(X: np.ndarray, E: np.ndarray | None = None, *,
                tests: Sequence[TestSpec] = STANDARD_TESTS,
                params: EMAParams = DEFAULT_PARAMS, dt: float | None = None,
-               library: Path | None = None) -> tuple[dict[str, np.ndarray], np.ndarray]:
-    """:func:`ema_bench.monitor.simulate_monitor` through the C kernel (one thread)."""
+               library: Path | None = None,
+               lanes: bool = False) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """:func:`ema_bench.monitor.simulate_monitor` through the C kernel (one thread).
+
+    ``lanes``: the 8-lane C twin of :mod:`ema_bench.monitor_lanes` (``monitor_lanes_batch``,
+    vectorised by the compiler) instead of the scalar C; it takes only the lanes' effects
+    (:data:`~ema_bench.monitor_lanes.LANE_EFFECTS`)."""
     from .monitor import test_layout
+    from .monitor_lanes import LANE_EFFECTS, lane_groups
 
     lib = _library(library or build())
     X = np.ascontiguousarray(X, dtype=np.float64)
@@ -124,13 +133,25 @@ def simulate_c(X: np.ndarray, E: np.ndarray | None = None, *,
     def ptr(a: np.ndarray, kind: type) -> ctypes._Pointer:
         return a.ctypes.data_as(ctypes.POINTER(kind))
 
-    lib.monitor_batch(ptr(p, ctypes.c_double), ptr(ix, ctypes.c_int64),
-                      ptr(X, ctypes.c_double), ptr(E, ctypes.c_double), ctypes.c_int64(n),
-                      ctypes.c_int64(N_EFFECTS), ptr(cmd, ctypes.c_double),
-                      ptr(cmd_start, ctypes.c_int64), ptr(n_out, ctypes.c_int64),
-                      ptr(out_start, ctypes.c_int64), ctypes.c_int64(len(tests)),
-                      ctypes.c_int64(total), ctypes.c_int64(steps_per(OUTPUT_DT, params.dt_ctrl)),
-                      ctypes.c_int64(steps_per(params.dt_ctrl, dt)), ctypes.c_double(dt),
-                      ptr(out, ctypes.c_double), ptr(ok, ctypes.c_uint8))
+    layout = (ptr(cmd, ctypes.c_double), ptr(cmd_start, ctypes.c_int64),
+              ptr(n_out, ctypes.c_int64), ptr(out_start, ctypes.c_int64),
+              ctypes.c_int64(len(tests)), ctypes.c_int64(total),
+              ctypes.c_int64(steps_per(OUTPUT_DT, params.dt_ctrl)),
+              ctypes.c_int64(steps_per(params.dt_ctrl, dt)), ctypes.c_double(dt),
+              ptr(out, ctypes.c_double), ptr(ok, ctypes.c_uint8))
+    if lanes:
+        lane_columns = [_effects.EFFECT_INDEX[e] for e in LANE_EFFECTS]
+        others = np.setdiff1d(np.arange(N_EFFECTS), lane_columns)
+        if np.any(E[:, others] != 0.0):
+            raise ValueError(f"the C lanes take only the effects {', '.join(LANE_EFFECTS)}")
+        groups = np.ascontiguousarray(lane_groups(np.arange(n)))
+        lib.monitor_lanes_batch(ptr(p, ctypes.c_double), ptr(ix, ctypes.c_int64),
+                                ptr(X, ctypes.c_double), ptr(E, ctypes.c_double),
+                                ctypes.c_int64(N_EFFECTS), ptr(groups, ctypes.c_int64),
+                                ctypes.c_int64(groups.shape[0]), *layout)
+    else:
+        lib.monitor_batch(ptr(p, ctypes.c_double), ptr(ix, ctypes.c_int64),
+                          ptr(X, ctypes.c_double), ptr(E, ctypes.c_double), ctypes.c_int64(n),
+                          ctypes.c_int64(N_EFFECTS), *layout)
     outputs = {spec.name: out[:, s:s + k] for spec, s, k in zip(tests, out_start, n_out)}
     return outputs, ok.astype(bool)

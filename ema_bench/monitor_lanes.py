@@ -45,11 +45,11 @@ from .physics.ace import CtrlConsts, ace_consts, ace_update
 from .physics.averaged_drive import (
     drive_fast,
     drive_step_general,
-    kt_at,
+    kt_eccentric,
     sector_consts,
     sector_index,
 )
-from .physics.effect_terms import cogging_torque, sensor_terms
+from .physics.effect_terms import cogging_wave, sensor_terms
 from .physics.mechanics import MechConsts, mech_fast, mech_step_general
 
 LANES = 8   # candidates per group: two AVX2 vectors of doubles, one AVX-512 vector
@@ -70,11 +70,14 @@ LANE_EFFECT_INDEX = np.array([EFFECT_INDEX[n] for n in LANE_EFFECTS], dtype=np.i
  _O_THLO, _O_KT, _O_RP, _O_IL, _O_HALF, _O_FDYN, _O_KPOS, _O_IREF, _O_TM, _O_TM0, _O_TM1,
  _O_TRIP, _O_IEQ, _O_DSLOW, _O_MSLOW, _O_A0, _O_A1, _O_A2, _O_A3, _O_OFF, _O_GAIN, _O_FB,
  _O_ECC, _O_KTE, _O_KTM, _O_COG, _O_TCOG,
+ # the sector (0..5, as a float: the eccentric torque constants' selects vectorise on it),
+ # the eccentricity and the turn fraction of each lane
+ _O_SEC, _O_ZETA, _O_NA,
  # the mechanics' constants that the plant effects (viscous friction, aero spring, gear
  # stiffness) change: mech_fast reads them per lane
  _O_K, _O_CM, _O_KA, _O_GH, _O_BC, _O_I11, _O_I12, _O_I22, _O_I11H, _O_I12H, _O_IMF,
  _O_IMFH, _O_IUF,
- _N_BLOCKS) = [LANES * i for i in range(52)]
+ _N_BLOCKS) = [LANES * i for i in range(55)]
 
 
 @njit(cache=True, error_model="numpy")
@@ -86,6 +89,7 @@ def _rest(F, M, dc, q):
     F[_O_TRT0 + q] = -1.0
     m = sector_index(0.0, dc.pp)
     M[q] = m
+    F[_O_SEC + q] = m % 6
     th_lo, kt, rp, il = sector_consts(m, dc)
     F[_O_THLO + q] = th_lo
     F[_O_KT + q] = kt
@@ -134,6 +138,8 @@ def lane_group(p, X, E, idx, cmd, cmd_start, n_out, out_start, ticks_out, steps_
                      (_O_IMFH, mc.i_m_free_h), (_O_IUF, mc.i_u_free)):
             F[o + q] = v
         F[_O_ECC + q] = 0.0 if dcs[q].zeta == 0.0 else 1.0
+        F[_O_ZETA + q] = dcs[q].zeta
+        F[_O_NA + q] = dcs[q].na
         eccentric |= dcs[q].zeta != 0.0
         cogged |= F[_O_COG + q] != 0.0
         F[_O_KPOS + q] = cc0.k_pos if q == 0 else ace_consts(p, X[idx[q], F_GPROP]).k_pos
@@ -208,17 +214,18 @@ def _step(F, M, dc0, mc0, cc0, dcs, mcs, h, c, tick, cogged, eccentric):
     ``c`` (rad) if ``tick``; ``cogged``, ``eccentric``: some lane has cogging, eccentricity.
     (The controller shares the drive's loop: on its own, its loop is short enough that the
     compiler unrolls it before it could vectorise it.)"""
-    if cogged:   # lane by lane: libm's sin, as the scalar kernel calls it
+    if cogged:   # vectorised (a polynomial sine): the cogging torque at mid-step
+        for q in range(LANES):   # (a branch around the sine would keep this loop scalar)
+            wave = cogging_wave(F[_O_COG + q], F[_O_THM + q] + 0.5 * h * F[_O_WM + q], dc0.pp)
+            F[_O_TCOG + q] = wave if F[_O_COG + q] != 0.0 else 0.0   # cogging_torque's +0
+    if eccentric:   # vectorised: the torque constants at the step start and mid-step (a
+        # lane without eccentricity computes them too, and its drive ignores them)
         for q in range(LANES):
-            F[_O_TCOG + q] = cogging_torque(F[_O_COG + q],
-                                            F[_O_THM + q] + 0.5 * h * F[_O_WM + q], dc0.pp)
-    if eccentric:   # lane by lane: the torque constants at the step start and mid-step
-        for q in range(LANES):
-            if F[_O_ECC + q] != 0.0:
-                dc = dcs[q]
-                sec = M[q] % 6   # stale if the rotor left the sector: the step is not fast
-                F[_O_KTE + q] = kt_at(sec, F[_O_THM + q], dc)
-                F[_O_KTM + q] = kt_at(sec, F[_O_THM + q] + 0.5 * h * F[_O_WM + q], dc)
+            sec = F[_O_SEC + q]   # stale if the rotor left the sector: the step is not fast
+            th = F[_O_THM + q]
+            F[_O_KTE + q] = kt_eccentric(sec, th, dc0.ke, F[_O_NA + q], F[_O_ZETA + q])
+            F[_O_KTM + q] = kt_eccentric(sec, th + 0.5 * h * F[_O_WM + q], dc0.ke,
+                                         F[_O_NA + q], F[_O_ZETA + q])
     for q in range(LANES):   # vectorised: controller and the drive inside one sector
         _drive_fast_lane(F, q, dc0, cc0, h, c, tick)
     for q in range(LANES):   # the rest of the drive, lane by lane
@@ -231,6 +238,7 @@ def _step(F, M, dc0, mc0, cc0, dcs, mcs, h, c, tick, cogged, eccentric):
                 dc)
             F[_O_CUR + q] = cur
             M[q] = m
+            F[_O_SEC + q] = m % 6
             F[_O_TRT0 + q] = tr_t0
             F[_O_TRLEN + q] = tr_len
             F[_O_KTF + q] = kt_from

@@ -50,14 +50,26 @@ def _max_error_over_range(a: dict, b: dict) -> float:
 
 @pytest.mark.parametrize("effects", ["off", "on"])
 def test_c_kernel_equals_numba_kernel(effects):
+    """The plain-C twin is the numba kernel's operations in the same order, the sine and
+    cosine polynomials included: bit-identical, every effect on at a random level."""
     lib = _c_library()
     X = random_faults(np.random.SeedSequence(7), heterogeneity=1.0, n=6)
     E = None if effects == "off" else _random_effects(6, 8)
     a, ok_a = simulate_monitor(X, E, parallel=False)
     b, ok_b = c_kernel.simulate_c(X, E, library=lib)
     assert ok_a.all() and ok_b.all()
-    # the same equations in the same order (measured: bit-identical, effects on and off)
-    assert _max_error_over_range(a, b) < 1e-12
+    for t in a:
+        assert np.array_equal(a[t], b[t]), t
+
+
+def test_c_lanes_refuse_an_effect_the_lanes_do_not_carry():
+    lib = _c_library()
+    from ema_bench.effects import EFFECT_INDEX
+
+    E = np.zeros((2, N_EFFECTS))
+    E[1, EFFECT_INDEX["voltage_sag"]] = 0.1
+    with pytest.raises(ValueError, match="take only the effects"):
+        c_kernel.simulate_c(CASES["small"].x[None].repeat(2, 0), E, library=lib, lanes=True)
 
 
 def test_c_kernel_unavailable_is_a_clear_error(tmp_path, monkeypatch):
@@ -144,6 +156,20 @@ PLANT_LANE_EFFECTS = ("eccentricity", "viscous_friction", "aero_spring", "coggin
                       "gear_stiffness")
 
 
+def _assert_c_twins_equal(a, X, E=None, **kw):
+    """The scalar C and the 8-lane C twin give the outputs ``a`` of the numba kernels to the
+    bit (where a compiler is at hand; keyword arguments as :func:`c_kernel.simulate_c`)."""
+    try:
+        lib = c_kernel.build(ROOT / c_kernel.SOURCE_NAME)
+    except c_kernel.CKernelUnavailable:
+        return
+    for lanes in (False, True):
+        c, ok_c = c_kernel.simulate_c(X, E, library=lib, lanes=lanes, **kw)
+        assert ok_c.all()
+        for t in a:
+            assert np.array_equal(a[t], c[t]), (lanes, t)
+
+
 def _assert_lanes_equal_scalar(X, E, **kw):
     """Every row of ``E`` runs in the lanes, and the outputs equal the scalar kernel's."""
     grouped, rest = _lane_split(E, True)
@@ -153,6 +179,7 @@ def _assert_lanes_equal_scalar(X, E, **kw):
     assert ok_a.all() and ok_b.all()
     for t in a:
         assert np.array_equal(a[t], b[t]), t
+    _assert_c_twins_equal(a, X, E, dt=kw.get("dt"))
     return b
 
 
@@ -215,6 +242,7 @@ def test_lanes_equal_the_scalar_kernel_where_the_bus_voltage_runs_out():
     assert ok_a.all() and ok_b.all()
     for t in a:
         assert np.array_equal(a[t], b[t]), t
+    _assert_c_twins_equal(a, X, params=weak)
     # and the bus does limit the current there: the outputs differ from the full bus's
     c, _ = simulate_monitor(X, lanes=True)
     assert not np.array_equal(c["step"], b["step"])
@@ -245,6 +273,8 @@ def test_lanes_equal_the_scalar_kernel_with_several_steps_per_controller_sample(
     b, _ = simulate_monitor(X, dt=2.5e-5, lanes=True)
     for t in a:
         assert np.array_equal(a[t], b[t]), t
+    _assert_c_twins_equal(a, X, dt=2.5e-5)
+
 
 def test_a_diverging_lane_fails_alone():
     """Non-finite faults (check=False) in two lanes: those candidates fail, as in the scalar

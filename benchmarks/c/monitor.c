@@ -1,19 +1,23 @@
 /* The monitor model's kernel in plain C: a line-by-line port of the numba kernel
  * (ema_bench/physics/integrator.py, ema_bench/monitor.py, ema_bench/physics/averaged_drive.py,
  * ema_bench/physics/mechanics.py, ema_bench/physics/ace.py, ema_bench/physics/effect_terms.py,
- * ema_bench/physics/load.py), the same floating-point operations in the same order.
+ * ema_bench/physics/load.py, ema_bench/physics/trig.py), the same floating-point operations in
+ * the same order.
  *
  * It exists only to measure how far the numba kernel is from C (`ema-bench bench`) and to check
  * that the two agree (tests/test_kernel.py); it is not part of the installed package.
  * Positions in the parameter and effect arrays come from Python (IDX_* below), so nothing here
  * depends on the order of the parameter set.
  *
- * Build: cc -O2 -march=native -ffp-contract=off -fPIC -shared monitor.c -o libmonitor.so -lm
- * (-ffp-contract=off: no fused multiply-add, which numba does not use either).
+ * Build: cc -O3 -march=native -ffp-contract=off -fno-trapping-math -fno-math-errno -fPIC -shared
+ *        monitor.c -o libmonitor.so -lm
+ * (-ffp-contract=off: no fused multiply-add, which numba does not use either; the last two let
+ * GCC vectorise floor() in the lanes and change no result).
  */
 #include <math.h>
 #include <stdbool.h>
 #include <stdint.h>
+#include <string.h>
 
 /* order of the index table passed in from Python (ema_bench.c_kernel.index_table) */
 enum {
@@ -27,10 +31,46 @@ enum {
 #define HINGE_FRICTION_SPEED 0.01
 
 static const double SIXTH = M_PI / 6.0;
-static const double PHASE_SHIFT[3] = {0.0, 2.0 * M_PI / 3.0, 4.0 * M_PI / 3.0};
 
 static inline int64_t pymod(int64_t a, int64_t b) { int64_t r = a % b; return r < 0 ? r + b : r; }
 static inline double dmax(double a, double b) { return a > b ? a : b; }
+
+/* ---- trig.py: sine and cosine by range reduction and polynomials (bit-identical to numba) -- */
+static const double P1 = 1.57079632673412561417e+00, P2 = 6.07710050630396597660e-11,
+                    P3 = 2.02226624871116645580e-21, TWO_OVER_PI = 6.36619772367581382433e-01;
+static const double S1 = -1.66666666666666324348e-01, S2 = 8.33333333332248946124e-03,
+                    S3 = -1.98412698298579493134e-04, S4 = 2.75573137070700676789e-06,
+                    S5 = -2.50507602534068634195e-08, S6 = 1.58969099521155010221e-10;
+static const double C1 = 4.16666666666666019037e-02, C2 = -1.38888888888741095749e-03,
+                    C3 = 2.48015872894767294178e-05, C4 = -2.75573143513906633035e-07,
+                    C5 = 2.08757232129817482790e-09, C6 = -1.13596475577881948265e-11;
+
+static inline void trig_reduce(double x, double *q_, double *s_, double *c_) {
+    double n = floor(x * TWO_OVER_PI + 0.5);
+    double r = ((x - n * P1) - n * P2) - n * P3;
+    double q = n - 4.0 * floor(n * 0.25);
+    double z = r * r;
+    double s = r + (z * r) * (S1 + z * (S2 + z * (S3 + z * (S4 + z * (S5 + z * S6)))));
+    double hz = 0.5 * z, w = 1.0 - hz;
+    double c = w + (((1.0 - w) - hz)
+                    + (z * z) * (C1 + z * (C2 + z * (C3 + z * (C4 + z * (C5 + z * C6))))));
+    *q_ = q; *s_ = s; *c_ = c;
+}
+
+static inline void poly_sincos(double x, double *sin_, double *cos_) {
+    double q, s, c;
+    trig_reduce(x, &q, &s, &c);
+    bool swap = (q == 1.0) | (q == 3.0);
+    double a = swap ? c : s, b = swap ? s : c;
+    *sin_ = q >= 2.0 ? -a : a;
+    *cos_ = (q == 1.0) | (q == 2.0) ? -b : b;
+}
+
+static inline double poly_sin(double x) {
+    double s, c;
+    poly_sincos(x, &s, &c);
+    return s;
+}
 
 /* ---- ace.py ------------------------------------------------------------------------------ */
 typedef struct { double k_pos, w_max, kpv, kiv, t_max, dtc, amps_per_nm; } Ctrl;
@@ -85,18 +125,24 @@ static Drive drive_consts(const double *p, const int64_t *ix, double na, double 
     return d;
 }
 
-static inline void pair_of(int64_t sec, int *x, int *y) {
-    static const int P[6] = {0, 0, 1, 1, 2, 2}, N[6] = {1, 2, 2, 0, 0, 1};
-    *x = P[sec]; *y = N[sec];
+static const double COS_120 = -0.5, SIN_120 = 0.86602540378443864676;  /* sqrt(3) / 2 */
+
+static inline double kt_eccentric(double sec, double th_m, double ke, double na, double zeta) {
+    double s, c;
+    poly_sincos(th_m, &s, &c);
+    double cx = sec < 2 ? 1.0 : COS_120;
+    double sx = sec < 2 ? 0.0 : (sec < 4 ? SIN_120 : -SIN_120);
+    double nx = sec < 2 ? na : 1.0;
+    bool y_is_a = (sec == 3) | (sec == 4);
+    double cy = y_is_a ? 1.0 : COS_120;
+    double sy = y_is_a ? 0.0 : ((sec == 0) | (sec == 5) ? SIN_120 : -SIN_120);
+    double ny = y_is_a ? na : 1.0;
+    return ke * (nx * (1.0 + zeta * (c * cx + s * sx)) + ny * (1.0 + zeta * (c * cy + s * sy)));
 }
 
 static inline double kt_at(int64_t sec, double th_m, const Drive *dc) {
     if (dc->zeta == 0.0) return pymod(sec, 3) == 2 ? dc->kt_n : dc->kt_a;
-    int x, y;
-    pair_of(sec, &x, &y);
-    double nx = x == 0 ? dc->na : 1.0, ny = y == 0 ? dc->na : 1.0;
-    return dc->ke * (nx * (1.0 + dc->zeta * cos(th_m - PHASE_SHIFT[x]))
-                     + ny * (1.0 + dc->zeta * cos(th_m - PHASE_SHIFT[y])));
+    return kt_eccentric((double)sec, th_m, dc->ke, dc->na, dc->zeta);
 }
 
 static inline double ramp_integral(double lo, double hi, double t_tr) {
@@ -192,18 +238,23 @@ static inline void drive_step(DState *s, double i_ref, double th_m, double w_m, 
     double h = dc->h;
     double th_lo = dc->th_0 + dc->sector_width * s->m, th_hi = th_lo + dc->sector_width;
     double th_end = th_m + h * w_m;
-    if (s->tr_t0 + s->tr_len <= 0.0 && dc->zeta == 0.0 && th_lo <= th_m && th_m < th_hi &&
-        th_lo <= th_end && th_end < th_hi) {
+    if (s->tr_t0 + s->tr_len <= 0.0 && th_lo <= th_m && th_m < th_hi && th_lo <= th_end &&
+        th_end < th_hi) {
         int64_t sec = pymod(s->m, 6);
         double kt, r_pair, il;
         if (sec == 2 || sec == 5) { kt = dc->kt_n; r_pair = dc->r_n; il = dc->il_n; }
         else { kt = dc->kt_a; r_pair = dc->r_a; il = dc->il_a; }
+        double kt_mid = kt;
+        if (dc->zeta != 0.0) {
+            kt = kt_eccentric((double)sec, th_m, dc->ke, dc->na, dc->zeta);
+            kt_mid = kt_eccentric((double)sec, th_m + 0.5 * h * w_m, dc->ke, dc->na, dc->zeta);
+        }
         double cur = s->cur, cur1, f, i_mean, i_eq;
         ramp(cur, i_ref, kt * w_m + r_pair * cur, il, dc->v_dc, h, &cur1, &f, &i_mean, &i_eq);
-        double kf = dc->ktf * kt;
+        double kf = dc->ktf * kt, km = dc->ktf * kt_mid;
         s->cur = cur1; s->tr_t0 = s->tr_t0 - h;
-        o->t_mean = kf * i_mean; o->t_start = kf * cur; o->t_end = kf * cur1;
-        o->t_rip = fabs(kf) * dc->half_band; o->i_eq = i_eq;
+        o->t_mean = km * i_mean; o->t_start = kf * cur; o->t_end = km * cur1;
+        o->t_rip = fabs(km) * dc->half_band; o->i_eq = i_eq;
         return;
     }
     drive_step_general(s, i_ref, th_m, w_m, dc, o);
@@ -427,7 +478,7 @@ static inline void mech_step(double th_m, double w_m, double th_u, double w_u, d
 /* ---- effects, load, the monitor plant and the integrator skeleton -------------------------- */
 static inline double cogging_torque(double amplitude, double th_m, double pole_pairs) {
     if (amplitude == 0.0) return 0.0;
-    return amplitude * sin(6.0 * pole_pairs * th_m);
+    return amplitude * poly_sin(6.0 * pole_pairs * th_m);
 }
 
 static inline double hinge_extra(double w_u, double quad, double hfric) {
@@ -501,4 +552,285 @@ int64_t monitor_batch(const double *p, const int64_t *ix, const double *X, const
         failures += !good;
     }
     return failures;
+}
+
+/* ---- monitor_lanes.py: eight candidates in lock-step lanes ----------------------------------
+ * The numba lanes kernel (ema_bench/monitor_lanes.py) line by line: the short paths of a step
+ * (controller, drive inside one sector, sliding mechanics, cogging, the eccentric torque
+ * constants) as loops over the LANES lanes with selects instead of branches, which the compiler
+ * vectorises (-O3; `cc -fopt-info-vec-optimized` lists them); a lane whose step leaves a short
+ * path runs the general scalar function above for that lane alone.  Bit-identical to the
+ * scalar C and to both numba kernels (tests/test_kernel.py); `ema-bench bench` times it as the
+ * SIMD limit the numba lanes are measured against.  Effects: those of LANE_EFFECTS only. */
+#define LANES 8
+#define DBUF 128   /* _DBUF: a power of two above MAX_DELAY_SAMPLES + 2 */
+
+typedef struct {
+    /* state */
+    double thm[LANES], wm[LANES], thu[LANES], wu[LANES], cur[LANES], trt0[LANES], trlen[LANES],
+        ktf[LANES], ktt[LANES], trcr[LANES], integ[LANES], sec[LANES];
+    /* the sector's constants */
+    double thlo[LANES], kt[LANES], rp[LANES], il[LANES];
+    /* per-step values handed between the loops */
+    double iref[LANES], tm[LANES], tm0[LANES], tm1[LANES], trip[LANES], ieq[LANES],
+        dslow[LANES], mslow[LANES], a0[LANES], a1[LANES], a2[LANES], a3[LANES], fb[LANES],
+        kte[LANES], ktm[LANES], tcog[LANES];
+    /* fault- and effect-dependent constants */
+    double half[LANES], fdyn[LANES], kpos[LANES], off[LANES], gain[LANES], ecc[LANES],
+        cog[LANES], zeta[LANES], na[LANES], k[LANES], cm[LANES], ka[LANES], gh[LANES],
+        bc[LANES], i11[LANES], i12[LANES], i22[LANES], i11h[LANES], i12h[LANES], imf[LANES],
+        imfh[LANES], iuf[LANES];
+    int64_t m[LANES];
+} Lanes;
+
+static inline void sector_consts(int64_t m, const Drive *dc, double *th_lo, double *kt,
+                                 double *rp, double *il) {
+    *th_lo = dc->th_0 + dc->sector_width * m;
+    int64_t sec = pymod(m, 6);
+    bool without_a = sec == 2 || sec == 5;
+    *kt = without_a ? dc->kt_n : dc->kt_a;
+    *rp = without_a ? dc->r_n : dc->r_a;
+    *il = without_a ? dc->il_n : dc->il_a;
+}
+
+static void lane_rest(Lanes *L, const Drive *dc, int q) {
+    L->thm[q] = L->wm[q] = L->thu[q] = L->wu[q] = L->cur[q] = 0.0;
+    L->trlen[q] = L->ktf[q] = L->ktt[q] = L->trcr[q] = L->integ[q] = 0.0;
+    L->trt0[q] = -1.0;
+    int64_t m = sector_index(0.0, dc->pp);
+    L->m[q] = m;
+    L->sec[q] = (double)pymod(m, 6);
+    sector_consts(m, dc, &L->thlo[q], &L->kt[q], &L->rp[q], &L->il[q]);
+}
+
+/* one plant step of every lane (numba: monitor_lanes._step), after the controller sample
+ * under command c if tick */
+static inline void lane_step(Lanes *restrict L, const Drive *dcs, const Mech *mcs,
+                             const Ctrl *cc0, double h, double c, bool tick, bool cogged,
+                             bool eccentric) {
+    const Drive *dc0 = &dcs[0];
+    const Mech *mc0 = &mcs[0];
+    if (cogged)
+        for (int q = 0; q < LANES; q++) {
+            double wave = L->cog[q] * poly_sin(6.0 * dc0->pp * (L->thm[q] + 0.5 * h * L->wm[q]));
+            L->tcog[q] = L->cog[q] != 0.0 ? wave : 0.0;
+        }
+    if (eccentric)
+        for (int q = 0; q < LANES; q++) {
+            double th = L->thm[q];
+            L->kte[q] = kt_eccentric(L->sec[q], th, dc0->ke, L->na[q], L->zeta[q]);
+            L->ktm[q] = kt_eccentric(L->sec[q], th + 0.5 * h * L->wm[q], dc0->ke, L->na[q],
+                                     L->zeta[q]);
+        }
+    for (int q = 0; q < LANES; q++) {   /* controller and the drive inside one sector */
+        double i_ref = L->iref[q];
+        if (tick) {
+            /* ace_update with selects */
+            double w_ref = L->kpos[q] * (c - L->fb[q]);
+            w_ref = w_ref > cc0->w_max ? cc0->w_max : (w_ref < -cc0->w_max ? -cc0->w_max : w_ref);
+            double ew = w_ref - L->wm[q];
+            double t_unsat = cc0->kpv * ew + cc0->kiv * L->integ[q];
+            double t_ref = t_unsat > cc0->t_max ? cc0->t_max
+                           : (t_unsat < -cc0->t_max ? -cc0->t_max : t_unsat);
+            bool grow = (t_ref == t_unsat) | ((t_unsat > cc0->t_max) & (ew < 0.0))
+                        | ((t_unsat < -cc0->t_max) & (ew > 0.0));
+            L->integ[q] = grow ? L->integ[q] + ew * cc0->dtc : L->integ[q];
+            i_ref = t_ref * cc0->amps_per_nm;
+            L->iref[q] = i_ref;
+        }
+        bool ecc = L->ecc[q] != 0.0;
+        double kt = ecc ? L->kte[q] : L->kt[q];
+        double kt_mid = ecc ? L->ktm[q] : kt;
+        double cur = L->cur[q], th_m = L->thm[q], w_m = L->wm[q], rp = L->rp[q];
+        /* drive_fast */
+        double th_lo = L->thlo[q], th_hi = th_lo + dc0->sector_width, th_end = th_m + h * w_m;
+        bool fast = (L->trt0[q] + L->trlen[q] <= 0.0) & (th_lo <= th_m) & (th_m < th_hi)
+                    & (th_lo <= th_end) & (th_end < th_hi);
+        double back = kt * w_m + rp * cur;
+        /* _ramp with one division */
+        double up = h * (dc0->v_dc - back) * L->il[q];
+        double dn = h * (-dc0->v_dc - back) * L->il[q];
+        double cur1 = i_ref > cur + up ? cur + up : (i_ref < cur + dn ? cur + dn : i_ref);
+        double d = cur1 - cur;
+        double f = d * (1.0 / (d > 0.0 ? up : dn));
+        double i_mean = cur1 - (0.5 * d) * f;
+        double ramp_abs = cur * cur1 >= 0.0 ? 0.5 * fabs(cur + cur1)
+                                            : 0.5 * (cur * cur + cur1 * cur1) / fabs(d);
+        double i_eq = f * ramp_abs + (1.0 - f) * fabs(cur1);
+        double kf = dc0->ktf * kt, km = dc0->ktf * kt_mid;
+        fast &= (back < dc0->v_dc) & (-dc0->v_dc < back);
+        double t_cog = L->tcog[q];
+        L->dslow[q] = fast ? 0.0 : 1.0;
+        L->cur[q] = fast ? cur1 : cur;
+        L->trt0[q] = fast ? L->trt0[q] - h : L->trt0[q];
+        L->tm[q] = km * i_mean + t_cog;
+        L->tm0[q] = kf * cur + t_cog;
+        L->tm1[q] = km * cur1 + t_cog;
+        L->trip[q] = fabs(km) * dc0->half_band;
+        L->ieq[q] = i_eq;
+    }
+    for (int q = 0; q < LANES; q++) {   /* the rest of the drive, lane by lane */
+        if (L->dslow[q] == 0.0) continue;
+        DState s = {L->cur[q], L->m[q], L->trt0[q], L->trlen[q], L->ktf[q], L->ktt[q],
+                    L->trcr[q]};
+        DOut o;
+        drive_step_general(&s, L->iref[q], L->thm[q], L->wm[q], &dcs[q], &o);
+        L->cur[q] = s.cur; L->m[q] = s.m; L->trt0[q] = s.tr_t0; L->trlen[q] = s.tr_len;
+        L->ktf[q] = s.kt_from; L->ktt[q] = s.kt_to; L->trcr[q] = s.tr_cr;
+        L->tm[q] = o.t_mean + L->tcog[q];
+        L->tm0[q] = o.t_start + L->tcog[q];
+        L->tm1[q] = o.t_end + L->tcog[q];
+        L->trip[q] = o.t_rip;
+        L->ieq[q] = o.i_eq;
+        sector_consts(s.m, &dcs[q], &L->thlo[q], &L->kt[q], &L->rp[q], &L->il[q]);
+        L->sec[q] = (double)pymod(s.m, 6);
+    }
+    for (int q = 0; q < LANES; q++) {   /* the sliding mechanics (mech_fast) */
+        double th_m = L->thm[q], w_m = L->wm[q], th_u = L->thu[q], w_u = L->wu[q];
+        double t_m = L->tm[q], half = L->half[q], tau = mc0->tau;
+        double delta = tau * th_m - th_u, dd = tau * w_m - w_u;
+        double side = delta > half ? 1.0 : 0.0;
+        side = delta < -half ? -1.0 : side;
+        double d1 = delta + h * dd;
+        double side1 = d1 > half ? 1.0 : 0.0;
+        side1 = d1 < -half ? -1.0 : side1;
+        double w_stick = mc0->w_stick, th_stop = mc0->th_stop;
+        double sgn = w_m > 0.0 ? 1.0 : -1.0;
+        double r1 = mc0->jm * w_m - h * (sgn * L->fdyn[q] + 0.5 * L->cm[q] * w_m);
+        double r2 = mc0->ju * w_u + h * ((-L->ka[q] * th_u - L->gh[q] * w_u) + 0.0);
+        /* _contact_at, moving */
+        double off = side > 0.0 ? half : -half;
+        double a = L->k[q] * (delta - off) + L->bc[q] * dd;
+        double b1 = r1 - h * tau * a, b2 = r2 + h * a;
+        double wm_c = (L->i11[q] * b1 + L->i12[q] * b2) + L->i11h[q] * t_m;
+        double wu_c = (L->i12[q] * b1 + L->i22[q] * b2) + L->i12h[q] * t_m;
+        double t_g = a + L->bc[q] * (tau * wm_c - wu_c);
+        double wm_f = r1 * L->imf[q] + L->imfh[q] * t_m;
+        double wu_f = r2 * L->iuf[q];
+        double wm1 = side != 0.0 ? wm_c : wm_f, wu1 = side != 0.0 ? wu_c : wu_f;
+        /* a lane keeps the short path where every condition holds (1.0), else 0.0 */
+        double fast = fabs(w_m) >= w_stick ? 1.0 : 0.0;
+        fast = fabs(th_u) <= th_stop ? fast : 0.0;
+        fast = side1 == side ? fast : 0.0;
+        fast = side == 0.0 || t_g * side >= 0.0 ? fast : 0.0;
+        fast = wm1 * w_m >= 0.0 ? fast : 0.0;
+        double th_m1 = th_m + 0.5 * h * (w_m + wm1);
+        double th_u1 = th_u + 0.5 * h * (w_u + wu1);
+        bool go = fast != 0.0;
+        L->mslow[q] = 1.0 - fast;
+        L->thm[q] = go ? th_m1 : th_m;
+        L->wm[q] = go ? wm1 : w_m;
+        L->thu[q] = go ? th_u1 : th_u;
+        L->wu[q] = go ? wu1 : w_u;
+        L->a0[q] += go ? 0.5 * (th_u + th_u1) : 0.0;
+        L->a1[q] += go ? 0.5 * (th_m + th_m1) : 0.0;
+        L->a2[q] += go ? 0.5 * (w_m + wm1) : 0.0;
+        L->a3[q] += go ? L->ieq[q] : 0.0;
+    }
+    for (int q = 0; q < LANES; q++) {   /* the rest of the mechanics, lane by lane */
+        if (L->mslow[q] == 0.0) continue;
+        MOut o;
+        mech_step_general(L->thm[q], L->wm[q], L->thu[q], L->wu[q], L->tm[q], L->tm0[q],
+                          L->tm1[q], L->trip[q], 0.0, &mcs[q], &o);
+        L->thm[q] = o.th_m; L->wm[q] = o.w_m; L->thu[q] = o.th_u; L->wu[q] = o.w_u;
+        L->a0[q] += o.m_th_u; L->a1[q] += o.m_th_m; L->a2[q] += o.m_w_m; L->a3[q] += L->ieq[q];
+    }
+}
+
+/* every test of the LANES candidates X[idx[q]] (numba: monitor_lanes.lane_group) */
+static void lane_group(const double *p, const int64_t *ix, const double *X, const double *E,
+                       int64_t n_effects, const int64_t *idx, const double *cmd,
+                       const int64_t *cmd_start, const int64_t *n_out, const int64_t *out_start,
+                       int64_t n_tests, int64_t total_out, int64_t ticks_out,
+                       int64_t steps_tick, double dt, double *out, uint8_t *ok) {
+    Lanes L;
+    double buf[DBUF][LANES];
+    Drive dcs[LANES];
+    Mech mcs[LANES];
+    double delay[LANES], frac[LANES];
+    int64_t d0[LANES];
+    bool alive[LANES], done[LANES];
+    bool delayed = false, cogged = false, eccentric = false;
+    Ctrl cc0 = ace_consts(p, ix, X[4 * idx[0] + 3]);
+    memset(&L, 0, sizeof L);
+    for (int q = 0; q < LANES; q++) {
+        const double *x = X + 4 * idx[q], *e = E + n_effects * idx[q];
+        double zeta = e[ix[IDX_E_ECC]], v_dc = p[ix[IDX_VDC]] * (1.0 - e[ix[IDX_E_VSAG]]);
+        dcs[q] = drive_consts(p, ix, x[0], zeta, 1.0 + e[ix[IDX_E_RRISE]], v_dc, dt);
+        mcs[q] = mech_consts(p, ix, x[1], x[2], e[ix[IDX_E_VISC]], e[ix[IDX_E_AERO]],
+                             1.0 - e[ix[IDX_E_GEAR]], dt);
+        const Mech *mc = &mcs[q];
+        L.cog[q] = e[ix[IDX_E_COG]];
+        L.half[q] = mc->half; L.fdyn[q] = mc->fdyn;
+        L.k[q] = mc->k; L.cm[q] = mc->cm; L.ka[q] = mc->ka; L.gh[q] = mc->g_h; L.bc[q] = mc->b_c;
+        L.i11[q] = mc->i11; L.i12[q] = mc->i12; L.i22[q] = mc->i22; L.i11h[q] = mc->i11h;
+        L.i12h[q] = mc->i12h; L.imf[q] = mc->i_m_free; L.imfh[q] = mc->i_m_free_h;
+        L.iuf[q] = mc->i_u_free;
+        L.ecc[q] = zeta == 0.0 ? 0.0 : 1.0;
+        L.zeta[q] = zeta; L.na[q] = dcs[q].na;
+        eccentric |= zeta != 0.0;
+        cogged |= L.cog[q] != 0.0;
+        L.kpos[q] = ace_consts(p, ix, x[3]).k_pos;
+        L.off[q] = e[ix[IDX_E_OFFSET]];
+        L.gain[q] = 1.0 + e[ix[IDX_E_IGAIN]];
+        delay[q] = e[ix[IDX_E_DELAY]] / p[ix[IDX_DTC]];
+        d0[q] = (int64_t)floor(delay[q]);
+        frac[q] = delay[q] - d0[q];
+        delayed |= delay[q] > 0.0;
+        done[q] = true;
+    }
+    double h = dcs[0].h, scale = 1.0 / (ticks_out * steps_tick);
+    for (int64_t t = 0; t < n_tests; t++) {
+        for (int q = 0; q < LANES; q++) { lane_rest(&L, &dcs[q], q); alive[q] = true; }
+        int64_t k_ctrl = cmd_start[t];
+        for (int64_t k = 0; k < n_out[t]; k++) {
+            for (int q = 0; q < LANES; q++) L.a0[q] = L.a1[q] = L.a2[q] = L.a3[q] = 0.0;
+            for (int64_t tk = 0; tk < ticks_out; tk++) {
+                for (int q = 0; q < LANES; q++) L.fb[q] = L.thu[q] + L.off[q];
+                if (delayed) {   /* _delay_lines */
+                    int64_t kk = k_ctrl - cmd_start[t], slot = kk & (DBUF - 1);
+                    for (int q = 0; q < LANES; q++) {
+                        double fb = L.fb[q];
+                        buf[slot][q] = fb;
+                        int64_t k0 = kk - d0[q], k1 = k0 - 1;
+                        double a = buf[k0 < 0 ? 0 : k0 & (DBUF - 1)][q];
+                        double b = buf[k1 < 0 ? 0 : k1 & (DBUF - 1)][q];
+                        L.fb[q] = delay[q] > 0.0 ? (1.0 - frac[q]) * a + frac[q] * b : fb;
+                    }
+                }
+                double c = cmd[k_ctrl];
+                k_ctrl += 1;
+                for (int64_t j = 0; j < steps_tick; j++)
+                    lane_step(&L, dcs, mcs, &cc0, h, c, j == 0, cogged, eccentric);
+            }
+            int64_t row = out_start[t] + k;
+            for (int q = 0; q < LANES; q++) {
+                double a0 = L.a0[q], a1 = L.a1[q], a2 = L.a2[q], a3 = L.a3[q];
+                double *o = out + 4 * (total_out * idx[q] + row);
+                o[0] = a0 * scale + L.off[q];
+                o[1] = a1 * scale;
+                o[2] = a2 * scale;
+                o[3] = L.gain[q] * a3 * scale;
+                if (alive[q] && !(isfinite(a0) && isfinite(a1) && isfinite(a2) && isfinite(a3))) {
+                    alive[q] = false;
+                    lane_rest(&L, &dcs[q], q);
+                }
+            }
+        }
+        for (int q = 0; q < LANES; q++) done[q] &= alive[q];
+    }
+    for (int q = 0; q < LANES; q++) ok[idx[q]] = done[q];
+}
+
+/* every group of LANES candidates (groups: n_groups x LANES indices; the layout of
+ * ema_bench.monitor_lanes.lanes_serial) */
+void monitor_lanes_batch(const double *p, const int64_t *ix, const double *X, const double *E,
+                         int64_t n_effects, const int64_t *groups, int64_t n_groups,
+                         const double *cmd, const int64_t *cmd_start, const int64_t *n_out,
+                         const int64_t *out_start, int64_t n_tests, int64_t total_out,
+                         int64_t ticks_out, int64_t steps_tick, double dt, double *out,
+                         uint8_t *ok) {
+    for (int64_t g = 0; g < n_groups; g++)
+        lane_group(p, ix, X, E, n_effects, groups + LANES * g, cmd, cmd_start, n_out, out_start,
+                   n_tests, total_out, ticks_out, steps_tick, dt, out, ok);
 }

@@ -29,9 +29,11 @@ from collections import namedtuple
 from numba import njit
 
 from ..params import P_HYST, P_KE, P_KTF, P_L, P_PP, P_R
+from .trig import poly_sincos
 
 SIXTH = math.pi / 6.0
-PHASE_SHIFT = (0.0, 2.0 * math.pi / 3.0, 4.0 * math.pi / 3.0)   # phases a, b, c (mechanical)
+# cos and sin of phase b's eccentricity shift, 2 pi / 3 (phase c's, 4 pi / 3: the same cos, -sin)
+_COS_120, _SIN_120 = -0.5, math.sqrt(3.0) / 2.0
 # Six-step sectors s = 0..5 (from 30 electrical degrees) conduct a+b-, a+c-, b+c-, b+a-, c+a-,
 # c+b-: phase a conducts unless s % 3 == 2.  Crossing s -> s+1 exchanges (outgoing, incoming)
 # = (b, c), (a, b), (c, a) for s % 3 = 0, 1, 2; crossing s -> s-1 exchanges (a, c), (c, b),
@@ -62,32 +64,37 @@ def drive_consts(p, na, zeta, r_scale, v_dc, h):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _pair(sec):
-    """Conducting (positive, negative) phases of sector ``sec`` (0 = a, 1 = b, 2 = c)."""
-    if sec == 0:
-        return 0, 1
-    if sec == 1:
-        return 0, 2
-    if sec == 2:
-        return 1, 2
-    if sec == 3:
-        return 1, 0
-    if sec == 4:
-        return 2, 0
-    return 2, 1
+def kt_eccentric(sec, th_m, ke, na, zeta):
+    """Pair torque constant (N m/A) of sector ``sec`` (0..5, int or float) at motor angle
+    ``th_m`` (rad) of a rotor with eccentricity ``zeta``: each conducting phase's constant
+    ``ke`` (V s/rad) scaled by ``1 + zeta cos(th_m - phi_x)``, phase a's by its turn fraction
+    ``na`` too.
+
+    ``cos(th_m - phi) = cos th_m cos phi + sin th_m sin phi``: one sine-cosine pair
+    (:func:`~ema_bench.physics.trig.poly_sincos`) serves both phases, within 4e-16 of libm's
+    ``cos(th_m - phi)``.  Branch-free (the sector's phases by selects), so the lanes
+    (:mod:`ema_bench.monitor_lanes`) run it vectorised and the scalar kernel through
+    :func:`kt_at`: one expression, the same bits.  Sectors 0..5 conduct a+b-, a+c-, b+c-,
+    b+a-, c+a-, c+b-."""
+    s, c = poly_sincos(th_m)
+    # phase x (positive): a in sectors 0-1, b in 2-3, c in 4-5; y (negative): b, c, c, a, a, b
+    cx = 1.0 if sec < 2 else _COS_120
+    sx = 0.0 if sec < 2 else (_SIN_120 if sec < 4 else -_SIN_120)
+    nx = na if sec < 2 else 1.0
+    y_is_a = (sec == 3) | (sec == 4)
+    cy = 1.0 if y_is_a else _COS_120
+    sy = 0.0 if y_is_a else (_SIN_120 if (sec == 0) | (sec == 5) else -_SIN_120)
+    ny = na if y_is_a else 1.0
+    return ke * (nx * (1.0 + zeta * (c * cx + s * sx)) + ny * (1.0 + zeta * (c * cy + s * sy)))
 
 
 @njit(cache=True, inline="always", error_model="numpy")
 def kt_at(sec, th_m, dc):
-    """Pair torque constant of sector ``sec`` at motor angle ``th_m`` (eccentricity: each
-    phase's constant scaled by ``1 + zeta cos(th_m - phi_x)``)."""
+    """Pair torque constant of sector ``sec`` at motor angle ``th_m``: the sector's constant
+    without eccentricity, else :func:`kt_eccentric`."""
     if dc.zeta == 0.0:
         return dc.kt_n if sec % 3 == 2 else dc.kt_a
-    x, y = _pair(sec)
-    nx = dc.na if x == 0 else 1.0
-    ny = dc.na if y == 0 else 1.0
-    return dc.ke * (nx * (1.0 + dc.zeta * math.cos(th_m - PHASE_SHIFT[x]))
-                    + ny * (1.0 + dc.zeta * math.cos(th_m - PHASE_SHIFT[y])))
+    return kt_eccentric(sec, th_m, dc.ke, dc.na, dc.zeta)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -181,13 +188,16 @@ def drive_step(cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr, i_ref, th_m, w_m, d
     path here.  The others go to :func:`drive_step_general`, which does the same arithmetic
     for them plus the commutation.
     """
-    if dc.zeta == 0.0:
-        th_lo, kt, r_pair, il = sector_consts(m, dc)
-        fast, cur1, t_mean, t_start, t_end, t_rip, i_eq = drive_fast(
-            cur, tr_t0, tr_len, th_lo, kt, kt, r_pair, il, i_ref, th_m, w_m, dc, False)
-        if fast:
-            return (cur1, m, tr_t0 - dc.h, tr_len, kt_from, kt_to, tr_cr, t_mean, t_start,
-                    t_end, t_rip, i_eq)
+    th_lo, kt, r_pair, il = sector_consts(m, dc)
+    kt_mid = kt
+    if dc.zeta != 0.0:   # the torque constants at the step start and mid-step
+        kt = kt_eccentric(m % 6, th_m, dc.ke, dc.na, dc.zeta)
+        kt_mid = kt_eccentric(m % 6, th_m + 0.5 * dc.h * w_m, dc.ke, dc.na, dc.zeta)
+    fast, cur1, t_mean, t_start, t_end, t_rip, i_eq = drive_fast(
+        cur, tr_t0, tr_len, th_lo, kt, kt_mid, r_pair, il, i_ref, th_m, w_m, dc, False)
+    if fast:
+        return (cur1, m, tr_t0 - dc.h, tr_len, kt_from, kt_to, tr_cr, t_mean, t_start,
+                t_end, t_rip, i_eq)
     return drive_step_general(cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr, i_ref, th_m, w_m,
                               dc)
 

@@ -7,8 +7,6 @@ fits it.  The per-step blocks then take plain scalars.
 
 from __future__ import annotations
 
-import math
-
 from numba import njit
 
 from ..effects import (
@@ -26,6 +24,7 @@ from ..effects import (
     E_VSAG,
 )
 from ..params import P_DTC, P_VDC
+from .trig import poly_sin
 
 
 @njit(cache=True, error_model="numpy")
@@ -68,9 +67,18 @@ def plant_terms(e, p):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def cogging_wave(amplitude, th_m, pole_pairs):
+    """Cogging torque (N m) at motor angle ``th_m`` (rad), amplitude ``amplitude`` (N m): 6
+    periods per pole pair and turn (the 12-slot, 4-pole motor).  Branch-free (the sine is
+    :func:`~ema_bench.physics.trig.poly_sin`), so the lanes vectorise it; an amplitude of 0
+    gives a signed zero, which :func:`cogging_torque` replaces by +0."""
+    return amplitude * poly_sin(6.0 * pole_pairs * th_m)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def cogging_torque(amplitude, th_m, pole_pairs):
-    """Cogging torque (N m) at motor angle ``th_m`` (rad): 6 periods per pole pair and turn
-    (the 12-slot, 4-pole motor)."""
+    """Cogging torque (N m) at motor angle ``th_m`` (rad): :func:`cogging_wave`, exactly
+    +0.0 without cogging (no sine computed)."""
     if amplitude == 0.0:
         return 0.0
-    return amplitude * math.sin(6.0 * pole_pairs * th_m)
+    return cogging_wave(amplitude, th_m, pole_pairs)
