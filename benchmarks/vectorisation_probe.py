@@ -11,6 +11,11 @@ writes and reads; beyond a handful it gives up and the loop stays scalar.  This 
 ``ema_bench/monitor_lanes.py`` keeps its lanes in one array.
 
 Run: ``python benchmarks/vectorisation_probe.py``.
+
+``--lanes``: the same count for every part of the lanes kernel's step
+(:mod:`ema_bench.monitor_lanes`), each part's loop over the lanes compiled on its own from the
+kernel's own inline functions: which parts the compiler vectorises, which it leaves scalar.
+``docs/performance.md`` records the answer and why.
 """
 
 from __future__ import annotations
@@ -82,7 +87,74 @@ def count(flat: bool) -> dict[str, int]:
     return {op: len(re.findall(rf"\b{op}\b", asm)) for op in ("vmulpd", "vdivpd", "vmulsd")}
 
 
+def _ops(kernel) -> dict[str, int]:
+    """Packed and scalar double-precision arithmetic in a compiled kernel's machine code."""
+    asm = next(iter(kernel.inspect_asm().values()))
+    packed = ("vmulpd", "vaddpd", "vsubpd", "vdivpd", "vrndscalepd", "vroundpd")
+    scalar = ("vmulsd", "vaddsd", "vsubsd", "vdivsd", "vrndscalesd", "vroundsd")
+    return {"packed": sum(len(re.findall(rf"\b{op}\b", asm)) for op in packed),
+            "scalar": sum(len(re.findall(rf"\b{op}\b", asm)) for op in scalar)}
+
+
+def lane_parts() -> dict[str, dict[str, int]]:
+    """Packed and scalar arithmetic of each part of the lanes' step, compiled as the kernel
+    compiles it: a loop over the lanes calling the part's inline function on the flat array
+    (the general fall-backs, scalar by design, are left out)."""
+    from ema_bench import monitor_lanes as ml
+    from ema_bench.faults import NOMINAL
+    from ema_bench.monitor_plant import monitor_consts
+    from ema_bench.params import DEFAULT_PARAMS
+    from ema_bench.physics.ace import ace_consts
+
+    lanes = ml.LANES
+
+    @njit(error_model="numpy")
+    def cogging(F, h, pp):
+        for q in range(lanes):
+            ml._cogging_lane(F, q, h, pp)
+
+    @njit(error_model="numpy")
+    def eccentric(F, h, ke):
+        for q in range(lanes):
+            ml._eccentric_lane(F, q, h, ke)
+
+    @njit(error_model="numpy")
+    def drive(F, dc0, cc0, h, c, tick):
+        for q in range(lanes):
+            ml._drive_fast_lane(F, q, dc0, cc0, h, c, tick)
+
+    @njit(error_model="numpy")
+    def mechanics(F, mc0):
+        for q in range(lanes):
+            ml._mech_fast_lane(F, q, ml._lane_mech_consts(F, q, mc0))
+
+    @njit(error_model="numpy")
+    def delay(F, buf, k, d, d0, frac):
+        ml._delay_lines(F, buf, k, d, d0, frac)
+
+    p = DEFAULT_PARAMS.to_array()
+    dc0, mc0 = monitor_consts(p, NOMINAL, np.zeros(12), DEFAULT_PARAMS.dt_mon)[:2]
+    cc0 = ace_consts(p, NOMINAL[3])
+    F = np.random.default_rng(0).random(ml._N_BLOCKS)
+    h = DEFAULT_PARAMS.dt_mon
+    cogging(F, h, 2.0)
+    eccentric(F, h, 0.05)
+    drive(F, dc0, cc0, h, 0.1, True)
+    mechanics(F, mc0)
+    delay(F, np.zeros((ml._DBUF, lanes)), 3, np.ones(lanes), np.ones(lanes, np.int64),
+          np.zeros(lanes))
+    return {name: _ops(k) for name, k in (("cogging", cogging), ("eccentric", eccentric),
+                                          ("controller + drive", drive),
+                                          ("mechanics", mechanics), ("delay lines", delay))}
+
+
 if __name__ == "__main__":
-    for flat in (False, True):
-        label = "one flat array  " if flat else "separate arrays "
-        print(label, count(flat))
+    import sys
+
+    if "--lanes" in sys.argv:
+        for part, ops in lane_parts().items():
+            print(f"{part:20s} {ops}")
+    else:
+        for flat in (False, True):
+            label = "one flat array  " if flat else "separate arrays "
+            print(label, count(flat))

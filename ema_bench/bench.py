@@ -21,6 +21,17 @@ Keys of the result (``--json``):
     numba time / plain-C time on the same candidates, one thread each, the scalar numba kernel
     against its line-by-line C port (null without a C compiler or outside a source checkout;
     ``c_unavailable`` says why); ``lanes_c_time_ratio``: the numba lanes against that C.
+``c_lanes_time_ratio``
+    tier -> numba lanes time / time of the 8-lane C twin (``monitor_lanes_batch``, the SIMD
+    limit of the same step), one thread each, tier 4 (no effects) and tier 12 (every lane
+    effect of suite emafdi-v2's tier 12, drawn in its box); ``c_lanes_vs_c_scalar``: the C
+    twin's lanes against its scalar kernel, per tier.
+``tier_evals_per_cpu_s``, ``tier_ratio``
+    tier -> objective evaluations (monitor and fitness) per CPU second on one thread, batches
+    of ``serial`` candidates drawn uniformly in the tier's box on the twin track of its first
+    instance (suite emafdi-v2), and each tier's rate over tier 4's (1.0: as cheap as tier 4).
+``single_call_ms_tier12``
+    median wall time of a one-candidate call of a tier-12 candidate (the scalar kernel).
 ``naive_python_evals_per_s``, ``speedup_vs_naive_python``
     the same equations as a plain-Python loop (:mod:`ema_bench.naive`), one thread against one
     thread.
@@ -159,6 +170,60 @@ def time_to_success(solvers: tuple[str, ...] = TTS_SOLVERS, cases: tuple[str, ..
     return {"time_to_success_warm_s": warm, "time_to_success_cold_s": coldd}
 
 
+@contextmanager
+def one_thread() -> Iterator[None]:
+    """numba's kernels on one thread (per-CPU-second figures), restored afterwards."""
+    n = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        yield
+    finally:
+        numba.set_num_threads(n)
+
+
+TIERS = (4, 7, 12)
+
+
+def tier_setups(batch: int, seed: int = 0) -> dict[int, tuple[object, np.ndarray]]:
+    """tier -> (objective, candidates): ``batch`` candidates drawn uniformly in the tier's box
+    (a tier-7 one carries a sensor offset, current gain and feedback delay, a tier-12 one every
+    plant effect too) on the twin track of the tier's first instance, kernels warmed up."""
+    from .suite_v2 import instance_names, make_v2_problem
+
+    rng = np.random.default_rng(seed)
+    out = {}
+    for t in TIERS:
+        p = make_v2_problem(instance_names(t)[0], track="twin", seed=0, budget=1)
+        X = p.space.check(p.from_unit(rng.random((batch, p.dim))))
+        with one_thread():
+            p.objective.evaluate(X)   # compile or load the kernels first
+        out[t] = (p.objective, X)
+    return out
+
+
+def tier_rates(setups: dict[int, tuple[object, np.ndarray]]) -> dict[int, float]:
+    """One interleaved round: tier -> objective evaluations per CPU second, one thread."""
+    rates = {}
+    with one_thread():
+        for t, (obj, X) in setups.items():
+            _, cpu = _timed(lambda obj=obj, X=X: obj.evaluate(X))
+            rates[t] = X.shape[0] / cpu
+    return rates
+
+
+def tier12_effects(n: int, seed: int = 0) -> np.ndarray:
+    """Effects vectors of ``n`` tier-12 candidates: every lane effect uniform in its range."""
+    from .effects import EFFECT_INDEX, EFFECTS, N_EFFECTS
+    from .monitor_lanes import LANE_EFFECTS
+
+    rng = np.random.default_rng(seed)
+    E = np.zeros((n, N_EFFECTS))
+    for name in LANE_EFFECTS:
+        eff = EFFECTS[EFFECT_INDEX[name]]
+        E[:, EFFECT_INDEX[name]] = rng.uniform(eff.lower, eff.upper, n)
+    return E
+
+
 def _finite_median(xs: list[float]) -> float | None:
     """Median counting failures as infinitely slow; None when it is infinite."""
     if not xs:
@@ -203,13 +268,16 @@ def run_bench(batch: int = 256, repeat: int = 7, serial: int = 16, naive_evals: 
     except c_kernel.CKernelUnavailable as exc:
         c_lib, c_reason = None, str(exc)
 
-    def singles() -> list[float]:
+    E12 = tier12_effects(len(Xs), seed)
+    effects = {4: None, 12: E12}
+
+    def singles(E: np.ndarray | None = None) -> list[float]:
         """ms of each one-candidate call (the median is over calls: a preempted call is one
         slow sample, not a slower average)."""
         ms = []
-        for x in Xs:
+        for i, x in enumerate(Xs):
             t = time.perf_counter()
-            simulate_monitor(x[None, :])
+            simulate_monitor(x[None, :], None if E is None else E[i:i + 1])
             ms.append(1e3 * (time.perf_counter() - t))
         return ms
 
@@ -219,7 +287,19 @@ def run_bench(batch: int = 256, repeat: int = 7, serial: int = 16, naive_evals: 
     if c_lib is not None:
         c_kernel.simulate_c(Xs[:1], library=c_lib)
     simulate_monitor(Xs, parallel=False, lanes=False)
+    say("tier set-up (suite emafdi-v2's first instance of tiers 4, 7, 12)")
+    setups = tier_setups(len(Xs), seed)
+    for E in effects.values():   # and the effect-carrying kernels
+        simulate_monitor(Xs, E, parallel=False)
+        simulate_monitor(Xs[:1], None if E is None else E[:1], parallel=False)
+        if c_lib is not None:
+            c_kernel.simulate_c(Xs[:1], None if E is None else E[:1], library=c_lib)
+            c_kernel.simulate_c(Xs, E, library=c_lib, lanes=True)
     batched, serial_cpu, scalar_cpu, single, ratio, lane_ratio = [], [], [], [], [], []
+    tiers: dict[int, list[float]] = {t: [] for t in TIERS}
+    c_lanes: dict[int, list[float]] = {t: [] for t in effects}
+    c_lanes_scalar: dict[int, list[float]] = {t: [] for t in effects}
+    single12: list[float] = []
     for r in range(repeat):
         say(f"interleaved round {r + 1}/{repeat}")
         wall, cpu = _timed(lambda: simulate_monitor(X, parallel=True))
@@ -233,6 +313,17 @@ def run_bench(batch: int = 256, repeat: int = 7, serial: int = 16, naive_evals: 
             ratio.append(cpu_scalar / c_cpu)
             lane_ratio.append(cpu / c_cpu)
         single.extend(singles())
+        single12.extend(singles(E12))
+        for t, rate in tier_rates(setups).items():
+            tiers[t].append(rate)
+        if c_lib is not None:   # numba lanes, C lanes and scalar C, tier 4 and tier 12
+            for t, E in effects.items():
+                _, lanes_cpu = _timed(lambda E=E: simulate_monitor(Xs, E, parallel=False))
+                _, cl_cpu = _timed(lambda E=E: c_kernel.simulate_c(Xs, E, library=c_lib,
+                                                                   lanes=True))
+                _, cs_cpu = _timed(lambda E=E: c_kernel.simulate_c(Xs, E, library=c_lib))
+                c_lanes[t].append(lanes_cpu / cl_cpu)
+                c_lanes_scalar[t].append(cl_cpu / cs_cpu)
         loads.append(os.getloadavg()[0])
     say("one-candidate calls with both cores busy")
     with busy_cores(os.cpu_count() or 2):
@@ -257,6 +348,12 @@ def run_bench(batch: int = 256, repeat: int = 7, serial: int = 16, naive_evals: 
         "c_time_ratio": _median(ratio) if ratio else None,
         "lanes_c_time_ratio": _median(lane_ratio) if lane_ratio else None,
         "c_unavailable": c_reason,
+        "c_lanes_time_ratio": {str(t): _median(v) for t, v in c_lanes.items() if v} or None,
+        "c_lanes_vs_c_scalar": ({str(t): _median(v) for t, v in c_lanes_scalar.items() if v}
+                                or None),
+        "tier_evals_per_cpu_s": {str(t): _median(v) for t, v in tiers.items()},
+        "tier_ratio": {str(t): _median(v) / _median(tiers[4]) for t, v in tiers.items()},
+        "single_call_ms_tier12": _median(single12),
         "naive_python_evals_per_s": nv["evals_per_cpu_s"],
         "speedup_vs_naive_python": evals_cpu / nv["evals_per_cpu_s"],
         "reference_episode_s": t_ref,

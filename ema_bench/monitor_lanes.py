@@ -22,13 +22,19 @@ gain, feedback delay): the offset and gain per lane in the vector loops, the del
 buffer lane by lane once per controller sample.  The plant ones: viscous friction, the aero
 spring and the gear stiffness change the mechanics' constants, which every lane reads from
 its own blocks (``_O_K`` .. ``_O_IUF``); cogging's torque and an eccentric rotor's torque
-constants at the step start and mid-step (libm's ``sin`` and ``cos``, the scalar kernel's very
-calls) are computed lane by lane before the drive's vector loop, which then takes them.  Those
-five libm calls per step are most of what a tier-12 candidate costs beyond a tier-4 one
-(about 10 ns each; ``benchmarks/tier_cost.py``).
+constants at the step start and mid-step run in two more vector loops before the drive's,
+on the polynomial sine and cosine of :mod:`ema_bench.physics.trig` (the scalar kernel's and
+the C twin's too; libm's scalar calls, which LLVM cannot vectorise, made a tier-12 candidate
+five times a tier-4 one; ``ema-bench bench`` reports the tiers' rates now).
 The resistance rise, the voltage sag (constants :func:`drive_fast` takes from lane 0) and the
 decoys (a hinge moment the lanes do not compute) send their candidate to the scalar kernel
 (:mod:`ema_bench.monitor`).
+
+The 8-lane C twin (``benchmarks/c/monitor.c``: ``monitor_lanes_batch``) is this module line
+by line, vectorised by GCC; ``ema-bench bench`` times the two side by side
+(``c_lanes_time_ratio``), and ``tests/test_kernel.py`` holds the four kernels (scalar and
+lanes, numba and C) to the same bits.  Which parts of the step vectorise here:
+``benchmarks/vectorisation_probe.py --lanes``.
 """
 
 from __future__ import annotations
@@ -215,17 +221,11 @@ def _step(F, M, dc0, mc0, cc0, dcs, mcs, h, c, tick, cogged, eccentric):
     (The controller shares the drive's loop: on its own, its loop is short enough that the
     compiler unrolls it before it could vectorise it.)"""
     if cogged:   # vectorised (a polynomial sine): the cogging torque at mid-step
-        for q in range(LANES):   # (a branch around the sine would keep this loop scalar)
-            wave = cogging_wave(F[_O_COG + q], F[_O_THM + q] + 0.5 * h * F[_O_WM + q], dc0.pp)
-            F[_O_TCOG + q] = wave if F[_O_COG + q] != 0.0 else 0.0   # cogging_torque's +0
-    if eccentric:   # vectorised: the torque constants at the step start and mid-step (a
-        # lane without eccentricity computes them too, and its drive ignores them)
         for q in range(LANES):
-            sec = F[_O_SEC + q]   # stale if the rotor left the sector: the step is not fast
-            th = F[_O_THM + q]
-            F[_O_KTE + q] = kt_eccentric(sec, th, dc0.ke, F[_O_NA + q], F[_O_ZETA + q])
-            F[_O_KTM + q] = kt_eccentric(sec, th + 0.5 * h * F[_O_WM + q], dc0.ke,
-                                         F[_O_NA + q], F[_O_ZETA + q])
+            _cogging_lane(F, q, h, dc0.pp)
+    if eccentric:   # vectorised: the torque constants at the step start and mid-step
+        for q in range(LANES):
+            _eccentric_lane(F, q, h, dc0.ke)
     for q in range(LANES):   # vectorised: controller and the drive inside one sector
         _drive_fast_lane(F, q, dc0, cc0, h, c, tick)
     for q in range(LANES):   # the rest of the drive, lane by lane
@@ -269,6 +269,26 @@ def _step(F, M, dc0, mc0, cc0, dcs, mcs, h, c, tick, cogged, eccentric):
             F[_O_A1 + q] += m_thm
             F[_O_A2 + q] += m_wm
             F[_O_A3 + q] += F[_O_IEQ + q]
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _cogging_lane(F, q, h, pp):
+    """Lane ``q``'s cogging torque at mid-step (:func:`cogging_torque`'s bits: its +0 without
+    cogging by a select, since a branch around the sine would keep the loop scalar)."""
+    wave = cogging_wave(F[_O_COG + q], F[_O_THM + q] + 0.5 * h * F[_O_WM + q], pp)
+    F[_O_TCOG + q] = wave if F[_O_COG + q] != 0.0 else 0.0
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _eccentric_lane(F, q, h, ke):
+    """Lane ``q``'s torque constants at the step start and mid-step (:func:`kt_eccentric`);
+    a lane without eccentricity computes them too, and its drive ignores them.  The sector
+    is stale if the rotor left it: that step is not a fast one."""
+    sec = F[_O_SEC + q]
+    th = F[_O_THM + q]
+    F[_O_KTE + q] = kt_eccentric(sec, th, ke, F[_O_NA + q], F[_O_ZETA + q])
+    F[_O_KTM + q] = kt_eccentric(sec, th + 0.5 * h * F[_O_WM + q], ke, F[_O_NA + q],
+                                 F[_O_ZETA + q])
 
 
 @njit(cache=True, inline="always", error_model="numpy")

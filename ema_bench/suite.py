@@ -33,7 +33,7 @@ from .trace_cache import MODEL_VERSION
 
 SUITE_ID = "emafdi-v1"
 #: The model version the suite's targets were computed on.
-SUITE_MODEL_VERSION = "2"
+SUITE_MODEL_VERSION = "3"
 #: Root of the draw of the seeded instances (never changes within a suite version).
 SUITE_SEED = 20261123
 N_SEEDED = 20

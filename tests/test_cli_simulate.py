@@ -186,6 +186,17 @@ def test_bench_json():
     assert (doc["lanes_c_time_ratio"] is None) == (doc["c_unavailable"] is not None)
     assert set(doc["load_avg"]) == {"before", "max", "after"}
     assert doc["batch"] == 8
+    # suite emafdi-v2's tiers, each against tier 4, and the lanes against the 8-lane C twin
+    assert set(doc["tier_evals_per_cpu_s"]) == set(doc["tier_ratio"]) == {"4", "7", "12"}
+    assert all(v > 0 for v in doc["tier_evals_per_cpu_s"].values())
+    assert doc["tier_ratio"]["4"] == 1.0
+    assert doc["tier_ratio"]["12"] == pytest.approx(
+        doc["tier_evals_per_cpu_s"]["12"] / doc["tier_evals_per_cpu_s"]["4"])
+    assert doc["single_call_ms_tier12"] > 0
+    if doc["c_unavailable"] is None:
+        assert set(doc["c_lanes_time_ratio"]) == set(doc["c_lanes_vs_c_scalar"]) == {"4", "12"}
+    else:
+        assert doc["c_lanes_time_ratio"] is None
 
 
 def test_bench_time_to_success_reports_every_solver_and_case():

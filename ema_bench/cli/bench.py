@@ -2,11 +2,13 @@
 
 Interleaved rounds, medians, CPU time beside wall time and the load average seen:
 monitor evaluations per second batched on all threads and per CPU second on one thread; the
-cost of a one-candidate call (idle, and with every core kept busy by other processes); the
-numba/C time ratio (needs a C compiler and a source checkout: benchmarks/c/monitor.c); the
-plain-Python baseline (the same equations, JIT off); import, cache-load and cold-compile times;
-the median time to a successful identification for cmaes and powell on the four paper cases,
-in this process and from a cold command line.  See ``ema_bench.bench`` for every key.
+cost of a one-candidate call (idle, and with every core kept busy by other processes; and of
+a tier-12 one); the objective's evaluations per CPU second on suite emafdi-v2's tiers 4, 7
+and 12 and their ratios to tier 4; the numba/C time ratios, scalar and lanes, the lanes also
+against the 8-lane C twin on tiers 4 and 12 (needs a C compiler and a source checkout:
+benchmarks/c/monitor.c); the plain-Python baseline (the same equations, JIT off); import,
+cache-load and cold-compile times; the median time to a successful identification for cmaes
+and powell on the four paper cases, in this process and from a cold command line.  See ``ema_bench.bench`` for every key.
 
 It takes a few minutes; --quick skips the start-up and time-to-success figures.
 """
@@ -62,6 +64,13 @@ def run(args: argparse.Namespace) -> int:
         f"numba / C time (scalar):    {_fmt(r['c_time_ratio'], '9.2f')}"
         f"  (numba lanes / scalar C: {_fmt(r['lanes_c_time_ratio'], '.2f')})"
         + (f"  ({r['c_unavailable']})" if r["c_unavailable"] else ""),
+        *(f"numba lanes / 8-lane C, tier {t:>2}: {v:5.2f}  (C lanes / scalar C "
+          f"{r['c_lanes_vs_c_scalar'][t]:.2f})"
+          for t, v in (r["c_lanes_time_ratio"] or {}).items()),
+        "objective, one thread:      "
+        + "  ".join(f"tier {t} {v:.0f} evals/CPU-s ({r['tier_ratio'][t]:.2f}x tier 4)"
+                    for t, v in r["tier_evals_per_cpu_s"].items()),
+        f"one tier-12 candidate:      {r['single_call_ms_tier12']:9.2f} ms",
         f"plain Python, one thread:   {r['naive_python_evals_per_s']:9.2f} evals/CPU-s "
         f"(numba {r['speedup_vs_naive_python']:.0f}x faster)",
         f"reference episode:          {r['reference_episode_s']:9.3f} s",

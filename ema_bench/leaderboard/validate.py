@@ -49,7 +49,7 @@ from ..suite_v2 import (
     suite_of,
 )
 from ..suite_v2 import instance_names as instance_names_v2
-from ..trace_cache import MODEL_VERSION
+from ..trace_cache import COMPATIBLE_VERSIONS, MODEL_VERSION, is_comparable
 from .derive import DerivationError, Derived, derive, truth_of
 from .store import IDENTITY_FIELDS, is_error
 
@@ -103,8 +103,9 @@ def check_record(r: dict, reevaluate: bool = True) -> list[str]:
     bad = []
     if r.get("suite") != suite_of(r["case"]):
         bad.append(f"suite version {r.get('suite')!r}, expected {suite_of(r['case'])!r}")
-    if str(r.get("model_version")) != MODEL_VERSION:
-        bad.append(f"model version {r.get('model_version')!r}, expected {MODEL_VERSION!r}")
+    if not is_comparable(str(r.get("model_version"))):
+        bad.append(f"model version {r.get('model_version')!r}, expected {MODEL_VERSION!r}"
+                   f" (or a compatible {', '.join(map(repr, COMPATIBLE_VERSIONS))})")
     if schema(r) not in (1, RECORD_SCHEMA):
         bad.append(f"record schema {r.get('schema')!r}, expected {RECORD_SCHEMA} (or legacy)")
     if r["track"] not in TRACKS or not (is_instance(r["case"]) or is_v2_case(r["case"])):

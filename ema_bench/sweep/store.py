@@ -42,11 +42,12 @@ def model_version(record: dict) -> str:
 
 
 def is_current(record: dict) -> bool:
-    """Whether a record was made with this installation's models (others are stale: they
-    are neither reused on resume nor compared)."""
-    from ..trace_cache import MODEL_VERSION
+    """Whether a record was made with this installation's models or a compatible version
+    (:data:`~ema_bench.trace_cache.COMPATIBLE_VERSIONS`; others are stale: they are neither
+    reused on resume nor compared)."""
+    from ..trace_cache import is_comparable
 
-    return model_version(record) == MODEL_VERSION
+    return is_comparable(model_version(record))
 
 
 def is_error(record: dict) -> bool:
