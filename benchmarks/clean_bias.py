@@ -18,7 +18,7 @@ import numpy as np
 
 from ema_bench.calibrate import clean_bias
 from ema_bench.faults import CASES, random_faults
-from ema_bench.suite import instance_faults, instance_names
+from ema_bench.suites.v1 import instance_faults, instance_names
 
 if __name__ == "__main__":
     if len(sys.argv) > 1:

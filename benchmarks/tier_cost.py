@@ -23,7 +23,8 @@ import time
 
 import numpy as np
 
-from ema_bench.suite_v2 import instance_names, make_v2_problem
+from ema_bench.suites.problem import make_problem
+from ema_bench.suites.v2 import case_key, instance_names
 
 
 def _timed(fn) -> tuple[float, float]:
@@ -44,7 +45,7 @@ def main() -> None:
     rng = np.random.default_rng(0)
     setups = {}
     for t in tiers:
-        p = make_v2_problem(instance_names(t)[0], track="twin", seed=0, budget=1)
+        p = make_problem(case_key(instance_names(t)[0], "prior"), track="twin", seed=0, budget=1)
         U = rng.random((a.batch, p.dim))
         X = p.space.check(p.from_unit(U))
         p.objective.evaluate(X)   # compile / load the kernels first

@@ -125,8 +125,8 @@ def time_to_success(solvers: tuple[str, ...] = TTS_SOLVERS, cases: tuple[str, ..
                     seeds: int = 3, budget: int = 3000, cold: bool = True,
                     progress: Callable[[str], None] | None = None) -> dict[str, dict]:
     """Median seconds to the first successful vector, warm and cold (see module doc)."""
-    from .instances import make_problem
     from .registry import run_solver
+    from .suites.problem import make_problem
 
     warm: dict[str, dict[str, float | None]] = {}
     coldd: dict[str, dict[str, float | None]] = {}

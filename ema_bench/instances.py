@@ -1,5 +1,7 @@
-"""The instances of the benchmark: measured traces for a case, a track and a seed, wrapped in
-a :class:`~ema_bench.problem.Problem` by :func:`make_problem`."""
+"""Measured traces for true faults, a track and a seed, wrapped in a
+:class:`~ema_bench.problem.Problem` by :func:`make_problem` (the vector path: a suite's case
+key goes through :func:`ema_bench.suites.problem.make_problem`, the package's
+``ema_bench.make_problem``, which looks the case up and comes here with its truth)."""
 
 from __future__ import annotations
 
@@ -9,7 +11,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from .effects import EFFECT_INDEX, effects_to_dict, effects_vector
-from .faults import FaultError, check_faults, faults_to_dict, random_faults
+from .faults import FaultError, check_faults, faults_to_dict
 from .monitor import simulate_monitor
 from .objective import KNOWN_TESTS, ProblemError, signal_mask
 from .params import DEFAULT_PARAMS
@@ -18,7 +20,6 @@ from .problem import Problem, check_budget
 from .protocol import STANDARD_TESTS, TestSpec
 from .reference import SimulationError, simulate_reference
 from .seeding import SeedLike, as_seed_sequence, children, stream
-from .suite import instance_faults, is_instance
 from .trace_cache import PUBLIC_META, cache_key, cached_traces, expected_shapes
 from .traces import Traces
 
@@ -50,10 +51,11 @@ def twin_traces(x: np.ndarray, e: np.ndarray, seed: np.random.SeedSequence,
                                    "effects": effects_to_dict(e), "noise": True, "adc": True})
 
 
-def check_settings(case: object = "small", track: str = "reference", budget: object = 1,
+def check_settings(case: object = None, track: str = "reference", budget: object = 1,
                    heterogeneity: float = 1.0) -> None:
-    """The checks of :func:`make_problem`'s settings, for callers that must fail early (the
-    environment at construction, the command line before any work): ProblemError."""
+    """The checks of :func:`make_problem`'s settings (``case``: true faults, a mapping or an
+    array), for callers that must fail early: ProblemError.  A case key is checked by
+    :func:`ema_bench.suites.problem.check_settings`, which comes here for the rest."""
     check_budget(budget)
     if track not in TRACKS:
         raise ProblemError(f"unknown track {track!r}; known: {list(TRACKS)}")
@@ -61,21 +63,14 @@ def check_settings(case: object = "small", track: str = "reference", budget: obj
         raise ProblemError(f"heterogeneity must lie in [0, 1], got {heterogeneity!r}")
     if case is None:
         raise ProblemError("give a case, or measured traces")
-    if isinstance(case, str):
-        if case != "seeded" and not is_instance(case):
-            try:
-                instance_faults(case)
-            except FaultError as exc:
-                raise ProblemError(str(exc)) from None
-    else:
-        try:
-            check_faults(case)
-        except FaultError as exc:
-            raise ProblemError(f"bad case: {exc}") from None
+    try:
+        check_faults(case)
+    except FaultError as exc:
+        raise ProblemError(f"bad case: {exc}") from None
 
 
 def make_problem(
-    case: str | Mapping[str, float] | np.ndarray | None = "small",
+    case: Mapping[str, float] | np.ndarray | None = None,
     *,
     track: str = "reference",
     seed: SeedLike = 0,
@@ -91,23 +86,22 @@ def make_problem(
     prior: bool = True,
     score_effects: bool = False,
     signals: Sequence[str] | None = None,
+    label: str = "custom",
 ) -> Problem:
-    """Build an identification problem.
+    """Build an identification problem from true faults (the parameters are those of
+    :func:`ema_bench.suites.problem.make_problem`, which takes a case key too).
 
     Parameters
     ----------
-    case : str, mapping or array
-        A suite instance: a paper case (``nominal``, ``small``, ``full``, ``random``) or a
-        seeded instance of the suite (``s00`` .. ``s19``, :mod:`~ema_bench.suite`);
-        ``"seeded"`` for a random instance drawn from ``seed`` with ``heterogeneity``; or
-        explicit true faults.
+    case : mapping or array
+        The true faults.
     track : {"reference", "twin"}
         ``reference``: measured traces come from the detailed reference model (model-form
         mismatch, as in the paper); ``twin``: from the monitor model itself plus sensor noise
         (a pure optimisation problem whose optimum is the truth).
     seed : int or SeedSequence
         The run node (:func:`~ema_bench.seeding.run_seed`; an int is a node of its own):
-        its ``instance`` stream draws a seeded case, its ``noise`` stream the sensor noise.
+        its ``noise`` stream draws the sensor noise.
     budget : int
         Hard evaluation budget.
     normalise : bool
@@ -137,6 +131,8 @@ def make_problem(
         ``surface-current`` condition: ``theta_u``, ``i_eq``).  The others get weight 0 in
         the objective, and in synthetic data (a case and a track) their columns are zeros:
         the solver is not given what the condition withholds.
+    label : str
+        The problem's public case label (a case key, ``seeded(h=..)``).
     """
     if measured is not None:
         if not isinstance(measured, Traces):
@@ -149,14 +145,8 @@ def make_problem(
         raise ProblemError("sample_weights weigh given measured traces: pass measured too")
     check_settings(case, track, budget, heterogeneity)
     keep = signal_mask(signals)   # an unknown signal fails before any simulation
-    ss = as_seed_sequence(seed)
-    s_instance, s_noise = stream(ss, "instance"), stream(ss, "noise")
-    if isinstance(case, str) and case == "seeded":
-        truth, label = random_faults(s_instance, heterogeneity), f"seeded(h={heterogeneity:g})"
-    elif isinstance(case, str):
-        truth, label = instance_faults(case), case
-    else:
-        truth, label = check_faults(case), "custom"
+    s_noise = stream(as_seed_sequence(seed), "noise")
+    truth = check_faults(case)
     e = effects_vector(effects)
     names = tuple(tests) if tests is not None else tuple(s.name for s in STANDARD_TESTS)
     unknown = [n for n in names if n not in KNOWN_TESTS]

@@ -36,7 +36,7 @@ from ema_bench.problem import Problem, SolverView
 from ema_bench.registry import SolverError, SolveResult, run_solver
 from ema_bench.scoring import Score
 from ema_bench.seeding import run_seed
-from ema_bench.suite import instance_names
+from ema_bench.suites.v1 import instance_names
 
 ROOT = Path(__file__).resolve().parents[1]
 

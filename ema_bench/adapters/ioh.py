@@ -30,7 +30,7 @@ from typing import Any
 import ioh
 import numpy as np
 
-from ..suite import best_known
+from ..suites import find
 from .run import AdapterRun, evaluate_unit
 
 
@@ -43,7 +43,8 @@ class IOHProblem:
         self.run = run
         self.problem = run.problem
         self._pending: deque[tuple[np.ndarray, float]] = deque()
-        known = best_known(run.case, run.track, run.seed, run.root_seed)
+        inst = find(run.case)   # None: a case outside the suites (no f*)
+        known = None if inst is None else inst.best_known(run.track, run.seed, run.root_seed)
         optimum = None
         if known is not None:
             x_star = self.problem.to_unit(np.array([known["x_star"][n]

@@ -55,7 +55,7 @@ class AdapterRun:
     _t0: float = field(init=False, default=0.0)
 
     def __post_init__(self) -> None:
-        from ..instances import make_problem
+        from ..suites.problem import make_problem
 
         self._task = Task(self.solver, self.case, self.track, int(self.seed), int(self.budget),
                           int(self.root_seed))

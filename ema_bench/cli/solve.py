@@ -107,8 +107,8 @@ def _register_solve(sub: argparse._SubParsersAction) -> None:
 
 
 def _check_args(args: argparse.Namespace) -> None:
-    from ..instances import check_settings
     from ..registry import get_solver
+    from ..suites.problem import check_settings
 
     run_node(args)   # the seeds are valid
     # make_problem's own checks, before any work (the measured path has no case)
@@ -134,7 +134,7 @@ def _case(args: argparse.Namespace):
 
 
 def _make_problem(args: argparse.Namespace):
-    from ..instances import make_problem
+    from ..suites.problem import make_problem
 
     if args.measured is not None:
         return make_problem(measured=load_measured_files(args.measured, args.test),

@@ -30,12 +30,12 @@ import numpy as np
 
 from ..effects import EFFECT_NAMES, EFFECTS, LIBRARY, N_EFFECTS
 from ..faults import FAULT_NAMES
-from ..instances import make_problem
 from ..monitor import simulate_monitor
 from ..objective import KNOWN_TESTS, N_FAULTS, Objective, SearchSpace, signal_weights
 from ..reference import simulate_reference
 from ..registry import run_solver
 from ..seeding import SeedLike, stream
+from ..suites.problem import make_problem
 from ..traces import OUTPUT_DT, Traces
 from . import acquisition as acq
 from .acquisition import Acquisition

@@ -37,13 +37,13 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
-from ..suite import (
+from ..suites.targets import (
     BUDGET_CHECKPOINTS,
     FITNESS_PRECISIONS,
     PARAMETER_TARGETS,
-    SANITY_CASES,
     precision_key,
 )
+from ..suites.v1 import SANITY_CASES
 from .derive import derived, precision
 from .store import is_error
 

@@ -78,7 +78,7 @@ def _of(settings: Settings):
 
 
 def _problem(track: str, root_seed: int, index: int, budget: int):
-    from ..instances import make_problem
+    from ..suites.problem import make_problem
 
     return make_problem("seeded", track=track, seed=run_seed(root_seed, index), budget=budget)
 

@@ -54,7 +54,7 @@ def calibrate(path: Path | str, instances: list[str] | None = None,
                          "data is read-only; write the biases elsewhere, or regenerate them "
                          "in a git checkout of ema-bench")
     from ..calibrate import clean_bias
-    from ..suite import instance_faults, instance_names
+    from ..suites.v1 import instance_faults, instance_names
 
     names = list(instances or instance_names("all"))
     rows = {}
