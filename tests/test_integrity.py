@@ -25,7 +25,7 @@ from hypothesis import strategies as st
 from ema_bench import register_solver
 from ema_bench.escape import check_name, csv_value, markdown
 from ema_bench.faults import FAULT_NAMES, faults_to_dict
-from ema_bench.instances import make_problem
+from ema_bench.suites.problem import make_problem
 from ema_bench.leaderboard.anytime import anytime_scores
 from ema_bench.leaderboard.replay import replay
 from ema_bench.leaderboard.report import write_leaderboards

@@ -12,7 +12,7 @@ import pytest
 
 import ema_bench.env  # noqa: F401  (registers the environment)
 from ema_bench.faults import CASES, FAULT_NAMES, LOWER, UPPER
-from ema_bench.instances import make_problem
+from ema_bench.suites.problem import make_problem
 from ema_bench.leaderboard.tasks import Task, run_task
 from ema_bench.registry import run_solver
 from ema_bench.seeding import run_seed

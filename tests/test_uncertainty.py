@@ -400,7 +400,7 @@ def test_a_refit_never_passes_its_evaluation_cap():
 def test_the_step_test_alone_cannot_tell_na_from_fst():
     """The paper's Na/Fst valley, seen from the data side: fitted to the step test alone,
     Na and Fst are confounded; the step and the sine together separate every pair."""
-    from ema_bench.instances import make_problem
+    from ema_bench.suites.problem import make_problem
 
     truth = np.array([0.95, 0.3378, 0.01, 1e5])   # the 'small' case
     pairs = {}

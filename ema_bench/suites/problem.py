@@ -48,7 +48,7 @@ def make_problem(
     *,
     track: str = "reference",
     seed: SeedLike = 0,
-    budget: int = 1000,
+    budget: int | None = 1000,
     normalise: bool = True,
     heterogeneity: float = 1.0,
     effects: Mapping[str, float] | None = None,
@@ -73,7 +73,10 @@ def make_problem(
         ``instance`` stream of ``seed`` with ``heterogeneity``; or explicit true faults.  A
         case's own settings (effects, fitted effects, tests, outputs, prior) apply where the
         arguments below are left at their defaults.
-    track, seed, budget, normalise, effects, measured, augment, tests, start,
+    budget : int or None
+        Hard evaluation budget; None: the case's suite budget
+        (:attr:`~ema_bench.suites.base.Instance.budget`; v2: 1250 x the tier).
+    track, seed, normalise, effects, measured, augment, tests, start,
     sample_weights, prior, score_effects, signals
         As :func:`ema_bench.instances.make_problem` (``seed``: the run node, whose
         ``noise`` stream draws the sensor noise).
@@ -87,13 +90,14 @@ def make_problem(
         return vector_problem(case, effects=effects, augment=augment, tests=tests,
                               prior=prior, score_effects=score_effects, signals=signals,
                               **options)
-    check_settings(case, track, budget, heterogeneity)
+    check_settings(case, track, 1 if budget is None else budget, heterogeneity)
     if case == SEEDED:
         truth = random_faults(stream(as_seed_sequence(seed), "instance"), heterogeneity)
         return vector_problem(truth, effects=effects, augment=augment, tests=tests,
                               prior=prior, score_effects=score_effects, signals=signals,
                               label=f"seeded(h={heterogeneity:g})", **options)
     inst = instance(case)
+    options["budget"] = inst.budget if budget is None else budget
     if start is not None and not inst.prior:
         raise ProblemError(f"case {case!r} gives no prior: no start")
     return vector_problem(inst.truth[:N_FAULTS],
