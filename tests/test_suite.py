@@ -12,11 +12,11 @@ import pytest
 
 import ema_bench.env  # noqa: F401  (registers the environment)
 from ema_bench.faults import CASES, FAULT_NAMES, LOWER, UPPER
-from ema_bench.suites.problem import make_problem
 from ema_bench.leaderboard.tasks import Task, run_task
 from ema_bench.registry import run_solver
 from ema_bench.seeding import run_seed
 from ema_bench.suites.best_known import MARGIN, STAGES, all_keys
+from ema_bench.suites.problem import make_problem
 from ema_bench.suites.targets import SUITE_MODEL_VERSION, fitness_targets
 from ema_bench.suites.v1 import (
     N_SEEDED,

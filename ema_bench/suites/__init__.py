@@ -84,12 +84,12 @@ def episode_cases(case: object = "small", tier: int | str | None = None,
                   condition: str | None = None) -> list:
     """The cases an environment's episodes draw from (episode ``k``: case ``k mod n``):
     ``[case]`` (any case key, ``seeded``, true faults), or with ``tier`` or ``condition``
-    (suite emafdi-v2's environment) the keys of that tier under that condition (default 4
-    and ``prior``), only the one of instance ``case`` where it is given; SuiteError for a
-    tier, condition or instance the suite does not have."""
+    (suite emafdi-v2's environment) the keys of that tier under that condition (default the
+    faults-only tier and ``prior``), only the one of instance ``case`` where it is given;
+    SuiteError for a tier, condition or instance the suite does not have."""
     if tier is None and condition is None:
         return [case]
-    return v2.tier_cases(4 if tier is None else tier, condition or "prior", case)
+    return v2.tier_cases(v2.BASE_TIER if tier is None else tier, condition or "prior", case)
 
 
 def case_order() -> dict[str, int]:

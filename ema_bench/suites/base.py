@@ -91,10 +91,14 @@ class Instance:
         instance, or None where the suite has no fixed target."""
         return self.suite.best_known(self, track, seed, root_seed)
 
+    def judged(self, track: str) -> np.ndarray | None:
+        """Which parameters carry parameter targets on ``track`` (None: all)."""
+        return self.suite.judged(self, track)
+
     def frame(self, track: str) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """Truth, ranges and judged mask (None: all) of the parameters the parameter targets
         and the success rule judge on ``track``."""
-        return self.truth, self.ranges, self.suite.judged(self, track)
+        return self.truth, self.ranges, self.judged(track)
 
     def ioh_instance(self, seed: int) -> int:
         """The IOH instance id of run ``seed`` on this instance (ValueError beyond the ids

@@ -53,15 +53,20 @@ MAX_TARGET_BIAS = 0.003
 
 @dataclass(frozen=True)
 class Tier:
-    """One dimension of the suite: the four faults plus ``effects`` (fitted, scored)."""
+    """One dimension of the suite: the faults plus ``effects`` (fitted, scored); its
+    dimension follows from the fault and effect lists (a fifth fault moves every tier)."""
 
-    dim: int
     effects: tuple[str, ...]
     description: str
 
     def __post_init__(self) -> None:
-        if self.dim != len(FAULT_NAMES) + len(self.effects):
-            raise SuiteError(f"tier {self.dim} lists {len(self.effects)} effects")
+        unknown = [n for n in self.effects if n not in EFFECT_INDEX]
+        if unknown:
+            raise SuiteError(f"tier of unknown effect(s) {unknown}")
+
+    @property
+    def dim(self) -> int:
+        return len(FAULT_NAMES) + len(self.effects)
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -105,24 +110,26 @@ class Condition:
 #: The sensor and controller effects: cheap to fit (they run in the lanes), identifiable.
 SENSOR_EFFECTS = ("sensor_offset", "current_gain", "delay")
 TIERS: dict[int, Tier] = {t.dim: t for t in (
-    Tier(4, (), "the paper's four faults: v1's instances, unchanged"),
-    Tier(7, SENSOR_EFFECTS, "faults + position-sensor offset, current-channel gain, "
-                            "feedback delay"),
-    Tier(12, SENSOR_EFFECTS + ("eccentricity", "viscous_friction", "aero_spring", "cogging",
-                               "gear_stiffness"),
+    Tier((), "the paper's faults: v1's instances, unchanged"),
+    Tier(SENSOR_EFFECTS, "faults + position-sensor offset, current-channel gain, feedback "
+                         "delay"),
+    Tier(SENSOR_EFFECTS + ("eccentricity", "viscous_friction", "aero_spring", "cogging",
+                           "gear_stiffness"),
          "faults + every library effect the twin-track identifiability report keeps"),
 )}
+#: The faults-only tier (4): v1's instances and problems.
+BASE_TIER = len(FAULT_NAMES)
 CONDITIONS: dict[str, Condition] = {c.name: c for c in (
     Condition("prior", True, None, "nominal vector given, solvers start there (as v1)"),
     Condition("no-prior", False, None, "bounds only: solvers draw their own start"),
     # from the step alone the delay's interval exceeds 5 % of its range on 2 of tier 7's 20
     # instances, eccentricity's on tier 12 (docs/suite-v2.md): tier 4 only
     Condition("step-only", True, ("step",), "nominal given, the step test alone (less "
-                                            "information)", tiers=(4,)),
+                                            "information)", tiers=(BASE_TIER,)),
     # the motor-side outputs theta_m, omega_m get weight 0 (and are zeroed in the data);
     # the tiers: benchmarks/v2_identifiability.py (docs/suite-v2.md)
     Condition("surface-current", True, None, "nominal given, the standard tests, surface "
-              "position and equivalent current only (less information)", tiers=(4, 7, 12),
+              "position and equivalent current only (less information)", tiers=tuple(TIERS),
               signals=("theta_u", "i_eq")),
 )}
 
@@ -211,7 +218,7 @@ def instance(name: str, dim: int | str | None = None) -> TierInstance:
     """An instance by name (``t7-s03``; a v1 name is tier 4)."""
     if dim is None:
         head = name.partition("-")[0]
-        dim = head[1:] if name.startswith("t") and "-" in name else 4
+        dim = head[1:] if name.startswith("t") and "-" in name else BASE_TIER
     found = tier_instances(tier(dim).dim).get(name)
     if found is None:
         raise SuiteError(f"unknown tier-{dim} instance {name!r}; known: "
@@ -345,7 +352,7 @@ def target_keys(seeds: int = TARGET_SEEDS, tracks: Sequence[str] = ("reference",
     # holds the clean-data fit) first
     return [target_key(case_key(n, c.name), tr, k)
             for k in range(seeds) for d in dims for c in data_conds
-            if c.offered_on(d) and not (d == 4 and c.full_information)
+            if c.offered_on(d) and not (d == BASE_TIER and c.full_information)
             for n in instance_names(d)[:per_tier] for tr in tracks]
 
 
@@ -392,7 +399,8 @@ def _lookup(name: str, cond: str | None) -> Instance | None:
     the instance's tier does not offer."""
     if cond is None:
         return None
-    dim = name.partition("-")[0][1:] if name.startswith("t") and "-" in name else 4
+    dim = (name.partition("-")[0][1:] if name.startswith("t") and "-" in name
+           else BASE_TIER)
     try:
         t = tier(dim)
     except SuiteError:
@@ -412,7 +420,7 @@ def _lookup(name: str, cond: str | None) -> Instance | None:
                     effects={k: v for k, v in found.effects.items() if v != 0.0},
                     tests=c.tests, signals=c.signals, prior=c.prior, budget=t.budget,
                     ranked=name not in v1.SANITY_CASES, group=(t.dim, c.name),
-                    paper_case=name if t.dim == 4 and c.name == "prior" else case,
+                    paper_case=name if t.dim == BASE_TIER and c.name == "prior" else case,
                     ioh_function=c.name)
 
 
