@@ -1,18 +1,22 @@
-"""Gymnasium interface to the identification problem: ``EMAFault/Identify-v1``.
+"""Gymnasium interface to the identification problem: ``EMAFault/Identify-v1`` and ``-v2``.
 
-Importing this module registers the environment::
+Importing this module registers both versions, one entry point (:class:`EMAFaultEnv`, vector
+entry point :class:`EMAFaultVectorEnv`) with each version's keyword arguments
+(:data:`VERSIONS`)::
 
     import gymnasium as gym
-    import ema_bench.env  # noqa: F401  (registers the id)
+    import ema_bench.env  # noqa: F401  (registers the ids)
 
     env = gym.make("EMAFault/Identify-v1", case="small", track="reference", budget=500)
     obs, info = env.reset(seed=0)          # obs: the measured traces, stacked
     obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
+    env = gym.make("EMAFault/Identify-v2", tier=7, condition="no-prior", track="twin")
 
 An episode is one :class:`~ema_bench.problem.Problem` (one actuator, one set of measured traces)
-with a hard evaluation budget.  An action is a candidate fault vector in the normalised box
-``[0, 1]^4`` (``FAULT_NAMES`` order, mapped to physical units with
-:func:`~ema_bench.faults.from_unit`); each step costs one evaluation of the problem's budget,
+with a hard evaluation budget.  An action is a candidate vector in the normalised box
+``[0, 1]^dim`` (the case's searched parameters: ``FAULT_NAMES``, then a v2 tier's effects,
+mapped to physical units with the problem's ``from_unit``); each step costs one evaluation of
+the problem's budget,
 the reward is minus the fitness, and the episode truncates when the budget is spent.  It never
 terminates: the environment cannot know that the truth was found.
 
@@ -39,12 +43,16 @@ is the batch-evaluation interface for population methods: its ``num_envs`` "sub-
 are candidates for the *same* problem, and one step evaluates them all in one batched
 :meth:`~ema_bench.problem.Problem.evaluate` call.
 
-Version history (the id's version follows the benchmark suite, :mod:`~ema_bench.suite`; a
+Version history (the id's version follows the benchmark suite, :mod:`ema_bench.suites`; a
 change to the models or the instances is a new version, as with Gymnasium's own ids):
 
-- ``v2`` (suite ``emafdi-v2``, :mod:`ema_bench.env_v2`): tiers of dimension (``tier=4, 7,
-  12``: the faults, then effects fitted with them) and conditions (``condition="prior"``,
-  ``"no-prior"``, ``"step-only"``) as keyword arguments; ``v1`` stays registered unchanged.
+- ``v2`` (suite ``emafdi-v2``, :mod:`ema_bench.suites.v2`): tiers of dimension (``tier=4,
+  7, 12``: the faults, then effects fitted with them: the action's dimension) and conditions
+  (``condition="prior"``, ``"no-prior"``, ``"step-only"``, ``"surface-current"``: what the
+  problem hands out, the tests in the observation) as keyword arguments; ``case`` an
+  instance of the tier (default: instance ``k mod n`` for reset seed ``k``); the budget
+  defaults to the tier's (1250 x dim).  One class with ``v1`` and its vector entry point
+  (it was a subclass without one); ``v1`` stays registered unchanged.
 - ``v1`` (suite ``emafdi-v1``, model version 2, ema-bench 0.2.0): the reference model's
   hysteresis is analog, the monitor integrates without its 50 us discretisation bias; cases
   include the suite's seeded instances ``s00`` .. ``s19``.
