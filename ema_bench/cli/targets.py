@@ -2,7 +2,7 @@
 
 One long multi-solver polishing run per (instance, track, noise seed) of the suite: zoo
 least-squares warm-started at the truth, zoo powell from its best, zoo cmaes from nominal
-(2700 evaluations in all; ema_bench/best_known.py documents the method).  It writes the JSON
+(2700 evaluations in all; ema_bench/suites/best_known.py documents the method).  It writes the JSON
 the package ships as ema_bench/suite_targets.json (--suite emafdi-v2: the package's
 suite_targets_v2.json, seed 0 shipped, whose seed-0 reference entries also hold the
 clean-data fit that picks the judged parameters); entries are appended to OUT.partial.jsonl as they
