@@ -131,8 +131,6 @@ class Suite:
         ``(instances entered, per_tier) -> case keys`` a complete submission covers.
     case_order : callable
         ``() -> case names``: the order of the suite's tables.
-    describe : callable
-        ``() -> dict``: the suite as JSON.
     grouped : bool
         Its board is scored per (dimension, condition) group as well as overall.
     clean_fits : bool
@@ -148,6 +146,5 @@ class Suite:
     ioh_functions: Callable[[], Sequence[str]]
     complete_cases: Callable[[Sequence[Instance], int | None], list[str]]
     case_order: Callable[[], Sequence[str]]
-    describe: Callable[[], dict]
     grouped: bool = False
     clean_fits: bool = False

@@ -14,11 +14,11 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from ..faults import N_FAULTS, NOMINAL, random_faults
-from ..instances import check_settings as check_vector_settings
+from ..faults import N_FAULTS, FaultError, check_faults, random_faults
+from ..instances import TRACKS
 from ..instances import make_problem as vector_problem
 from ..objective import ProblemError
-from ..problem import Problem
+from ..problem import Problem, check_budget
 from ..seeding import SeedLike, as_seed_sequence, stream
 from ..traces import Traces
 from . import find, instance
@@ -31,16 +31,26 @@ SEEDED = "seeded"
 def check_settings(case: object = "small", track: str = "reference", budget: object = 1,
                    heterogeneity: float = 1.0) -> None:
     """The checks of :func:`make_problem`'s settings, for callers that must fail early (the
-    environment at construction, the command line before any work): ProblemError."""
+    environment at construction, the command line before any work): ProblemError (a
+    SuiteError for a case key a suite refuses, an unknown condition)."""
+    check_budget(budget)
+    if track not in TRACKS:
+        raise ProblemError(f"unknown track {track!r}; known: {list(TRACKS)}")
+    if not 0.0 <= float(heterogeneity) <= 1.0:
+        raise ProblemError(f"heterogeneity must lie in [0, 1], got {heterogeneity!r}")
+    if case is None:
+        raise ProblemError("give a case, or measured traces")
     if isinstance(case, str):
-        # a key a suite refuses (an unknown condition) raises its SuiteError here
-        if case != SEEDED and find(case) is None:
+        if case != SEEDED and find(case) is None:   # a key a suite refuses raised here
             try:
                 instance(case)
             except SuiteError as exc:
                 raise ProblemError(str(exc)) from None
-        case = NOMINAL   # a case key is valid: check the rest
-    check_vector_settings(case, track, budget, heterogeneity)
+        return
+    try:
+        check_faults(case)
+    except FaultError as exc:
+        raise ProblemError(f"bad case: {exc}") from None
 
 
 def make_problem(
@@ -73,31 +83,68 @@ def make_problem(
         ``instance`` stream of ``seed`` with ``heterogeneity``; or explicit true faults.  A
         case's own settings (effects, fitted effects, tests, outputs, prior) apply where the
         arguments below are left at their defaults.
+    track : {"reference", "twin"}
+        ``reference``: measured traces come from the detailed reference model (model-form
+        mismatch, as in the paper); ``twin``: from the monitor model itself plus sensor noise
+        (a pure optimisation problem whose optimum is the truth).
+    seed : int or SeedSequence
+        The run node (:func:`~ema_bench.seeding.run_seed`; an int is a node of its own):
+        its ``instance`` stream draws a seeded case, its ``noise`` stream the sensor noise.
     budget : int or None
         Hard evaluation budget; None: the case's suite budget
         (:attr:`~ema_bench.suites.base.Instance.budget`; v2: 1250 x the tier).
-    track, seed, normalise, effects, measured, augment, tests, start,
-    sample_weights, prior, score_effects, signals
-        As :func:`ema_bench.instances.make_problem` (``seed``: the run node, whose
-        ``noise`` stream draws the sensor noise).
+    normalise : bool
+        Normalised (default) or raw fitness.
     heterogeneity : float
         In [0, 1]: how far a ``seeded`` case's faults spread (1: the whole box).
+    effects : mapping, optional
+        Effects switched on in the model that makes the data (unmodelled physics).
+    measured : Traces, optional
+        Fit these traces instead (file data); ``case`` and ``track`` are then ignored and
+        there is no truth to score against.
+    augment : sequence of str
+        Library effects fitted with the faults (see :class:`~ema_bench.problem.Problem`).
+    tests : sequence of str, optional
+        Protocol tests that make the data (default: the standard step and sine; add
+        ``"sine2"`` for held-out validation).
+    start : array, optional
+        Warm start for solvers (see :class:`~ema_bench.problem.Problem`).
+    sample_weights : mapping, optional
+        Per test, (n_samples, 4) weight multipliers of ``measured``'s samples (only with
+        ``measured``; see :class:`~ema_bench.objective.Objective`).
+    prior : bool
+        False: no nominal vector and no start for the solver.
+    score_effects : bool
+        The hidden truth holds the ``augment`` effects' true values after the faults, so
+        parameter targets judge them too (suite ``emafdi-v2``'s higher tiers).
+    signals : sequence of str, optional
+        The outputs the fitness weighs (default all four; suite ``emafdi-v2``'s
+        ``surface-current`` condition: ``theta_u``, ``i_eq``).  The others get weight 0 in
+        the objective, and in synthetic data (a case and a track) their columns are zeros:
+        the solver is not given what the condition withholds.
     """
-    options = dict(track=track, seed=seed, budget=budget, normalise=normalise,
-                   heterogeneity=heterogeneity, measured=measured, start=start,
-                   sample_weights=sample_weights)
-    if measured is not None or not isinstance(case, str):
-        return vector_problem(case, effects=effects, augment=augment, tests=tests,
-                              prior=prior, score_effects=score_effects, signals=signals,
-                              **options)
-    check_settings(case, track, 1 if budget is None else budget, heterogeneity)
-    if case == SEEDED:
-        truth = random_faults(stream(as_seed_sequence(seed), "instance"), heterogeneity)
+    if measured is not None:
+        if not isinstance(measured, Traces):
+            raise ProblemError("measured must be a Traces (see ema_bench.load_traces)")
+        return Problem(measured, budget, normalise=normalise, augment=augment, start=start,
+                       sample_weights=sample_weights, signals=signals, prior=prior,
+                       label=str(measured.meta.get("source", "measured")), track="measured",
+                       _meta={"source": measured.meta.get("source")})
+    if sample_weights is not None:
+        raise ProblemError("sample_weights weigh given measured traces: pass measured too")
+    inst = find(case) if isinstance(case, str) and case != SEEDED else None
+    if budget is None and inst is not None:
+        budget = inst.budget
+    check_settings(case, track, budget, heterogeneity)
+    options = dict(track=track, seed=seed, budget=budget, normalise=normalise, start=start)
+    if inst is None:
+        seeded = isinstance(case, str)   # "seeded": drawn from the node's instance stream
+        truth = (random_faults(stream(as_seed_sequence(seed), "instance"), heterogeneity)
+                 if seeded else case)
         return vector_problem(truth, effects=effects, augment=augment, tests=tests,
                               prior=prior, score_effects=score_effects, signals=signals,
-                              label=f"seeded(h={heterogeneity:g})", **options)
-    inst = instance(case)
-    options["budget"] = inst.budget if budget is None else budget
+                              label=f"seeded(h={heterogeneity:g})" if seeded else "custom",
+                              **options)
     if start is not None and not inst.prior:
         raise ProblemError(f"case {case!r} gives no prior: no start")
     return vector_problem(inst.truth[:N_FAULTS],

@@ -152,4 +152,4 @@ SUITE = Suite(
     ioh_instance=_ioh_instance, ioh_functions=lambda: instance_names(),
     complete_cases=lambda entered, per_tier: [c for c in instance_names()
                                               if c not in SANITY_CASES],
-    case_order=lambda: instance_names(), describe=lambda: describe())
+    case_order=lambda: instance_names())

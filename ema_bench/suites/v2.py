@@ -399,16 +399,11 @@ def _lookup(name: str, cond: str | None) -> Instance | None:
     the instance's tier does not offer."""
     if cond is None:
         return None
-    dim = (name.partition("-")[0][1:] if name.startswith("t") and "-" in name
-           else BASE_TIER)
     try:
-        t = tier(dim)
+        found = instance(name)
     except SuiteError:
         return None
-    found = tier_instances(t.dim).get(name)
-    if found is None:
-        return None
-    c = condition(cond)
+    t, c = tier(found.tier), condition(cond)
     if not c.offered_on(t.dim):
         raise SuiteError(f"condition {cond!r} is offered on tiers {list(c.tiers)} only: on "
                          f"tier {t.dim} it leaves parameters non-identifiable")
@@ -441,5 +436,5 @@ def _complete_cases(entered, per_tier: int | None) -> list[str]:
 SUITE = Suite(id=SUITE_ID, lookup=_lookup, best_known=_best_known, judged=_judged,
               ioh_instance=_ioh_instance, ioh_functions=lambda: list(CONDITIONS),
               complete_cases=_complete_cases,
-              case_order=lambda: cases(list(TIERS), list(CONDITIONS)),
-              describe=lambda: describe(), grouped=True, clean_fits=True)
+              case_order=lambda: cases(list(TIERS), list(CONDITIONS)), grouped=True,
+              clean_fits=True)
