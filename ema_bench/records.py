@@ -3,7 +3,7 @@
 ``ema-bench solve --json`` prints it, ``ema-bench leaderboard`` appends it to ``runs.jsonl``
 (one line per run), ``--check`` compares records, ``ema-bench validate`` checks them and
 ``ema-bench export`` converts them; their identity
-(:func:`~ema_bench.leaderboard.store.run_identity`: solver, case, track, seed, budget, root
+(:func:`~ema_bench.leaderboard.run_store.run_identity`: solver, case, track, seed, budget, root
 seed, model version) decides what is the same run.
 
 Every record carries the suite version (``suite``), the model version and a ``manifest``

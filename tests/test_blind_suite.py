@@ -31,7 +31,7 @@ from ema_bench.diagnosis.blind import (
 from ema_bench.effects import DECOYS, EFFECT_INDEX, EFFECTS, effects_vector
 from ema_bench.faults import random_faults
 from ema_bench.jsonio import dumps
-from ema_bench.leaderboard.store import read_records
+from ema_bench.leaderboard.run_store import read_records
 from ema_bench.physics.sensors import SENSORS, measure, quantise
 from ema_bench.seeding import run_seed, stream
 from ema_bench.trace_cache import MODEL_VERSION

@@ -23,7 +23,7 @@ from ema_bench.effects import EFFECT_INDEX, EFFECTS
 from ema_bench.faults import LOWER, UPPER
 from ema_bench.leaderboard import scaling
 from ema_bench.leaderboard.anytime import AnytimeScore
-from ema_bench.leaderboard.store import read_records
+from ema_bench.leaderboard.run_store import read_records
 from ema_bench.suites.v2 import instance
 
 SOLVERS = ("cmaes", "de", "nelder-mead", "random")

@@ -14,7 +14,7 @@ import pytest
 from test_cli_solve import cli
 
 import ema_bench
-from ema_bench import calibration_files as cf
+from ema_bench import interval_calibration_files as cf
 from ema_bench.cli import main
 from ema_bench.diagnosis import interval_table
 from ema_bench.uncertainty import calibration
@@ -169,13 +169,13 @@ def test_the_model_form_biases_are_written_only_where_named(tmp_path, monkeypatc
     before any fit (one instance would cost about 15 CPU-s)."""
     import inspect
 
-    import ema_bench.calibration_files as files
+    import ema_bench.interval_calibration_files as files
     from ema_bench.uncertainty import model_form
 
     assert inspect.signature(model_form.calibrate).parameters["path"].default \
         is inspect.Parameter.empty
     monkeypatch.setattr(files, "checkout_root", lambda package=PACKAGE: None)
-    monkeypatch.setattr("ema_bench.calibrate.clean_bias",
+    monkeypatch.setattr("ema_bench.monitor_bias.clean_bias",
                         lambda *a, **k: pytest.fail("fitted before refusing"))
     before = package_digest()
     with pytest.raises(ValueError, match="inside the installed package, not a checkout"):

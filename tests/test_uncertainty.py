@@ -16,7 +16,7 @@ from scipy.stats import chi2, norm
 from ema_bench.objective import ProblemError, SearchSpace
 from ema_bench.physics.sensors import SENSORS
 from ema_bench.uncertainty import intervals
-from ema_bench.uncertainty.calibration import conformal_quantile, score
+from ema_bench.uncertainty.conformal import conformal_quantile, score
 from ema_bench.uncertainty.identifiability import correlation
 from ema_bench.uncertainty.local import UncertaintyError
 from ema_bench.uncertainty.noise import known_sigma
@@ -319,7 +319,7 @@ def test_conformal_quantile_and_score():
 
 
 def test_calibration_kind_of_each_track():
-    from ema_bench.uncertainty.calibration import calibration_kind
+    from ema_bench.uncertainty.conformal import calibration_kind
 
     assert calibration_kind("twin") == "twin"
     for track in ("reference", "measured", None):

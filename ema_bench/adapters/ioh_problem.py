@@ -11,7 +11,7 @@ is named ``ema-bench case@track`` and its IOH instance is the run seed (the expo
 mapping); where the suite ships ``f*`` it is IOH's optimum (``problem.optimum``)::
 
     import ioh
-    from ema_bench.adapters.ioh import IOHProblem
+    from ema_bench.adapters.ioh_problem import IOHProblem
     from ema_bench.adapters.run import AdapterRun
 
     run = AdapterRun("my-es", case="small", track="twin", budget=500, library="ioh")

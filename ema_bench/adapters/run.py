@@ -103,7 +103,7 @@ class AdapterRun:
 def append_record(path: str | Path, record: dict[str, Any]) -> None:
     """Append ``record`` to a ``runs.jsonl`` (the leaderboard's store: one run once, locked
     against concurrent writers)."""
-    from ..leaderboard.store import RunStore
+    from ..leaderboard.run_store import RunStore
 
     with RunStore(Path(path)) as store:
         store.append(record)

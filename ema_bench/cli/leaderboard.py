@@ -122,7 +122,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from ..leaderboard.check import compare, load_baseline
     from ..leaderboard.run import leaderboard, select
-    from ..leaderboard.store import RUNS_FILE, read_records
+    from ..leaderboard.run_store import RUNS_FILE, read_records
     from ..leaderboard.tasks import make_tasks
     from ..registry import available_solvers
     from ..suites.v1 import expand_cases

@@ -280,8 +280,8 @@ def _interval_plots(problem, iv, args: argparse.Namespace) -> list[str]:
 
 def _print_intervals(iv, out: dict) -> None:
     """Estimate and interval per parameter, and what the noise and tests say."""
-    from ..calibration_files import describe
-    from ..uncertainty import calibration as cal
+    from ..interval_calibration_files import describe
+    from ..uncertainty import conformal as cal
 
     # the table the factors came from, shipped or the user's (EMA_BENCH_CALIBRATION), named
     size = cal.calibration_size(iv.calibration, iv.method, iv.model_form)

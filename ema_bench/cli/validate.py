@@ -51,7 +51,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..leaderboard.store import is_error, unique
+    from ..leaderboard.run_store import is_error, unique
     from ..leaderboard.validate import LEGACY_UNVERIFIABLE, Finding, validate
     from ..records import schema
     from ..suites import suite_of

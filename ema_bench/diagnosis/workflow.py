@@ -398,7 +398,7 @@ def interval(model: Fit, measured: Traces, params: tuple[str, ...] | None = None
     """Intervals of augmented effects (default: the last one), ``name -> [low, high]``:
     their :func:`profile` intervals, each half-width multiplied (with ``calibrate``) by the
     shipped split-conformal factor for the model-form bias the noise does not account for
-    (:mod:`~ema_bench.diagnosis.interval_calibration`; the active table:
+    (:mod:`~ema_bench.diagnosis.effect_interval_calibration`; the active table:
     :mod:`~ema_bench.diagnosis.interval_table`)."""
     from .interval_table import factor
 

@@ -45,7 +45,7 @@ from ..suites.targets import (
 )
 from ..suites.v1 import SANITY_CASES
 from .derive import derived, precision
-from .store import is_error
+from .run_store import is_error
 
 CONFIDENCE = 0.95
 N_RESAMPLES = 2000

@@ -28,8 +28,8 @@ from scipy import stats
 from ..suites import DEFAULT, suite_of
 from ..suites.v1 import SANITY_CASES
 from .anytime import run_area
+from .run_store import RUNS_FILE, is_current, read_records, run_identity
 from .scores import ALL
-from .store import RUNS_FILE, is_current, read_records, run_identity
 
 #: Family-wise false-alarm level of one check (all solvers and tracks together).
 ALPHA = 0.05

@@ -47,7 +47,7 @@ from ..suites.targets import (
     fitness_targets,
     precision_key,
 )
-from .store import is_error
+from .run_store import is_error
 
 
 class DerivationError(ValueError):

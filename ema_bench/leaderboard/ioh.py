@@ -71,7 +71,7 @@ from ..faults import FAULT_NAMES
 from ..suites import DEFAULT, SUITES, find
 from ..suites.targets import FITNESS_PRECISIONS, PARAMETER_TARGETS
 from ..suites.v1 import SANITY_CASES
-from .store import is_error
+from .run_store import is_error
 
 log = logging.getLogger("ema_bench")
 

@@ -31,7 +31,7 @@ from ..faults import FAULT_NAMES
 from ..manifest import blas_kernel
 from ..registry import run_solver
 from ..suites.problem import make_problem
-from .store import is_error
+from .run_store import is_error
 from .tasks import Task
 
 #: Relative agreement of a replayed fitness or vector with the record's (the runs are

@@ -28,6 +28,7 @@ from .figures import (
 )
 from .page import write_page
 from .report import load_paper_results, paper_case, write_leaderboards, write_paper_tables
+from .run_store import RUNS_FILE, RunStore, is_error, read_records, run_identity, unique
 from .scaling import (
     global_vs_local,
     group_scores,
@@ -35,7 +36,6 @@ from .scaling import (
     scaling_points,
 )
 from .scores import score_records
-from .store import RUNS_FILE, RunStore, is_error, read_records, run_identity, unique
 from .tasks import Task, failure_record, make_tasks, run_task
 
 

@@ -16,7 +16,7 @@ from ..suites import suite_of
 from ..suites.problem import make_problem
 from ..sweep.executors import Failure
 from ..trace_cache import MODEL_VERSION
-from .store import IDENTITY_FIELDS
+from .run_store import IDENTITY_FIELDS
 
 
 @dataclass(frozen=True)
@@ -33,7 +33,7 @@ class Task:
 
     @property
     def identity(self) -> tuple:
-        """:func:`~ema_bench.leaderboard.store.run_identity` of this task's record."""
+        """:func:`~ema_bench.leaderboard.run_store.run_identity` of this task's record."""
         return (self.solver, self.case, self.track, self.seed, self.budget, self.root_seed,
                 MODEL_VERSION)
 

@@ -40,7 +40,7 @@ from ..suites.targets import (
 )
 from ..trace_cache import MODEL_VERSION
 from .derive import DerivationError, Derived, derive, truth_of
-from .store import IDENTITY_FIELDS, is_error
+from .run_store import IDENTITY_FIELDS, is_error
 
 #: A fitness this far (in units of the instance's f*-to-nominal gap) below the suite's
 #: best-known f* is a claim to confirm, not a record to accept.

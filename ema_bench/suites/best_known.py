@@ -128,7 +128,7 @@ def clean_fit(case: str) -> dict[str, object]:
     from the truth in fractions of range).  No solver gets closer to the truth on the
     reference track than this on average: a parameter whose clean bias exceeds
     :data:`~ema_bench.suites.v2.MAX_TARGET_BIAS` carries no parameter target there.  (v1's
-    tabulation, :func:`ema_bench.calibrate.clean_bias`, spends 12,000 CMA-ES evaluations
+    tabulation, :func:`ema_bench.monitor_bias.clean_bias`, spends 12,000 CMA-ES evaluations
     on the faults only.)"""
     from ..effects import effects_vector
     from ..objective import KNOWN_TESTS

@@ -230,7 +230,7 @@ def judged_parameters(truth: np.ndarray, x_star: np.ndarray,
                       ranges: np.ndarray) -> np.ndarray:
     """Which parameters carry parameter targets: those whose clean-data bias (``x_star``, the
     monitor's best fit to noise-free reference traces, against the truth: the model-form
-    bias, :func:`ema_bench.calibrate.clean_bias` for the faults) is within
+    bias, :func:`ema_bench.monitor_bias.clean_bias` for the faults) is within
     :data:`MAX_TARGET_BIAS` of their range.  (A fit to noisy data adds the noise's scatter:
     on v1's shipped reference ``x*`` Na moves up to 0.8 % of range with the seed, while its
     clean-data bias is at most 0.27 %.)"""
