@@ -669,7 +669,7 @@ def test_the_third_round_categories_end_to_end_reproduce_the_committed_verdicts(
     cogging effect beside an acquisition fault, 42 CPU-s; case 14, three effects at once,
     77 CPU-s), run blind with the default settings: the same verdict, the same names and
     the same acquisition faults as committed, and each scored right."""
-    from ema_bench.diagnosis.workflow import Settings
+    from ema_bench.diagnosis.results import Settings
 
     committed = {r["index"]: r for r in read_records(COMMITTED_R3 / "blind.jsonl")}
     drawn = {c.index: c for c in draw_cases(0, 2034, 10)}

@@ -363,9 +363,9 @@ def test_calibration_factors_come_from_the_shipped_scores():
     import json
     import math
 
-    from ema_bench.uncertainty import calibration
+    from ema_bench.uncertainty import conformal
 
-    data = json.loads(calibration.PATH.read_text())
+    data = json.loads(conformal.PATH.read_text())
     scores = data["scores"]["twin|laplace|none"]
     factor = []
     for name in ("Na", "Fst", "BLK", "Gprop"):

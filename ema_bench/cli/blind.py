@@ -116,7 +116,7 @@ def _run(args: argparse.Namespace, only: list[str] | None) -> int:
 
 
 def _calibrate(args: argparse.Namespace) -> int:
-    from ..diagnosis import interval_calibration as ic
+    from ..diagnosis import effect_interval_calibration as ic
     from ..interval_calibration_files import inside_package
 
     if args.seed not in (0, ic.CALIBRATION_SEED) or args.calibration or args.extra or \

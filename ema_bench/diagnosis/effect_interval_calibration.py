@@ -1,6 +1,6 @@
 """Split-conformal calibration of the named effects' intervals.
 
-The workflow's interval of a named effect (:func:`~ema_bench.diagnosis.workflow.interval`) is
+The workflow's interval of a named effect (:func:`~ema_bench.diagnosis.fitting.interval`) is
 a profile-likelihood interval: it counts the sensor noise (estimated from the residuals), not
 the model-form bias of data the monitor did not make.  On the reference model the fit of the
 right effect set lies off the truth by a few noise widths in a few cases (a near-threshold
@@ -33,8 +33,9 @@ from ..jsonio import write_atomic
 from ..objective import N_FAULTS
 from ..seeding import run_seed, stream
 from ..uncertainty.conformal import conformal_quantile, score
+from .fitting import effect_spec, fit, profile, subset_traces
 from .interval_table import TABLE, read
-from .workflow import HOLDOUT, TRAIN, Settings, effect_spec, fit, profile, subset_traces
+from .results import HOLDOUT, TRAIN, Settings
 
 #: The shipped table (read-only: :func:`calibrate` writes a user file).
 PATH = TABLE.shipped

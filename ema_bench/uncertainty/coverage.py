@@ -28,7 +28,7 @@ from ..sweep import store as sweep_store
 from ..sweep.executors import Job
 from ..sweep.loop import run_sweep
 from ..sweep.schema import opt, req
-from . import calibration as cal
+from . import conformal as cal
 from .local import UncertaintyError
 from .methods import MISFIT_RATIO
 
