@@ -109,3 +109,19 @@ def test_both_environment_versions_have_one_entry_point_and_the_vector_one():
     # one batched call evaluated the population: 16 evaluations, the fitness of each point
     assert p.evaluations == 16 and obs.shape[0] == 16
     assert np.allclose(-rewards, p.objective.evaluate(p.from_unit(U))[0])
+
+
+@pytest.mark.slow
+def test_check_env_passes_on_every_tier_and_condition():
+    gym = pytest.importorskip("gymnasium")
+    from gymnasium.utils.env_checker import check_env
+
+    import ema_bench.env  # noqa: F401  (registers both ids)
+    from ema_bench.suites.v2 import CONDITIONS, TIERS
+
+    pairs = [(d, c) for d in TIERS for c, o in CONDITIONS.items() if o.offered_on(d)]
+    assert len(pairs) == 10
+    for d, c in pairs:
+        env = gym.make("EMAFault/Identify-v2", tier=d, condition=c, track="twin", budget=40)
+        check_env(env.unwrapped, skip_render_check=True)
+        assert env.unwrapped.action_space.shape == (d,)
