@@ -82,12 +82,14 @@ def test_solve_takes_a_tier_12_case_and_writes_a_record_validate_accepts(tmp_pat
 
 
 def test_the_scipy_adapter_takes_a_tier_12_case_with_the_same_record():
-    run = AdapterRun("scipy-nelder-mead", case="t12-s03@prior", track="twin", budget=20,
+    run = AdapterRun("scipy-nelder-mead", case="t12-s03@no-prior", track="twin", budget=20,
                      library="scipy")
-    res = minimize(run.problem, method="Nelder-Mead",
-                   options={"initial_simplex": simplex(run.problem)})
+    p = run.problem
+    assert p.start is None   # no prior: the adapter's user draws the start
+    x0 = p.from_unit(np.random.default_rng(run.solver_seed()).random(p.dim))
+    res = minimize(p, method="Nelder-Mead", x0=x0, options={"initial_simplex": simplex(p, x0=x0)})
     rec = run.record(res.stop_reason)
-    assert (rec["case"], rec["suite"], run.problem.dim) == ("t12-s03@prior", "emafdi-v2", 12)
+    assert (rec["case"], rec["suite"], p.dim) == ("t12-s03@no-prior", "emafdi-v2", 12)
     assert validate([rec], complete=False) == []
 
 
