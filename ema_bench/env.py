@@ -185,7 +185,7 @@ class _EpisodeMixin:
         _check_config(self._pool[0], track, budget, observation, heterogeneity)
         self.root_seed, self.case, self.track, self.budget = int(root_seed), case, track, \
             int(budget)
-        self.tier = None if tier is None else inst.dim
+        self.tier = None if tier is None and condition is None else inst.dim
         self.condition = None if inst is None or inst.group is None else inst.group[1]
         self.observation, self.normalise = observation, bool(normalise)
         self.heterogeneity = float(heterogeneity)

@@ -71,6 +71,13 @@ class Instance:
     paper_case: str = ""
     ioh_function: str = ""
 
+    def __post_init__(self) -> None:
+        # the registry caches instances: their arrays are read-only copies
+        for name in ("truth", "lower", "upper"):
+            arr = np.array(getattr(self, name), dtype=float)
+            arr.setflags(write=False)
+            object.__setattr__(self, name, arr)
+
     @property
     def dim(self) -> int:
         """The number of searched parameters."""
