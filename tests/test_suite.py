@@ -1,4 +1,4 @@
-"""The versioned suite (ema_bench.suite): its instances, its shipped best-known optima, the
+"""The versioned suite (ema_bench.suites.v1): its instances, its shipped best-known optima, the
 Gymnasium id that follows it, and the anytime fields of run records built on them."""
 
 from __future__ import annotations

@@ -5,7 +5,7 @@ noise-free traces its best fit lies off the truth (:func:`~ema_bench.monitor_bia
 That bias is systematic, so intervals from the noise alone are over-confident however much
 data there is.  The allowance of a fault at level ``p`` is the ``p`` quantile of ``|bias|``
 over the calibration instances (the suite's paper cases and Latin-hypercube instances,
-:mod:`~ema_bench.suite`), which are disjoint from the seeded random instances coverage is
+:mod:`~ema_bench.suites.v1`), which are disjoint from the seeded random instances coverage is
 measured on; :func:`~ema_bench.uncertainty.methods.intervals` adds it in quadrature to the
 noise half-width.  The biases ship as ``model_form.json`` (those of
 ``benchmarks/results/clean_bias_suite.txt``, made by ``python benchmarks/clean_bias.py``);
