@@ -107,9 +107,11 @@ def test_both_environment_versions_have_one_entry_point_and_the_vector_one():
     p = envs.unwrapped.problem
     assert envs.action_space.shape == (16, 12) and p.label == "t12-s01@prior"
     U = np.random.default_rng(0).random((16, 12))
+    calls, inner = [], p._log.evaluate_outputs   # the problem's one counted door
+    p._log.evaluate_outputs = lambda X: calls.append(len(X)) or inner(X)
     obs, rewards, term, trunc, info = envs.step(U)
     # one batched call evaluated the population: 16 evaluations, the fitness of each point
-    assert p.evaluations == 16 and obs.shape[0] == 16
+    assert calls == [16] and p.evaluations == 16 and obs.shape[0] == 16
     assert np.allclose(-rewards, p.objective.evaluate(p.from_unit(U))[0])
 
 
