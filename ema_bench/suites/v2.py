@@ -31,10 +31,9 @@ from importlib.resources.abc import Traversable
 
 import numpy as np
 
-from ..effects import EFFECT_INDEX, EFFECTS, effects_to_dict
-from ..faults import FAULT_NAMES, LOWER, UPPER, faults_to_dict
+from ..effects import EFFECT_INDEX, EFFECTS
+from ..faults import FAULT_NAMES, LOWER, UPPER
 from ..seeding import child
-from ..traces import SIGNALS
 from . import v1
 from .base import Instance, Suite
 from .targets import TARGET_ROOT_SEED, SuiteError, package_file, read_targets, target_key
@@ -235,24 +234,6 @@ def judged_parameters(truth: np.ndarray, x_star: np.ndarray,
     on v1's shipped reference ``x*`` Na moves up to 0.8 % of range with the seed, while its
     clean-data bias is at most 0.27 %.)"""
     return np.abs(np.asarray(x_star) - np.asarray(truth)) / ranges <= MAX_TARGET_BIAS
-
-
-def describe() -> dict[str, object]:
-    """The suite as JSON: tiers with their instances' truths, conditions, budgets."""
-    return {"suite": SUITE_ID, "suite_seed": SUITE_SEED, "budget_per_dim": BUDGET_PER_DIM,
-            "conditions": {c.name: {"prior": c.prior, "tests": c.tests or ["step", "sine"],
-                                    "signals": list(c.signals or SIGNALS),
-                                    "tiers": [d for d in TIERS if c.offered_on(d)],
-                                    "description": c.description}
-                           for c in CONDITIONS.values()},
-            "tiers": {str(t.dim): {"effects": list(t.effects), "budget": t.budget,
-                                   "description": t.description,
-                                   "instances": {n: {**faults_to_dict(i.faults),
-                                                     **effects_to_dict(np.array(
-                                                         [i.effects.get(e.name, 0.0)
-                                                          for e in EFFECTS]))}
-                                                 for n, i in tier_instances(t.dim).items()}}
-                      for t in TIERS.values()}}
 
 
 # --- run keys: a v2 run's case is "<instance>@<condition>" ---------------------------------
