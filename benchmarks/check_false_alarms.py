@@ -34,7 +34,7 @@ import numpy as np
 from scipy import stats
 
 from ema_bench.leaderboard.check import ALPHA, compare
-from ema_bench.leaderboard.store import RUNS_FILE, read_records, unique
+from ema_bench.leaderboard.run_store import RUNS_FILE, read_records, unique
 
 
 def relabel(records: list[dict], seeds: list[int]) -> list[dict]:

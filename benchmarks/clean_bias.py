@@ -3,7 +3,7 @@
 For each instance (the suite's: the four paper cases and s00 .. s19; or, with a number N, the
 paper cases and N random ones), CMA-ES starts at the true faults
 with small steps and minimises the fitness against clean reference traces (no noise, no ADC;
-:func:`ema_bench.calibrate.clean_bias`).  Where it ends is the monitor's own best fit: its
+:func:`ema_bench.monitor_bias.clean_bias`).  Where it ends is the monitor's own best fit: its
 distance from the truth, in % of each fault's range, is the model-form bias that no solver can
 remove.  Target (issue 10): < 0.3 % for every
 fault.
@@ -16,9 +16,9 @@ import sys
 
 import numpy as np
 
-from ema_bench.calibrate import clean_bias
 from ema_bench.faults import CASES, random_faults
-from ema_bench.suite import instance_faults, instance_names
+from ema_bench.monitor_bias import clean_bias
+from ema_bench.suites.v1 import instance_faults, instance_names
 
 if __name__ == "__main__":
     if len(sys.argv) > 1:

@@ -17,7 +17,7 @@ import iohinspector as ih
 import polars as pl
 
 from ema_bench.leaderboard.anytime import anytime_scores
-from ema_bench.leaderboard.store import read_records
+from ema_bench.leaderboard.run_store import read_records
 
 LB, UB = 10 ** -4.5, 10 ** -0.5
 

@@ -22,7 +22,7 @@ import numpy as np
 
 from ema_bench.instances import make_problem
 from ema_bench.seeding import run_seed
-from ema_bench.suite_v2 import CONDITIONS, TIERS, instance, instance_names
+from ema_bench.suites.v2 import CONDITIONS, TIERS, instance, instance_names
 from ema_bench.uncertainty.methods import intervals
 
 

@@ -22,7 +22,6 @@ _ensure_fresh()   # before any kernel loads: numba alone would miss edits of inl
 if "gymnasium" in _sys.modules:
     from . import env  # noqa: E402, F401  (registers EMAFault/Identify-v1)
 from .faults import CASES, FAULT_NAMES, FAULTS  # noqa: E402
-from .instances import make_problem  # noqa: E402
 from .monitor import monitor_traces, simulate_monitor  # noqa: E402
 from .problem import BudgetExhausted, Problem, ProblemError  # noqa: E402
 from .prognostics.campaign import make_campaign  # noqa: E402
@@ -33,6 +32,7 @@ from .registry import (  # noqa: E402
     register_solver,
     run_solver,
 )
+from .suites.problem import make_problem  # noqa: E402
 from .traces import Traces, TracesError, load_traces  # noqa: E402
 
 __all__ = [

@@ -136,8 +136,8 @@ def time_to_success(solvers: tuple[str, ...] = TTS_SOLVERS, cases: tuple[str, ..
                     seeds: int = 3, budget: int = 3000, cold: bool = True,
                     progress: Callable[[str], None] | None = None) -> dict[str, dict]:
     """Median seconds to the first successful vector, warm and cold (see module doc)."""
-    from .instances import make_problem
     from .registry import run_solver
+    from .suites.problem import make_problem
 
     warm: dict[str, dict[str, float | None]] = {}
     coldd: dict[str, dict[str, float | None]] = {}
@@ -188,12 +188,14 @@ def tier_setups(batch: int, seed: int = 0) -> dict[int, tuple[object, np.ndarray
     """tier -> (objective, candidates): ``batch`` candidates drawn uniformly in the tier's box
     (a tier-7 one carries a sensor offset, current gain and feedback delay, a tier-12 one every
     plant effect too) on the twin track of the tier's first instance, kernels warmed up."""
-    from .suite_v2 import instance_names, make_v2_problem
+    from .suites.problem import make_problem
+    from .suites.v2 import case_key, instance_names
 
     rng = np.random.default_rng(seed)
     out = {}
     for t in TIERS:
-        p = make_v2_problem(instance_names(t)[0], track="twin", seed=0, budget=1)
+        p = make_problem(case_key(instance_names(t)[0], "prior"), track="twin", seed=0,
+                         budget=1)
         X = p.space.check(p.from_unit(rng.random((batch, p.dim))))
         with one_thread():
             p.objective.evaluate(X)   # compile or load the kernels first

@@ -1,18 +1,22 @@
-"""Gymnasium interface to the identification problem: ``EMAFault/Identify-v1``.
+"""Gymnasium interface to the identification problem: ``EMAFault/Identify-v1`` and ``-v2``.
 
-Importing this module registers the environment::
+Importing this module registers both versions, one entry point (:class:`EMAFaultEnv`, vector
+entry point :class:`EMAFaultVectorEnv`) with each version's keyword arguments
+(:data:`VERSIONS`)::
 
     import gymnasium as gym
-    import ema_bench.env  # noqa: F401  (registers the id)
+    import ema_bench.env  # noqa: F401  (registers the ids)
 
     env = gym.make("EMAFault/Identify-v1", case="small", track="reference", budget=500)
     obs, info = env.reset(seed=0)          # obs: the measured traces, stacked
     obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
+    env = gym.make("EMAFault/Identify-v2", tier=7, condition="no-prior", track="twin")
 
 An episode is one :class:`~ema_bench.problem.Problem` (one actuator, one set of measured traces)
-with a hard evaluation budget.  An action is a candidate fault vector in the normalised box
-``[0, 1]^4`` (``FAULT_NAMES`` order, mapped to physical units with
-:func:`~ema_bench.faults.from_unit`); each step costs one evaluation of the problem's budget,
+with a hard evaluation budget.  An action is a candidate vector in the normalised box
+``[0, 1]^dim`` (the case's searched parameters: ``FAULT_NAMES``, then a v2 tier's effects,
+mapped to physical units with the problem's ``from_unit``); each step costs one evaluation of
+the problem's budget,
 the reward is minus the fitness, and the episode truncates when the budget is spent.  It never
 terminates: the environment cannot know that the truth was found.
 
@@ -39,12 +43,16 @@ is the batch-evaluation interface for population methods: its ``num_envs`` "sub-
 are candidates for the *same* problem, and one step evaluates them all in one batched
 :meth:`~ema_bench.problem.Problem.evaluate` call.
 
-Version history (the id's version follows the benchmark suite, :mod:`~ema_bench.suite`; a
+Version history (the id's version follows the benchmark suite, :mod:`ema_bench.suites`; a
 change to the models or the instances is a new version, as with Gymnasium's own ids):
 
-- ``v2`` (suite ``emafdi-v2``, :mod:`ema_bench.env_v2`): tiers of dimension (``tier=4, 7,
-  12``: the faults, then effects fitted with them) and conditions (``condition="prior"``,
-  ``"no-prior"``, ``"step-only"``) as keyword arguments; ``v1`` stays registered unchanged.
+- ``v2`` (suite ``emafdi-v2``, :mod:`ema_bench.suites.v2`): tiers of dimension (``tier=4,
+  7, 12``: the faults, then effects fitted with them: the action's dimension) and conditions
+  (``condition="prior"``, ``"no-prior"``, ``"step-only"``, ``"surface-current"``: what the
+  problem hands out, the tests in the observation) as keyword arguments; ``case`` an
+  instance of the tier (default: instance ``k mod n`` for reset seed ``k``); the budget
+  defaults to the tier's (1250 x dim).  One class with ``v1`` and its vector entry point
+  (it was a subclass without one); ``v1`` stays registered unchanged.
 - ``v1`` (suite ``emafdi-v1``, model version 2, ema-bench 0.2.0): the reference model's
   hysteresis is analog, the monitor integrates without its 50 us discretisation bias; cases
   include the suite's seeded instances ``s00`` .. ``s19``.
@@ -64,18 +72,23 @@ from gymnasium.error import ResetNeeded
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from .faults import FAULT_NAMES, faults_to_dict, from_unit
-from .instances import check_settings, make_problem
-from .objective import PENALTY
+from .faults import FAULT_NAMES
+from .objective import KNOWN_TESTS, PENALTY
 from .physics.sensors import SENSORS
 from .problem import Problem, ProblemError
 from .protocol import STANDARD_TESTS
 from .seeding import run_seed
+from .suites import episode_cases, find
+from .suites.problem import check_settings, make_problem
 from .traces import SIGNALS
 
-__all__ = ["ENV_ID", "OBSERVATIONS", "EMAFaultEnv", "EMAFaultVectorEnv", "register"]
+__all__ = ["ENV_ID", "ENV_ID_V2", "OBSERVATIONS", "EMAFaultEnv", "EMAFaultVectorEnv",
+           "register"]
 
 ENV_ID = "EMAFault/Identify-v1"
+ENV_ID_V2 = "EMAFault/Identify-v2"
+#: Evaluations per episode of ``Identify-v1`` (``budget=None``: the case's suite budget).
+DEFAULT_BUDGET = 1000
 OBSERVATIONS = ("traces", "residuals")
 _OPTIONS = ("case", "track")
 
@@ -117,28 +130,21 @@ def observation_box(observation: str, tests: Sequence = STANDARD_TESTS) -> space
     return spaces.Box(low=low, high=high, dtype=np.float64)
 
 
-def _action_space() -> spaces.Box:
-    return spaces.Box(low=0.0, high=1.0, shape=(len(FAULT_NAMES),), dtype=np.float64)
-
-
-def _actions_to_physical(actions: Any, n: int | None) -> np.ndarray:
-    """Unit-box actions -> physical fault vectors (clipped to the box first).
-
-    ``n=None``: one action of shape (4,); else a batch (n, 4)."""
+def _actions_to_unit(actions: Any, shape: tuple[int, ...], names: Sequence[str]) -> np.ndarray:
+    """Unit-box actions of ``shape`` ((dim,) or (n, dim)), checked and clipped into the box."""
     a = np.asarray(actions, dtype=np.float64)
-    shape = (len(FAULT_NAMES),) if n is None else (n, len(FAULT_NAMES))
     if a.shape != shape:
-        raise ValueError(f"action must have shape {shape} (unit box [0, 1] per fault "
-                         f"{', '.join(FAULT_NAMES)}), got {a.shape}")
+        raise ValueError(f"action must have shape {shape} (unit box [0, 1] per parameter "
+                         f"{', '.join(names)}), got {a.shape}")
     bad = ~np.isfinite(a)
     if bad.any():
-        idx = np.argwhere(bad.reshape(-1, len(FAULT_NAMES)))[0]
+        idx = np.argwhere(bad.reshape(-1, len(names)))[0]
         row, j = int(idx[0]), int(idx[1])
-        where = "" if n is None else f" in row {row}"
-        raise ValueError(f"action for fault {FAULT_NAMES[j]} is not finite "
-                         f"({a.reshape(-1, len(FAULT_NAMES))[row, j]}){where}; actions must be "
+        where = "" if len(shape) == 1 else f" in row {row}"
+        raise ValueError(f"action for {names[j]} is not finite "
+                         f"({a.reshape(-1, len(names))[row, j]}){where}; actions must be "
                          "numbers in [0, 1]")
-    return from_unit(np.clip(a, 0.0, 1.0))
+    return np.clip(a, 0.0, 1.0)
 
 
 def _observe(problem: Problem, outputs: Mapping[str, np.ndarray], fitness: np.ndarray,
@@ -151,7 +157,8 @@ def _observe(problem: Problem, outputs: Mapping[str, np.ndarray], fitness: np.nd
 
 
 class _EpisodeMixin:
-    """Problem building and info shared by the single and the vector environment."""
+    """Configuration, problem building and info shared by the single and the vector
+    environment."""
 
     case: Any
     track: str
@@ -161,23 +168,54 @@ class _EpisodeMixin:
     heterogeneity: float
     _problem: Problem | None
 
+    def _configure(self, case: Any, tier: int | str | None, condition: str | None,
+                   track: str, budget: int | None, observation: str, normalise: bool,
+                   heterogeneity: float, render_mode: str | None, root_seed: int) -> None:
+        """Check every setting (a clear error at construction, not at the first reset) and
+        derive the episodes' cases, the action's parameters and the observation's tests
+        from the first case's suite instance (true faults, ``seeded``: the four faults, the
+        standard tests)."""
+        if render_mode is not None:
+            raise ValueError(f"render_mode {render_mode!r} is not supported (no rendering)")
+        run_seed(root_seed, 0)  # a valid root seed, checked now
+        self._pool = episode_cases(case, tier, condition)   # SuiteError (a ValueError)
+        inst = find(self._pool[0])
+        if budget is None:
+            budget = inst.budget if inst is not None else DEFAULT_BUDGET
+        _check_config(self._pool[0], track, budget, observation, heterogeneity)
+        self.root_seed, self.case, self.track, self.budget = int(root_seed), case, track, \
+            int(budget)
+        self.tier = None if tier is None and condition is None else inst.dim
+        self.condition = None if inst is None or inst.group is None else inst.group[1]
+        self.observation, self.normalise = observation, bool(normalise)
+        self.heterogeneity = float(heterogeneity)
+        self.render_mode = None
+        self._names = FAULT_NAMES if inst is None else inst.names
+        tests = inst.tests if inst is not None and inst.tests else tuple(
+            s.name for s in STANDARD_TESTS)
+        self._tests = tuple(KNOWN_TESTS[n] for n in tests)
+        self._single_spaces = (observation_box(observation, self._tests), spaces.Box(
+            low=0.0, high=1.0, shape=(len(self._names),), dtype=np.float64))
+        self._problem = None
+
     def _new_problem(self, rng: np.random.Generator, options: Mapping[str, Any] | None,
                      seed: int | None = None) -> None:
         options = reset_options(options)
-        case = options.get("case", self.case)
-        track = options.get("track", self.track)
         # the seed tree's run node: reset(seed=k) is run k of root_seed, the instance and noise
         # of `ema-bench solve --root-seed R --seed k`; a reset without a seed draws k from the
         # env's RNG (seeded by the last reset seed, as Gymnasium wants)
         k = int(rng.integers(0, 2**63 - 1)) if seed is None else seed
         self._episode_seed = k
-        problem = make_problem(case, track=track, seed=run_seed(self.root_seed, k),
-                               budget=self.budget,
+        pool = (self._pool if "case" not in options else
+                episode_cases(options["case"], self.tier, self.condition))
+        problem = make_problem(pool[k % len(pool)], track=options.get("track", self.track),
+                               seed=run_seed(self.root_seed, k), budget=self.budget,
                                normalise=self.normalise, heterogeneity=self.heterogeneity)
-        # the observation layout: the standard protocol's tests
-        layout = sum(spec.n_samples() for spec in STANDARD_TESTS) * len(SIGNALS)
-        if problem.measured.stacked().shape != (layout,):
-            raise ProblemError("the problem's traces do not follow the standard test protocol")
+        # the observation layout: the configured tests
+        layout = sum(spec.n_samples() for spec in self._tests) * len(SIGNALS)
+        if problem.measured.stacked().shape != (layout,) or problem.dim != len(self._names):
+            raise ProblemError("the case's problem does not fit the environment's spaces "
+                               f"({len(self._names)} parameters, {layout} observations)")
         self._problem = problem
 
     def _require_problem(self) -> Problem:
@@ -193,7 +231,9 @@ class _EpisodeMixin:
                                 "seed": self._episode_seed, "root_seed": self.root_seed}
         if p.evaluations:
             x, f = p.best
-            info["best_fitness"], info["best_x"] = f, faults_to_dict(x)
+            info["best_fitness"], info["best_x"] = f, dict(zip(p.names, map(float, x)))
+        if self.tier is not None:
+            info.update(tier=self.tier, condition=self.condition)
         return info
 
     @property
@@ -208,14 +248,19 @@ class EMAFaultEnv(_EpisodeMixin, gym.Env):
     Parameters
     ----------
     case : str, mapping or array
-        Suite instance (paper case ``nominal``, ``small``, ``full``, ``random`` or seeded
-        instance ``s00`` .. ``s19``), ``"seeded"`` (a random
-        instance per episode, drawn from the reset seed with ``heterogeneity``) or explicit
-        true faults.  ``reset(options={"case": ...})`` overrides it for one episode.
+        A case of any suite (v1 instance ``small``, ``s03``; v2 ``t7-s03@no-prior``),
+        ``"seeded"`` (a random instance per episode, drawn from the reset seed with
+        ``heterogeneity``) or explicit true faults; with ``tier``: an instance of the tier
+        (``t7-s03``), default (None) the tier's instance ``k mod n`` for reset seed ``k``.
+        ``reset(options={"case": ...})`` overrides it for one episode.
+    tier, condition : optional
+        Suite emafdi-v2 (``Identify-v2``): the tier (4, 7, 12: the action's dimension) and
+        the condition (``prior``, ``no-prior``, ``step-only``, ``surface-current``: what the
+        problem hands out and the tests in the observation).
     track : {"reference", "twin"}
         Where the measured traces come from (``options={"track": ...}`` overrides it).
-    budget : int
-        Evaluations (steps) per episode.
+    budget : int, optional
+        Evaluations (steps) per episode; None: the case's suite budget.
     observation : {"traces", "residuals"}
         What ``step`` observes.
     normalise : bool
@@ -227,22 +272,14 @@ class EMAFaultEnv(_EpisodeMixin, gym.Env):
 
     metadata: dict[str, Any] = {"render_modes": []}
 
-    def __init__(self, case: Any = "small", track: str = "reference", budget: int = 1000,
-                 observation: str = "traces", normalise: bool = True,
-                 heterogeneity: float = 1.0, render_mode: str | None = None,
-                 root_seed: int = 0) -> None:
-        if render_mode is not None:
-            raise ValueError(f"render_mode {render_mode!r} is not supported (no rendering)")
-        _check_config(case, track, budget, observation, heterogeneity)
-        run_seed(root_seed, 0)  # a valid root seed, checked now
-        self.root_seed = int(root_seed)
-        self.case, self.track, self.budget = case, track, int(budget)
-        self.observation, self.normalise = observation, bool(normalise)
-        self.heterogeneity = float(heterogeneity)
-        self.render_mode = None
-        self.observation_space = observation_box(observation)
-        self.action_space = _action_space()
-        self._problem = None
+    def __init__(self, case: Any = "small", track: str = "reference",
+                 budget: int | None = DEFAULT_BUDGET, observation: str = "traces",
+                 normalise: bool = True, heterogeneity: float = 1.0,
+                 render_mode: str | None = None, root_seed: int = 0,
+                 tier: int | str | None = None, condition: str | None = None) -> None:
+        self._configure(case, tier, condition, track, budget, observation, normalise,
+                        heterogeneity, render_mode, root_seed)
+        self.observation_space, self.action_space = self._single_spaces
 
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
@@ -255,7 +292,7 @@ class EMAFaultEnv(_EpisodeMixin, gym.Env):
         if p.remaining <= 0:
             raise ResetNeeded(f"the episode's budget of {p.budget} evaluations is spent "
                               "(truncated); call reset() to start a new episode")
-        x = _actions_to_physical(action, None)
+        x = p.from_unit(_actions_to_unit(action, (p.dim,), p.names))
         f, outputs = p.evaluate_outputs(x[None, :])         # one evaluation, one simulation
         fitness = float(f[0])
         obs = _observe(p, outputs, f, self.observation)[0]
@@ -274,7 +311,7 @@ class EMAFaultEnv(_EpisodeMixin, gym.Env):
 class EMAFaultVectorEnv(_EpisodeMixin, VectorEnv):
     """``num_envs`` candidates for one shared problem, evaluated in one batched call per step.
 
-    ``step(actions)`` takes actions of shape ``(num_envs, 4)`` in the unit box, evaluates them
+    ``step(actions)`` takes actions of shape ``(num_envs, dim)`` in the unit box, evaluates them
     with a single :meth:`Problem.evaluate` (``num_envs`` evaluations) and returns observations
     ``(num_envs, N)``, rewards ``-fitness`` ``(num_envs,)``, terminations (always False) and
     truncations (all True once the budget cannot take another full batch).  All
@@ -289,29 +326,22 @@ class EMAFaultVectorEnv(_EpisodeMixin, VectorEnv):
     metadata: dict[str, Any] = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
 
     def __init__(self, num_envs: int = 1, case: Any = "small", track: str = "reference",
-                 budget: int = 1000, observation: str = "traces", normalise: bool = True,
-                 heterogeneity: float = 1.0, render_mode: str | None = None,
-                 root_seed: int = 0) -> None:
-        if render_mode is not None:
-            raise ValueError(f"render_mode {render_mode!r} is not supported (no rendering)")
-        run_seed(root_seed, 0)  # a valid root seed, checked now
-        self.root_seed = int(root_seed)
+                 budget: int | None = DEFAULT_BUDGET, observation: str = "traces",
+                 normalise: bool = True, heterogeneity: float = 1.0,
+                 render_mode: str | None = None, root_seed: int = 0,
+                 tier: int | str | None = None, condition: str | None = None) -> None:
         if isinstance(num_envs, bool) or not isinstance(num_envs, int | np.integer) \
                 or num_envs < 1:
             raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
-        _check_config(case, track, budget, observation, heterogeneity)
-        if budget < num_envs:
-            raise ProblemError(f"budget {budget} cannot take one batch of {num_envs} candidates")
+        self._configure(case, tier, condition, track, budget, observation, normalise,
+                        heterogeneity, render_mode, root_seed)
+        if self.budget < num_envs:
+            raise ProblemError(f"budget {self.budget} cannot take one batch of {num_envs} "
+                               "candidates")
         self.num_envs = int(num_envs)
-        self.case, self.track, self.budget = case, track, int(budget)
-        self.observation, self.normalise = observation, bool(normalise)
-        self.heterogeneity = float(heterogeneity)
-        self.render_mode = None
-        self.single_observation_space = observation_box(observation)
-        self.single_action_space = _action_space()
+        self.single_observation_space, self.single_action_space = self._single_spaces
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
-        self._problem = None
         self._autoreset = False
 
     def reset(self, *, seed: int | None = None,
@@ -334,7 +364,7 @@ class EMAFaultVectorEnv(_EpisodeMixin, VectorEnv):
             obs, info = self._reset(None)
             return obs, np.zeros(n), np.zeros(n, dtype=np.bool_), np.zeros(n, dtype=np.bool_), \
                 info
-        X = _actions_to_physical(actions, n)
+        X = p.from_unit(_actions_to_unit(actions, (n, p.dim), p.names))
         fitness, outputs = p.evaluate_outputs(X)                # one call, n evaluations
         obs = _observe(p, outputs, fitness, self.observation)
         space = self.single_observation_space
@@ -355,13 +385,21 @@ class EMAFaultVectorEnv(_EpisodeMixin, VectorEnv):
         return None
 
 
+#: The registered versions: one entry point, the version's keyword arguments (v2: a tier
+#: and a condition, whose budget is the default).
+VERSIONS: dict[str, dict[str, Any]] = {
+    ENV_ID: {},
+    ENV_ID_V2: {"tier": 4, "condition": "prior", "case": None, "budget": None},
+}
+
+
 def register() -> None:
     """Register ``EMAFault/Identify-v1`` and ``-v2`` with Gymnasium (idempotent)."""
-    if ENV_ID not in gym.registry:
-        gym.register(id=ENV_ID, entry_point="ema_bench.env:EMAFaultEnv",
-                     vector_entry_point="ema_bench.env:EMAFaultVectorEnv")
-    if "EMAFault/Identify-v2" not in gym.registry:
-        gym.register(id="EMAFault/Identify-v2", entry_point="ema_bench.env_v2:EMAFaultEnvV2")
+    for env_id, kwargs in VERSIONS.items():
+        if env_id not in gym.registry:
+            gym.register(id=env_id, entry_point="ema_bench.env:EMAFaultEnv",
+                         vector_entry_point="ema_bench.env:EMAFaultVectorEnv",
+                         kwargs=kwargs)
 
 
 register()

@@ -1,5 +1,7 @@
-"""The instances of the benchmark: measured traces for a case, a track and a seed, wrapped in
-a :class:`~ema_bench.problem.Problem` by :func:`make_problem`."""
+"""Measured traces for true faults, a track and a seed, wrapped in a
+:class:`~ema_bench.problem.Problem` by :func:`make_problem` (the vector path: a suite's case
+key goes through :func:`ema_bench.suites.problem.make_problem`, the package's
+``ema_bench.make_problem``, which looks the case up and comes here with its truth)."""
 
 from __future__ import annotations
 
@@ -9,16 +11,15 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from .effects import EFFECT_INDEX, effects_to_dict, effects_vector
-from .faults import FaultError, check_faults, faults_to_dict, random_faults
+from .faults import check_faults, faults_to_dict
 from .monitor import simulate_monitor
 from .objective import KNOWN_TESTS, ProblemError, signal_mask
 from .params import DEFAULT_PARAMS
 from .physics.sensors import measure
-from .problem import Problem, check_budget
+from .problem import Problem
 from .protocol import STANDARD_TESTS, TestSpec
 from .reference import SimulationError, simulate_reference
 from .seeding import SeedLike, as_seed_sequence, children, stream
-from .suite import instance_faults, is_instance
 from .trace_cache import PUBLIC_META, cache_key, cached_traces, expected_shapes
 from .traces import Traces
 
@@ -50,113 +51,29 @@ def twin_traces(x: np.ndarray, e: np.ndarray, seed: np.random.SeedSequence,
                                    "effects": effects_to_dict(e), "noise": True, "adc": True})
 
 
-def check_settings(case: object = "small", track: str = "reference", budget: object = 1,
-                   heterogeneity: float = 1.0) -> None:
-    """The checks of :func:`make_problem`'s settings, for callers that must fail early (the
-    environment at construction, the command line before any work): ProblemError."""
-    check_budget(budget)
-    if track not in TRACKS:
-        raise ProblemError(f"unknown track {track!r}; known: {list(TRACKS)}")
-    if not 0.0 <= float(heterogeneity) <= 1.0:
-        raise ProblemError(f"heterogeneity must lie in [0, 1], got {heterogeneity!r}")
-    if case is None:
-        raise ProblemError("give a case, or measured traces")
-    if isinstance(case, str):
-        if case != "seeded" and not is_instance(case):
-            try:
-                instance_faults(case)
-            except FaultError as exc:
-                raise ProblemError(str(exc)) from None
-    else:
-        try:
-            check_faults(case)
-        except FaultError as exc:
-            raise ProblemError(f"bad case: {exc}") from None
-
-
 def make_problem(
-    case: str | Mapping[str, float] | np.ndarray | None = "small",
+    truth: Mapping[str, float] | np.ndarray,
     *,
     track: str = "reference",
     seed: SeedLike = 0,
     budget: int = 1000,
     normalise: bool = True,
-    heterogeneity: float = 1.0,
     effects: Mapping[str, float] | None = None,
-    measured: Traces | None = None,
     augment: Sequence[str] = (),
     tests: Sequence[str] | None = None,
     start: np.ndarray | None = None,
-    sample_weights: Mapping[str, np.ndarray] | None = None,
     prior: bool = True,
     score_effects: bool = False,
     signals: Sequence[str] | None = None,
+    label: str = "custom",
 ) -> Problem:
-    """Build an identification problem.
-
-    Parameters
-    ----------
-    case : str, mapping or array
-        A suite instance: a paper case (``nominal``, ``small``, ``full``, ``random``) or a
-        seeded instance of the suite (``s00`` .. ``s19``, :mod:`~ema_bench.suite`);
-        ``"seeded"`` for a random instance drawn from ``seed`` with ``heterogeneity``; or
-        explicit true faults.
-    track : {"reference", "twin"}
-        ``reference``: measured traces come from the detailed reference model (model-form
-        mismatch, as in the paper); ``twin``: from the monitor model itself plus sensor noise
-        (a pure optimisation problem whose optimum is the truth).
-    seed : int or SeedSequence
-        The run node (:func:`~ema_bench.seeding.run_seed`; an int is a node of its own):
-        its ``instance`` stream draws a seeded case, its ``noise`` stream the sensor noise.
-    budget : int
-        Hard evaluation budget.
-    normalise : bool
-        Normalised (default) or raw fitness.
-    effects : mapping, optional
-        Effects switched on in the *reference* model that makes the data (unmodelled physics).
-    measured : Traces, optional
-        Fit these traces instead (file data); ``case`` and ``track`` are then ignored and
-        there is no truth to score against.
-    augment : sequence of str
-        Library effects fitted with the faults (see :class:`Problem`).
-    tests : sequence of str, optional
-        Protocol tests that make the data (default: the standard step and sine; add
-        ``"sine2"`` for held-out validation).
-    start : array, optional
-        Warm start for solvers (see :class:`Problem`).
-    sample_weights : mapping, optional
-        Per test, (n_samples, 4) weight multipliers of ``measured``'s samples (only with
-        ``measured``; see :class:`~ema_bench.objective.Objective`).
-    prior : bool
-        False: no nominal vector and no start for the solver (see :class:`Problem`).
-    score_effects : bool
-        The hidden truth holds the ``augment`` effects' true values after the faults, so
-        parameter targets judge them too (suite ``emafdi-v2``'s higher tiers).
-    signals : sequence of str, optional
-        The outputs the fitness weighs (default all four; suite ``emafdi-v2``'s
-        ``surface-current`` condition: ``theta_u``, ``i_eq``).  The others get weight 0 in
-        the objective, and in synthetic data (a case and a track) their columns are zeros:
-        the solver is not given what the condition withholds.
-    """
-    if measured is not None:
-        if not isinstance(measured, Traces):
-            raise ProblemError("measured must be a Traces (see ema_bench.load_traces)")
-        return Problem(measured, budget, normalise=normalise, augment=augment, start=start,
-                       sample_weights=sample_weights, signals=signals, prior=prior,
-                       label=str(measured.meta.get("source", "measured")), track="measured",
-                       _meta={"source": measured.meta.get("source")})
-    if sample_weights is not None:
-        raise ProblemError("sample_weights weigh given measured traces: pass measured too")
-    check_settings(case, track, budget, heterogeneity)
+    """The problem of true faults ``truth`` (a mapping or an array): measured traces made on
+    ``track`` with the run node ``seed``'s ``noise`` stream, ``label`` its public case label.
+    The other parameters are those of :func:`ema_bench.suites.problem.make_problem` (the
+    package's ``ema_bench.make_problem``, which checks them and comes here)."""
     keep = signal_mask(signals)   # an unknown signal fails before any simulation
-    ss = as_seed_sequence(seed)
-    s_instance, s_noise = stream(ss, "instance"), stream(ss, "noise")
-    if isinstance(case, str) and case == "seeded":
-        truth, label = random_faults(s_instance, heterogeneity), f"seeded(h={heterogeneity:g})"
-    elif isinstance(case, str):
-        truth, label = instance_faults(case), case
-    else:
-        truth, label = check_faults(case), "custom"
+    s_noise = stream(as_seed_sequence(seed), "noise")
+    truth = check_faults(truth)
     e = effects_vector(effects)
     names = tuple(tests) if tests is not None else tuple(s.name for s in STANDARD_TESTS)
     unknown = [n for n in names if n not in KNOWN_TESTS]

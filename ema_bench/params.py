@@ -61,7 +61,8 @@ class EMAParams:
     dt_mon: float = _p(5e-5, "s", "monitor step = controller period")
     # --- monitor drive ---
     kt_factor: float = _p(1.0, "-", "monitor torque / modelled pair torque; calibrated on the "
-                          "healthy actuator it fits to 1.0000 (python -m ema_bench.calibrate): the "
+                          "healthy actuator it fits to 1.0000 (python -m "
+                          "ema_bench.monitor_bias): the "
                           "commutation transfer is modelled, nothing is left to calibrate")
 
     def to_array(self) -> np.ndarray:

@@ -3,7 +3,7 @@
 ``ema-bench solve --json`` prints it, ``ema-bench leaderboard`` appends it to ``runs.jsonl``
 (one line per run), ``--check`` compares records, ``ema-bench validate`` checks them and
 ``ema-bench export`` converts them; their identity
-(:func:`~ema_bench.leaderboard.store.run_identity`: solver, case, track, seed, budget, root
+(:func:`~ema_bench.leaderboard.run_store.run_identity`: solver, case, track, seed, budget, root
 seed, model version) decides what is the same run.
 
 Every record carries the suite version (``suite``), the model version and a ``manifest``
@@ -33,14 +33,14 @@ import numpy as np
 from .faults import N_FAULTS, faults_to_dict
 from .manifest import manifest
 from .scoring import SUCCESS_RANGE_ERROR, first_hits, improvements, range_error
-from .suite import (
+from .suites import find, suite_of
+from .suites.targets import (
     BUDGET_CHECKPOINTS,
     FITNESS_PRECISIONS,
     PARAMETER_TARGETS,
     fitness_targets,
     precision_key,
 )
-from .suite_v2 import best_known_for, is_v2_case, judged_for, scoring_frame, suite_of
 from .trace_cache import MODEL_VERSION
 
 if TYPE_CHECKING:
@@ -69,8 +69,8 @@ def trajectory_indices(X: np.ndarray, f: np.ndarray, truth: np.ndarray | None,
     :data:`MAX_TRAJECTORY_POINTS`, plus every improvement no thinning may drop (the first hit
     of each fitness level in ``f_levels`` and of each parameter target against ``truth``, the
     last improvement at or before each ``best_at`` checkpoint, the first and the last).
-    ``truth`` holds the faults, or (suite emafdi-v2) every judged parameter, whose
-    ``ranges`` are then given; ``judged`` masks the parameters without a parameter target."""
+    ``truth`` holds the faults (of fault ``ranges`` when None) or every searched parameter
+    with its ``ranges``; ``judged`` masks the parameters without a parameter target."""
     idx = improvements(f)
     if idx.size <= MAX_TRAJECTORY_POINTS:
         return idx
@@ -108,7 +108,7 @@ def run_record(problem: Problem, result: SolveResult, *, case: str, track: str, 
         "key": f"{result.solver}|{case}|{track}|{seed}",
         "solver": result.solver, "case": case, "track": track, "seed": int(seed),
         "budget": int(budget), "root_seed": int(root_seed), "model_version": MODEL_VERSION,
-        "suite": suite_of(case), "manifest": manifest(sorted(result.library or {})),
+        "suite": suite_of(case).id, "manifest": manifest(sorted(result.library or {})),
         "x": faults_to_dict(result.x[:N_FAULTS]),
         "fitness": result.fitness,
         "evaluations": result.evaluations,
@@ -125,16 +125,15 @@ def run_record(problem: Problem, result: SolveResult, *, case: str, track: str, 
                                          map(float, result.x[N_FAULTS:])))
     hist = problem.history()
     best = hist["best"]
-    known = best_known_for(case, track, seed, root_seed)
-    truth = problem.score(problem.lower).truth if problem.has_truth else None
-    # what the parameter targets judge: the faults, or a v2 tier's parameters (on the
-    # reference track those whose clean-data bias is small: suite_v2.judged_for)
+    inst = find(case)   # None: a case drawn from the seed, custom faults
+    known = None if inst is None else inst.best_known(track, seed, root_seed)
+    # what the parameter targets judge: the instance's frame (every searched parameter; on
+    # a suite's reference track maybe fewer), else the problem's true faults
     every = ranges = judged = None
-    if truth is not None:
-        every = np.array(list(truth.values()))
-        if is_v2_case(case):
-            _, every, ranges = scoring_frame(case)
-            judged = judged_for(case, track)
+    if problem.has_truth:
+        every, ranges, judged = (inst.frame(track) if inst is not None else
+                                 (np.array(list(problem.score(problem.lower).truth.values())),
+                                  None, None))
     keep = trajectory_indices(hist["x"], hist["fitness"], every,
                               [] if known is None else
                               fitness_targets(known["f_star"], known["f_nominal"]), ranges,

@@ -14,7 +14,7 @@ from ema_bench.faults import FAULT_NAMES, LOWER, UPPER, faults_to_dict
 from ema_bench.leaderboard.derive import derive
 from ema_bench.manifest import manifest
 from ema_bench.records import RECORD_SCHEMA
-from ema_bench.suite import SUITE_ID, best_known, instance_faults
+from ema_bench.suites.v1 import SUITE_ID, best_known, instance_faults
 from ema_bench.trace_cache import MODEL_VERSION
 
 F_KEYS = ("0.1", "0.01", "0.001", "0.0001")

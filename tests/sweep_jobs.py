@@ -30,8 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ema_bench import best_known
 from ema_bench.prognostics.tracking import Inspection, TrackStep, register_tracker
+from ema_bench.suites import best_known
 
 TINY_STAGES = (("least-squares", 20, "truth"), ("powell", 20, "previous"),
                ("cmaes", 30, "nominal"))

@@ -9,10 +9,10 @@ import pytest
 
 from ema_bench.diagnosis import acquisition as acq
 from ema_bench.diagnosis import decoys
-from ema_bench.diagnosis.workflow import Settings
+from ema_bench.diagnosis.results import Settings
 from ema_bench.objective import KNOWN_TESTS
 from ema_bench.reference import simulate_reference
-from ema_bench.suite import instance_faults
+from ema_bench.suites.v1 import instance_faults
 
 TESTS = ("step", "sine", "sine2")
 TRAIN = ("step", "sine")

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from ema_bench.adapters.run import AdapterRun, append_record
-from ema_bench.leaderboard.store import read_records
+from ema_bench.leaderboard.run_store import read_records
 from ema_bench.leaderboard.tasks import Task, run_task
 from ema_bench.leaderboard.validate import validate
 from ema_bench.problem import BudgetExhausted
@@ -142,7 +142,7 @@ def test_ioh_keeps_the_batch_logs_with_iohs_logger_and_solves(tmp_path):
     ioh = pytest.importorskip("ioh", reason="ioh not installed (pip install 'ema-bench[ioh]')")
     from scipy.optimize import minimize
 
-    from ema_bench.adapters.ioh import IOHProblem
+    from ema_bench.adapters.ioh_problem import IOHProblem
     from ema_bench.adapters.scipy import simplex
 
     run = AdapterRun("ioh-nelder-mead", case="small", track="twin", seed=2, budget=300,

@@ -31,7 +31,7 @@ from ema_bench.diagnosis.blind import (
 from ema_bench.effects import DECOYS, EFFECT_INDEX, EFFECTS, effects_vector
 from ema_bench.faults import random_faults
 from ema_bench.jsonio import dumps
-from ema_bench.leaderboard.store import read_records
+from ema_bench.leaderboard.run_store import read_records
 from ema_bench.physics.sensors import SENSORS, measure, quantise
 from ema_bench.seeding import run_seed, stream
 from ema_bench.trace_cache import MODEL_VERSION
@@ -669,7 +669,7 @@ def test_the_third_round_categories_end_to_end_reproduce_the_committed_verdicts(
     cogging effect beside an acquisition fault, 42 CPU-s; case 14, three effects at once,
     77 CPU-s), run blind with the default settings: the same verdict, the same names and
     the same acquisition faults as committed, and each scored right."""
-    from ema_bench.diagnosis.workflow import Settings
+    from ema_bench.diagnosis.results import Settings
 
     committed = {r["index"]: r for r in read_records(COMMITTED_R3 / "blind.jsonl")}
     drawn = {c.index: c for c in draw_cases(0, 2034, 10)}

@@ -8,7 +8,7 @@ reference again (a wrong window mean, a lost commutation term) moves it by more 
 
 import pytest
 
-from ema_bench.calibrate import calibrate_kt_factor
+from ema_bench.monitor_bias import calibrate_kt_factor
 from ema_bench.params import DEFAULT_PARAMS
 
 

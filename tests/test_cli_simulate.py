@@ -101,8 +101,8 @@ def test_simulate_reference_writes_csv_and_png(tmp_path):
     assert tr.meta["model"] == "reference"
     assert tr.meta["seed"] == {"entropy": "0", "spawn_key": [0, 1]}
     # ... the very traces a solve of these faults with --seed 0 fits
-    from ema_bench.instances import make_problem
     from ema_bench.seeding import run_seed
+    from ema_bench.suites.problem import make_problem
     fitted = make_problem(np.array([0.95, 0.3378, 0.01, 1e5]), track="reference",
                           seed=run_seed(0, 0), budget=1).measured
     assert tr.allclose(fitted, rtol=1e-12, atol=1e-15)

@@ -153,8 +153,8 @@ def test_solve_explicit_faults(tmp_path):
 def test_solve_effects_reach_the_data(tmp_path):
     """`solve --effect` switches the effect on in the model that makes the data: the fitness
     at the truth is the API's for the same effect, and not the one without it."""
-    from ema_bench.instances import make_problem
     from ema_bench.seeding import run_seed
+    from ema_bench.suites.problem import make_problem
 
     r = cli("solve", "--case", "small", "--track", "twin", "--effect", "delay=6e-4",
             "--solver", "random", "--budget", "2", "--json", cwd=tmp_path)

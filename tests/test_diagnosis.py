@@ -12,8 +12,9 @@ from inprocess import run_cli
 from ema_bench.diagnosis.blind import draw_cases, run_case, summarise
 from ema_bench.diagnosis.envelopes import Envelope
 from ema_bench.diagnosis.features import NOISE_STD, residual_features
+from ema_bench.diagnosis.results import DiagnosisError, Settings
 from ema_bench.diagnosis.screening import score_effects
-from ema_bench.diagnosis.workflow import DiagnosisError, Settings, diagnose
+from ema_bench.diagnosis.workflow import diagnose
 from ema_bench.effects import EFFECTS, LIBRARY
 from ema_bench.faults import CASES
 from ema_bench.reference import simulate_reference

@@ -10,15 +10,10 @@ import pytest
 from ema_bench.diagnosis import acquisition as acq
 from ema_bench.diagnosis import decoys
 from ema_bench.diagnosis.blind import TESTS
+from ema_bench.diagnosis.fitting import fit, simulate, subset_traces
+from ema_bench.diagnosis.results import TRAIN, Settings
 from ema_bench.diagnosis.stiction import stick_weights
-from ema_bench.diagnosis.workflow import (
-    TRAIN,
-    Settings,
-    _simulate,
-    diagnose,
-    fit,
-    subset_traces,
-)
+from ema_bench.diagnosis.workflow import diagnose
 from ema_bench.faults import CASES
 from ema_bench.objective import Objective, SearchSpace
 from ema_bench.reference import simulate_reference
@@ -53,7 +48,7 @@ def test_the_fitted_model_carries_each_kind_beside_an_effect(with_effect, kind, 
     measured = decoys.apply(kind, with_effect, params)
     name = f"{kind}({params['signal']})"
     start = np.r_[X, 0.0]
-    raw = {t: v[0] for t, v in _simulate(start, (EFFECT,), NAMES).items()}
+    raw = {t: v[0] for t, v in simulate(start, (EFFECT,), NAMES).items()}
     guess = acq.estimate(name, raw, measured.data, stick_weights(measured), TRAIN).fault
     f = fit(measured, (EFFECT,), Settings(budget=800), 3, start, (guess,))
     (got,) = f.acquisition

@@ -15,11 +15,11 @@ from gymnasium.vector import AutoresetMode
 import ema_bench  # noqa: F401  (registers the id)
 from ema_bench.env import ENV_ID, EMAFaultEnv, EMAFaultVectorEnv, register
 from ema_bench.faults import CASES, FAULT_NAMES, from_unit
-from ema_bench.instances import make_problem
 from ema_bench.monitor import simulate_monitor
 from ema_bench.physics.sensors import SENSORS
 from ema_bench.problem import ProblemError
 from ema_bench.protocol import STANDARD_TESTS
+from ema_bench.suites.problem import make_problem
 
 N_OBS = sum(s.n_samples() for s in STANDARD_TESTS) * 4
 

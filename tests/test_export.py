@@ -8,9 +8,10 @@ from pathlib import Path
 
 import pytest
 from inprocess import run_cli
+from ioh_files import read_ioh
 
 from ema_bench.cli import main
-from ema_bench.leaderboard.ioh import export_ioh, read_ioh
+from ema_bench.leaderboard.ioh import export_ioh
 
 REPO = Path(__file__).resolve().parents[1]
 # the suite's shipped optima, read here from the file rather than through the package

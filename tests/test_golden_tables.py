@@ -21,8 +21,8 @@ from ema_bench.leaderboard.report import (
     write_leaderboards,
     write_paper_tables,
 )
+from ema_bench.leaderboard.run_store import is_error, read_records
 from ema_bench.leaderboard.scores import score_records
-from ema_bench.leaderboard.store import is_error, read_records
 
 BOARDS = Path(__file__).resolve().parents[1] / "leaderboards"
 FOLDERS = [p.parent for p in sorted(BOARDS.glob("**/leaderboard_*.md"))

@@ -311,7 +311,7 @@ def test_the_leaderboard_page_is_shareable(tmp_path: Path) -> None:
     """No local folder in the header, precisions floored at 0, areas sort best-first, every
     table in its own scroll container (the committed quick records)."""
     from ema_bench.leaderboard.page import shareable, write_page
-    from ema_bench.leaderboard.store import read_records
+    from ema_bench.leaderboard.run_store import read_records
 
     records = read_records(Path(__file__).resolve().parents[1] / "leaderboards" / "quick"
                            / "runs.jsonl")

@@ -25,7 +25,6 @@ from hypothesis import strategies as st
 from ema_bench import register_solver
 from ema_bench.escape import check_name, csv_value, markdown
 from ema_bench.faults import FAULT_NAMES, faults_to_dict
-from ema_bench.instances import make_problem
 from ema_bench.leaderboard.anytime import anytime_scores
 from ema_bench.leaderboard.replay import replay
 from ema_bench.leaderboard.report import write_leaderboards
@@ -36,7 +35,8 @@ from ema_bench.problem import Problem, SolverView
 from ema_bench.registry import SolverError, SolveResult, run_solver
 from ema_bench.scoring import Score
 from ema_bench.seeding import run_seed
-from ema_bench.suite import instance_names
+from ema_bench.suites.problem import make_problem
+from ema_bench.suites.v1 import instance_names
 
 ROOT = Path(__file__).resolve().parents[1]
 

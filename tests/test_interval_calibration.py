@@ -8,10 +8,11 @@ import math
 import numpy as np
 import pytest
 
-from ema_bench.diagnosis import interval_calibration as ic
-from ema_bench.diagnosis import interval_table, workflow
+from ema_bench.diagnosis import effect_interval_calibration as ic
+from ema_bench.diagnosis import fitting, interval_table, results
 from ema_bench.diagnosis.blind import draw_cases
 from ema_bench.faults import CASES
+from ema_bench.objective import KNOWN_TESTS
 from ema_bench.reference import simulate_reference
 
 SHIPPED = json.loads(ic.PATH.read_text())
@@ -44,7 +45,7 @@ def test_a_shipped_score_reproduces():
     row = SHIPPED["scores"][0]
     case = {c.index: c for c in draw_cases(SHIPPED["suite_cases"], ic.CALIBRATION_SEED)}[
         row["case"]]
-    rec = ic.case_scores(case, ic.CALIBRATION_SEED, workflow.Settings())
+    rec = ic.case_scores(case, ic.CALIBRATION_SEED, results.Settings())
     got = next(r for r in rec["rows"] if r["effect"] == row["effect"])
     assert got["estimate"] == pytest.approx(row["estimate"], rel=1e-9)
     assert got["score"] == pytest.approx(row["score"], rel=1e-6)
@@ -52,15 +53,15 @@ def test_a_shipped_score_reproduces():
 
 def test_interval_widens_each_side_about_the_profile_centre(monkeypatch):
     tr = simulate_reference(CASES["small"].x, {"delay": 6e-4}, seed=0,
-                            tests=tuple(workflow.KNOWN_TESTS[t] for t in ("step", "sine",
+                            tests=tuple(KNOWN_TESTS[t] for t in ("step", "sine",
                                                                            "sine2")))
     start = np.r_[CASES["small"].x, 5e-4]
-    f = workflow.fit(tr, ("delay",), workflow.Settings(budget=600), 0, start)
-    iv = workflow.profile(f, tr, ("delay",))
+    f = fitting.fit(tr, ("delay",), results.Settings(budget=600), 0, start)
+    iv = fitting.profile(f, tr, ("delay",))
     c, lo, hi = iv.estimate[4], iv.low[4], iv.high[4]
     assert lo < c < hi
     monkeypatch.setattr(interval_table, "factor", lambda level: 2.5)
-    low, high = workflow.interval(f, tr, ("delay",))["delay"]
+    low, high = fitting.interval(f, tr, ("delay",))["delay"]
     assert low == pytest.approx(c - 2.5 * (c - lo)) and high == pytest.approx(c + 2.5 * (hi - c))
-    assert workflow.interval(f, tr, ("delay",), calibrate=False)["delay"] == \
+    assert fitting.interval(f, tr, ("delay",), calibrate=False)["delay"] == \
         pytest.approx([lo, hi])

@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 
 from ema_bench import c_kernel
-from ema_bench.calibrate import clean_bias
 from ema_bench.effects import EFFECTS, N_EFFECTS
 from ema_bench.faults import CASES, LOWER, UPPER, random_faults
 from ema_bench.monitor import LANES_WORTH, _lane_split, simulate_monitor
+from ema_bench.monitor_bias import clean_bias
 from ema_bench.monitor_lanes import LANES, lane_groups
 
 ROOT = Path(__file__).resolve().parent.parent

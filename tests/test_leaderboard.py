@@ -19,7 +19,7 @@ from inprocess import run_cli
 
 from ema_bench.faults import FAULT_NAMES
 from ema_bench.leaderboard.derive import derived
-from ema_bench.leaderboard.store import read_records
+from ema_bench.leaderboard.run_store import read_records
 
 CLI = [sys.executable, "-m", "ema_bench.cli", "leaderboard"]
 QUICK = ["--solvers", "random,cmaes", "--cases", "small,full", "--seeds", "2",

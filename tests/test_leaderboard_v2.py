@@ -18,12 +18,13 @@ import numpy as np
 import pytest
 from inprocess import run_cli
 
+from ema_bench import suites
 from ema_bench.effects import EFFECT_INDEX, EFFECTS
 from ema_bench.faults import LOWER, UPPER
 from ema_bench.leaderboard import scaling
 from ema_bench.leaderboard.anytime import AnytimeScore
-from ema_bench.leaderboard.store import read_records
-from ema_bench.suite_v2 import best_known_for, instance
+from ema_bench.leaderboard.run_store import read_records
+from ema_bench.suites.v2 import instance
 
 SOLVERS = ("cmaes", "de", "nelder-mead", "random")
 PER_DIM = 40
@@ -70,7 +71,7 @@ def _area(r: dict) -> float:
     worst = [(int(ev), float(f), float(np.max(np.abs(np.asarray(v) - inst.truth) / ranges)))
              for ev, f, v in r["trajectory"]]
     firsts = [next((ev for ev, _, w in worst if w <= p), None) for p in (0.1, 0.03, 0.01)]
-    known = best_known_for(r["case"], r["track"], int(r["seed"]))   # the shipped tables
+    known = suites.instance(r["case"]).best_known(r["track"], int(r["seed"]))   # the shipped tables
     if known is not None:
         fs, fn = known["f_star"], known["f_nominal"]
         firsts += [next((ev for ev, f, _ in worst if f <= fs + p * (fn - fs)), None)
@@ -349,7 +350,7 @@ def test_padding_a_solver_with_copies_of_its_runs_moves_no_pooled_interval(board
     runs: the report's selection keeps one record per run, so nothing moves."""
     from ema_bench.leaderboard.run import select
     from ema_bench.leaderboard.tasks import make_tasks
-    from ema_bench.suite_v2 import cases
+    from ema_bench.suites.v2 import cases
 
     records = read_records(board / "runs.jsonl")
     tasks = make_tasks(list(SOLVERS), cases([4, 7], ["prior", "no-prior"], 1), ["twin"], 2,

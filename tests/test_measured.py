@@ -10,10 +10,10 @@ import scipy.io
 from inprocess import run_cli
 
 from ema_bench.faults import CASES, LOWER, NOMINAL, UPPER
-from ema_bench.instances import make_problem
 from ema_bench.problem import ProblemError
 from ema_bench.reference import simulate_reference
 from ema_bench.seeding import run_seed, stream
+from ema_bench.suites.problem import make_problem
 from ema_bench.traces import SIGNALS, UNITS, Traces, TracesError, load_traces
 
 X = LOWER + np.random.default_rng(0).random((4, 4)) * (UPPER - LOWER)

@@ -16,7 +16,6 @@ import pytest
 import ema_bench.objective as objective_module
 from ema_bench.effects import EFFECT_NAMES, N_EFFECTS
 from ema_bench.faults import CASES, FAULT_NAMES, LOWER, NOMINAL, UPPER
-from ema_bench.instances import make_problem
 from ema_bench.monitor import simulate_monitor
 from ema_bench.objective import (
     KNOWN_TESTS,
@@ -38,6 +37,7 @@ from ema_bench.scoring import (
     score,
     successes,
 )
+from ema_bench.suites.problem import make_problem
 from ema_bench.traces import Traces
 
 

@@ -18,11 +18,11 @@ from ema_bench.faults import (
     UPPER,
     random_faults,
 )
-from ema_bench.instances import make_problem
 from ema_bench.objective import PENALTY, signal_scales
 from ema_bench.physics.sensors import SENSORS
 from ema_bench.problem import BudgetExhausted, Problem, ProblemError
 from ema_bench.scoring import Score
+from ema_bench.suites.problem import make_problem
 from ema_bench.traces import Traces
 
 DAMAGED = ("small", "full", "random")

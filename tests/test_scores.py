@@ -17,7 +17,7 @@ import pytest
 from ema_bench.leaderboard.check import compare
 from ema_bench.leaderboard.derive import derived
 from ema_bench.leaderboard.scores import ALL, ert, run_cost, score_records
-from ema_bench.suite import SUITE_ID
+from ema_bench.suites.v1 import SUITE_ID
 
 FAULTS = ("Na", "Fst", "BLK", "Gprop")
 

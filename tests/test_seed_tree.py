@@ -10,7 +10,8 @@ import pytest
 
 from ema_bench.cli import main
 from ema_bench.diagnosis.blind import draw_cases, measured_traces
-from ema_bench.diagnosis.workflow import Settings, diagnose
+from ema_bench.diagnosis.results import Settings
+from ema_bench.diagnosis.workflow import diagnose
 from ema_bench.faults import random_faults
 from ema_bench.seeding import STREAMS, run_seed, stream
 from ema_bench.traces import load_traces

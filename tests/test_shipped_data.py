@@ -14,10 +14,10 @@ import pytest
 from test_cli_solve import cli
 
 import ema_bench
-from ema_bench import calibration_files as cf
+from ema_bench import interval_calibration_files as cf
 from ema_bench.cli import main
 from ema_bench.diagnosis import interval_table
-from ema_bench.uncertainty import calibration
+from ema_bench.uncertainty import conformal
 
 PACKAGE = Path(ema_bench.__file__).resolve().parent
 
@@ -31,7 +31,7 @@ def package_digest() -> str:
     return h.hexdigest()
 
 
-def conformal(scores: list[float], level: float = 0.95) -> float:
+def split_conformal(scores: list[float], level: float = 0.95) -> float:
     """The ceil((n + 1) level)-th smallest score (the largest when that passes n)."""
     s = sorted(scores)
     return s[min(math.ceil((len(s) + 1) * level), len(s)) - 1]
@@ -64,7 +64,7 @@ def test_calibrate_writes_user_tables_and_leaves_the_package_byte_identical(tmp_
     summary = json.loads(r.stdout)
     scores = data["scores"]["twin|laplace|none"]
     assert summary["calibration_factor"] == pytest.approx(
-        {n: conformal(scores[n]) for n in scores})
+        {n: split_conformal(scores[n]) for n in scores})
     assert summary["calibration_table"] == f"user file {table}, 1 instance"
     # and set in the environment, solve's intervals name it too
     r = cli("solve", "--case", "small", "--track", "twin", "--solver", "least-squares",
@@ -79,12 +79,12 @@ def test_calibrate_writes_user_tables_and_leaves_the_package_byte_identical(tmp_
 
 def test_the_active_table_is_the_shipped_one_unless_a_user_file_is_named(tmp_path,
                                                                          monkeypatch):
-    shipped = json.loads(calibration.PATH.read_text())
+    shipped = json.loads(conformal.PATH.read_text())
     n = shipped["runs"]["twin|laplace|none"]["instances"]
     monkeypatch.delenv("EMA_BENCH_CALIBRATION", raising=False)
     monkeypatch.delenv("EMA_BENCH_INTERVAL_CALIBRATION", raising=False)
-    assert cf.describe(calibration.TABLE, n) == f"shipped, {n} instances"
-    assert calibration.calibration_size("twin", "laplace", "none") == n == 400
+    assert cf.describe(conformal.TABLE, n) == f"shipped, {n} instances"
+    assert conformal.calibration_size("twin", "laplace", "none") == n == 400
     ships = json.loads(interval_table.PATH.read_text())
     assert interval_table.source() == f"shipped, {ships['effect_cases']} effect cases"
 
@@ -93,7 +93,7 @@ def test_the_active_table_is_the_shipped_one_unless_a_user_file_is_named(tmp_pat
     rows = [{"score": s} for s in (0.5, 2.0, 7.0)]
     user.write_text(json.dumps({"effect_cases": 1, "scores": rows}))
     with cf.using(interval_table.TABLE, user):
-        assert interval_table.factor(0.95) == conformal([0.5, 2.0, 7.0]) == 7.0
+        assert interval_table.factor(0.95) == split_conformal([0.5, 2.0, 7.0]) == 7.0
         assert interval_table.factor(0.5) == 2.0
         assert interval_table.source() == f"user file {user.resolve()}, 1 effect case"
     # left as it was after the block
@@ -102,7 +102,7 @@ def test_the_active_table_is_the_shipped_one_unless_a_user_file_is_named(tmp_pat
     monkeypatch.setenv("EMA_BENCH_CALIBRATION", str(tmp_path / "missing.json"))
     with pytest.raises(ValueError, match="EMA_BENCH_CALIBRATION=.*missing.json: no such "
                                          "calibration file"):
-        calibration.active_table()
+        conformal.active_table()
 
 
 @pytest.mark.parametrize("argv", [
@@ -169,13 +169,13 @@ def test_the_model_form_biases_are_written_only_where_named(tmp_path, monkeypatc
     before any fit (one instance would cost about 15 CPU-s)."""
     import inspect
 
-    import ema_bench.calibration_files as files
+    import ema_bench.interval_calibration_files as files
     from ema_bench.uncertainty import model_form
 
     assert inspect.signature(model_form.calibrate).parameters["path"].default \
         is inspect.Parameter.empty
     monkeypatch.setattr(files, "checkout_root", lambda package=PACKAGE: None)
-    monkeypatch.setattr("ema_bench.calibrate.clean_bias",
+    monkeypatch.setattr("ema_bench.monitor_bias.clean_bias",
                         lambda *a, **k: pytest.fail("fitted before refusing"))
     before = package_digest()
     with pytest.raises(ValueError, match="inside the installed package, not a checkout"):

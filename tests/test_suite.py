@@ -1,4 +1,4 @@
-"""The versioned suite (ema_bench.suite): its instances, its shipped best-known optima, the
+"""The versioned suite (ema_bench.suites.v1): its instances, its shipped best-known optima, the
 Gymnasium id that follows it, and the anytime fields of run records built on them."""
 
 from __future__ import annotations
@@ -11,19 +11,18 @@ import numpy as np
 import pytest
 
 import ema_bench.env  # noqa: F401  (registers the environment)
-from ema_bench.best_known import MARGIN, STAGES, all_keys
 from ema_bench.faults import CASES, FAULT_NAMES, LOWER, UPPER
-from ema_bench.instances import make_problem
 from ema_bench.leaderboard.tasks import Task, run_task
 from ema_bench.registry import run_solver
 from ema_bench.seeding import run_seed
-from ema_bench.suite import (
+from ema_bench.suites.best_known import MARGIN, STAGES, all_keys
+from ema_bench.suites.problem import make_problem
+from ema_bench.suites.targets import SUITE_MODEL_VERSION, fitness_targets
+from ema_bench.suites.v1 import (
     N_SEEDED,
     SUITE_ID,
-    SUITE_MODEL_VERSION,
     best_known,
     expand_cases,
-    fitness_targets,
     instance_faults,
     instance_names,
     seeded_instances,

@@ -1,4 +1,4 @@
-"""Suite emafdi-v2 (ema_bench.suite_v2): tier 4 is v1 bit for bit, the higher tiers are
+"""Suite emafdi-v2 (ema_bench.suites.v2): tier 4 is v1 bit for bit, the higher tiers are
 identifiable on the twin track, the no-prior condition hands out no nominal vector and no
 start (problem, solver view, every zoo solver), budgets scale with dimension and parameter
 targets judge only the parameters a clean fit recovers."""
@@ -8,23 +8,25 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from ema_bench import suites
 from ema_bench.effects import EFFECT_INDEX, EFFECTS
 from ema_bench.faults import FAULT_NAMES, LOWER, NOMINAL, UPPER
 from ema_bench.registry import available_solvers, run_solver
 from ema_bench.seeding import run_seed
-from ema_bench.suite import best_known, instance_faults
-from ema_bench.suite import instance_names as v1_names
-from ema_bench.suite_v2 import (
+from ema_bench.suites.problem import make_problem
+from ema_bench.suites.v1 import best_known, instance_faults
+from ema_bench.suites.v1 import instance_names as v1_names
+from ema_bench.suites.v2 import (
     BUDGET_PER_DIM,
     CONDITIONS,
     MAX_TARGET_BIAS,
     TIERS,
     SuiteError,
     budget,
+    case_key,
     instance,
     instance_names,
     judged_parameters,
-    make_v2_problem,
     tier_instances,
 )
 from ema_bench.uncertainty.methods import intervals
@@ -38,7 +40,8 @@ def test_tier_4_is_v1_and_reproduces_v1_best_known_fitness_exactly():
         assert np.array_equal(instance(name).truth, instance_faults(name))
         for seed in (0, 7):
             entry = best_known(name, "twin", seed)
-            p = make_v2_problem(name, track="twin", seed=run_seed(0, seed), budget=1)
+            p = make_problem(case_key(name, "prior"), track="twin", seed=run_seed(0, seed),
+                             budget=1)
             x = np.array([entry["x_star"][n] for n in FAULT_NAMES])
             f, _, _ = p.objective.evaluate(x[None, :])
             assert f[0] == entry["f_star"], (name, seed)
@@ -68,12 +71,12 @@ def test_higher_tiers_draw_a_random_subset_of_their_effects_inside_bounds():
 def test_budgets_scale_with_dimension_and_the_problem_takes_the_tier_budget():
     assert {d: budget(d) for d in TIERS} == {d: BUDGET_PER_DIM * d for d in TIERS}
     assert budget(4) == 5000                           # v1's board budget
-    p = make_v2_problem("t7-s01", cond="no-prior", track="twin", seed=0)
+    p = make_problem("t7-s01@no-prior", track="twin", seed=0, budget=None)
     assert p.budget == 7 * BUDGET_PER_DIM and p.dim == 7
     with pytest.raises(SuiteError, match="unknown tier"):
         budget(5)
     with pytest.raises(SuiteError, match="unknown condition"):
-        make_v2_problem("t7-s01", cond="blind", track="twin")
+        make_problem("t7-s01@blind", track="twin")
     with pytest.raises(SuiteError, match="unknown tier-7 instance"):
         instance("t7-s99")
 
@@ -90,13 +93,14 @@ def test_every_parameter_of_a_tier_is_identifiable_on_the_twin_track(dim):
     feedback delay's valley is long; see docs/suite-v2.md.)"""
     name = instance_names(dim)[0]
     for cond in [c for c, v in CONDITIONS.items() if v.tests is None or dim in v.tiers]:
-        p = make_v2_problem(name, cond=cond, track="twin", seed=run_seed(0, 0), budget=1)
+        p = make_problem(case_key(name, cond), track="twin", seed=run_seed(0, 0), budget=1)
         iv = intervals(p.objective, instance(name).truth, method="laplace", track="twin",
                        polish=False, calibrate=False)
         assert iv.identifiability["non_identifiable"] == [], (cond, iv.width_percent())
     truth = instance(name).truth
     ranges = p.upper - p.lower
-    q = make_v2_problem(name, track="twin", seed=run_seed(0, 0), budget=40 * dim, start=truth)
+    q = make_problem(case_key(name, "prior"), track="twin", seed=run_seed(0, 0),
+                     budget=40 * dim, start=truth)
     run_solver("nelder-mead", q, 40 * dim, seed=np.random.SeedSequence(2))
     x, f = q.best
     err = np.abs(x - truth) / ranges
@@ -109,16 +113,16 @@ def test_step_only_is_offered_only_where_it_stays_identifiable():
     instances, eccentricity on tier 12 (intervals over 5 % of range,
     benchmarks/v2_identifiability.py): the suite refuses those combinations, and a sweep
     skips them."""
-    from ema_bench.suite_v2 import cases
+    from ema_bench.suites.v2 import cases
 
     for dim in (7, 12):
         with pytest.raises(SuiteError, match="step-only"):
-            make_v2_problem(instance_names(dim)[0], cond="step-only", track="twin")
+            make_problem(case_key(instance_names(dim)[0], "step-only"), track="twin")
     assert cases([4, 7], ["step-only"], 1) == ["small@step-only"]
 
 
 def test_no_prior_problem_and_view_expose_no_nominal_and_no_start():
-    p = make_v2_problem("t7-s02", cond="no-prior", track="twin", seed=0, budget=10)
+    p = make_problem("t7-s02@no-prior", track="twin", seed=0, budget=10)
     v = p.view()
     assert p.nominal is None and p.start is None and not p.prior
     assert v.nominal is None and v.start is None and v.space.nominal is None
@@ -129,9 +133,9 @@ def test_no_prior_problem_and_view_expose_no_nominal_and_no_start():
             assert not np.allclose(val[:4], NOMINAL), slot
     assert p.best[1] == np.inf and np.allclose(p.best[0], 0.5 * (p.lower + p.upper))
     with pytest.raises(ValueError, match="no start"):
-        make_v2_problem("t7-s02", cond="no-prior", track="twin", start=p.lower)
+        make_problem("t7-s02@no-prior", track="twin", start=p.lower)
     # the prior condition does hand it out
-    assert np.array_equal(make_v2_problem("t7-s02", track="twin", budget=1).start[:4],
+    assert np.array_equal(make_problem("t7-s02@prior", track="twin", budget=1).start[:4],
                           NOMINAL)
 
 
@@ -144,7 +148,7 @@ def test_every_zoo_solver_runs_without_prior_and_draws_its_start_from_its_seed()
     for name in zoo:
         runs = []
         for s in (1, 1, 2):
-            p = make_v2_problem("small", cond="no-prior", track="twin", seed=0, budget=40)
+            p = make_problem("small@no-prior", track="twin", seed=0, budget=40)
             run_solver(name, p, 40, seed=np.random.SeedSequence(s))
             h = p.history()["x"]
             assert p.evaluations == 40 and not np.isclose(h, NOMINAL).all(axis=1).any(), name
@@ -160,7 +164,7 @@ def test_parameter_targets_judge_the_effects_and_skip_the_biased_parameters():
     clean-data bias exceeds 0.3 % of its range."""
     name = instance_names(7)[0]
     truth = instance(name).truth
-    p = make_v2_problem(name, track="twin", seed=0, budget=3)
+    p = make_problem(case_key(name, "prior"), track="twin", seed=0, budget=3)
     assert p.truth_size() == 7
     off = truth.copy()
     off[4:] = np.where(truth[4:] != 0.0, 0.0, p.upper[4:])
@@ -174,14 +178,14 @@ def test_parameter_targets_judge_the_effects_and_skip_the_biased_parameters():
     assert judged.tolist() == [True, True, True, True, False, True, True]
     assert MAX_TARGET_BIAS == 0.003
     # judging only the faults, the effects-off point is a hit at evaluation 1
-    q = make_v2_problem(name, track="twin", seed=0, budget=1)
+    q = make_problem(case_key(name, "prior"), track="twin", seed=0, budget=1)
     q.evaluate(off[None, :])
     assert q.parameter_hits((0.01,), judged=np.r_[[True] * 4, [False] * 3]) == [1]
 
 
 def test_conditions_are_the_documented_four():
     assert set(CONDITIONS) == {"prior", "no-prior", "step-only", "surface-current"}
-    p = make_v2_problem("small", cond="step-only", track="twin", seed=0, budget=1)
+    p = make_problem("small@step-only", track="twin", seed=0, budget=1)
     assert p.measured.tests == ("step",) and p.start is not None
 
 
@@ -197,13 +201,14 @@ def test_gymnasium_v2_takes_tier_and_condition_and_hands_out_no_nominal():
     assert env.action_space.shape == (7,)
     obs, info = env.reset(seed=3)
     u = env.unwrapped
-    assert u.problem.label == instance_names(7)[3 % 20] and u.problem.nominal is None
+    assert u.problem.label == f"{instance_names(7)[3 % 20]}@no-prior"
+    assert u.problem.nominal is None
     assert u.problem.view().start is None
     assert not {"nominal", "start", "truth"} & set(info)
     obs2, r, term, trunc, info = env.step(np.full(7, 0.5))
     assert info["tier"] == 7 and info["condition"] == "no-prior" and len(info["best_x"]) == 7
     assert r == -u.problem.history()["fitness"][0] and not term and not trunc
-    with pytest.raises(ValueError, match="7 finite numbers"):
+    with pytest.raises(ValueError, match=r"shape \(7,\)"):
         env.step(np.full(4, 0.5))
     # step-only: a shorter observation; tier 4 with the prior: v1's problem
     env = gym.make("EMAFault/Identify-v2", tier=4, condition="step-only", track="twin",
@@ -281,7 +286,7 @@ def test_a_v2_sweep_runs_end_to_end_and_validate_refuses_a_doctored_effect(tmp_p
 
 
 def test_target_keys_cover_each_distinct_data_once_and_leave_v1s_to_v1():
-    from ema_bench.suite_v2 import best_known_for, target_keys
+    from ema_bench.suites.v2 import target_keys
 
     keys = target_keys(seeds=2, tracks=("twin",))
     cases_ = {k.split("|")[0] for k in keys}
@@ -298,9 +303,9 @@ def test_target_keys_cover_each_distinct_data_once_and_leave_v1s_to_v1():
     assert target_keys(1, tiers=[4], conditions=["prior"]) == []
     assert not any(c.startswith("t7") and "step-only" in c for c in cases_)
     # tier 4 with the standard tests, prior or not: v1's shipped entry
-    assert best_known_for("s02@no-prior", "twin", 3) == best_known("s02", "twin", 3)
-    assert best_known_for("s02@step-only", "twin", 3) is None
-    assert best_known_for("s02@surface-current", "twin", 3) is None   # another fitness
+    assert suites.instance("s02@no-prior").best_known("twin", 3) == best_known("s02", "twin", 3)
+    assert suites.instance("s02@step-only").best_known("twin", 3) is None
+    assert suites.instance("s02@surface-current").best_known("twin", 3) is None   # another fitness
 
 
 def test_v1_records_still_validate_against_v1_and_not_as_v2():

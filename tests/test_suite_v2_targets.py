@@ -10,19 +10,20 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from ioh_files import read_ioh
 
-from ema_bench import suite_v2
+from ema_bench import suites
 from ema_bench.cli import main
-from ema_bench.leaderboard.ioh import read_ioh
 from ema_bench.objective import Objective, ProblemError
 from ema_bench.seeding import run_seed
-from ema_bench.suite import SuiteError, target_key
-from ema_bench.suite_v2 import (
+from ema_bench.suites import v2
+from ema_bench.suites.problem import make_problem
+from ema_bench.suites.targets import SuiteError, target_key
+from ema_bench.suites.v2 import (
     CONDITIONS,
     MAX_TARGET_BIAS,
     TIERS,
     instance,
-    make_v2_problem,
 )
 from ema_bench.traces import SIGNALS, Traces
 
@@ -46,9 +47,9 @@ def test_the_masked_outputs_do_not_move_the_fitness_and_the_kept_ones_do():
     """Fitness under the surface-current weights of data whose theta_m, omega_m are replaced
     by other numbers: the same, to the bit; replacing theta_u or i_eq changes it.  The
     problem's own fitness (its data carry zeros there) is that fitness too."""
-    full = make_v2_problem("t7-s04", cond="prior", track="twin", seed=run_seed(0, 0),
+    full = make_problem("t7-s04@prior", track="twin", seed=run_seed(0, 0),
                            budget=1).measured
-    p = make_v2_problem("t7-s04", cond="surface-current", track="twin", seed=run_seed(0, 0),
+    p = make_problem("t7-s04@surface-current", track="twin", seed=run_seed(0, 0),
                         budget=3)
     rng = np.random.default_rng(5)
     X = np.vstack([instance("t7-s04").truth, p.nominal,
@@ -70,7 +71,7 @@ def test_a_solver_is_not_given_the_withheld_outputs_and_cannot_weigh_them_back()
     """The view's data (and the objective behind its log) carry zeros for theta_m and
     omega_m, the residuals a least-squares solver gets are 0 there, and the weights are
     read-only."""
-    p = make_v2_problem("s05", cond="surface-current", track="reference", seed=0, budget=2)
+    p = make_problem("s05@surface-current", track="reference", seed=0, budget=2)
     v = p.view()
     for data in (v.measured.data, v._log.objective.measured.data):
         for block in data.values():
@@ -107,11 +108,11 @@ def test_surface_current_is_offered_where_the_report_keeps_every_parameter():
 
     assert SC.tiers == tuple(TIERS) and SC.prior and SC.tests is None
     assert [SC.offered_on(d) for d in TIERS] == [True] * len(TIERS)
-    assert suite_v2.cases([4, 7, 12], ["surface-current", "step-only"], 1) == [
+    assert v2.cases([4, 7, 12], ["surface-current", "step-only"], 1) == [
         "small@surface-current", "small@step-only", "t7-s00@surface-current",
         "t12-s00@surface-current"]
     with pytest.raises(SuiteError, match="offered on tiers"):
-        make_v2_problem("t12-s00", cond="step-only", track="twin")
+        make_problem("t12-s00@step-only", track="twin")
     truth = instance("t12-s02").truth
 
     def width(objective: Objective) -> np.ndarray:
@@ -120,8 +121,8 @@ def test_surface_current_is_offered_where_the_report_keeps_every_parameter():
         assert iv.identifiability["non_identifiable"] == [] and not iv.warnings
         return iv.width_percent()
 
-    prior = make_v2_problem("t12-s02", track="twin", seed=run_seed(0, 0), budget=1)
-    sc = make_v2_problem("t12-s02", cond="surface-current", track="twin", seed=run_seed(0, 0),
+    prior = make_problem("t12-s02@prior", track="twin", seed=run_seed(0, 0), budget=1)
+    sc = make_problem("t12-s02@surface-current", track="twin", seed=run_seed(0, 0),
                          budget=1)
     w = width(sc.objective)
     other = _perturbed(prior.measured, MASKED, np.random.default_rng(1))
@@ -147,16 +148,16 @@ def table(tmp_path_factory) -> Path:
 @pytest.fixture
 def use_table(monkeypatch):
     def use(path: Path) -> None:
-        monkeypatch.setattr(suite_v2, "targets_path", lambda: path)
-        suite_v2.shipped_targets.cache_clear()
+        monkeypatch.setattr(v2, "targets_path", lambda: path)
+        v2.shipped_targets.cache_clear()
     yield use
-    suite_v2.shipped_targets.cache_clear()
+    v2.shipped_targets.cache_clear()
 
 
 def test_targets_writes_a_v2_table_with_the_clean_data_fit(table, use_table):
     """The entry's f* is at most the fitness at the truth, the nominal's above; its x* has
     that fitness on the problem every run of the case solves; the clean-data fit's biases
-    are its distances from the truth; best_known_for and judged_for read the table (the
+    are its distances from the truth; Instance.best_known and Instance.judged read the table (the
     judged mask from the clean fit, on the reference track only)."""
     data = json.loads(table.read_text())
     assert data["suite"] == "emafdi-v2" and set(data["method"]) >= {"stages", "clean_stages"}
@@ -165,23 +166,23 @@ def test_targets_writes_a_v2_table_with_the_clean_data_fit(table, use_table):
     assert e["f_star"] <= e["fitness_at_truth"] < e["f_nominal"]
     assert set(e["clean_x"]) == {"Na", "Fst", "BLK", "Gprop"} and e["cpu_s"] > 0
     truth = instance("small").truth
-    p = make_v2_problem("small", cond="surface-current", track="reference", budget=1)
+    p = make_problem("small@surface-current", track="reference", budget=1)
     bias = np.abs(np.array([e["clean_x"][n] for n in p.names]) - truth) / (p.upper - p.lower)
     assert np.allclose(bias, [e["clean_bias"][n] for n in p.names], rtol=1e-12)
     use_table(table)
-    assert suite_v2.best_known_for("small@surface-current", "reference", 0)["f_star"] == \
+    assert suites.instance("small@surface-current").best_known("reference", 0)["f_star"] == \
         e["f_star"]
-    assert suite_v2.best_known_for("small@surface-current", "reference", 1) is None
-    assert suite_v2.best_known_for("small@surface-current", "reference", 0, root_seed=3) \
+    assert suites.instance("small@surface-current").best_known("reference", 1) is None
+    assert suites.instance("small@surface-current").best_known("reference", 0, root_seed=3) \
         is None
     # the table's f* is that of the problem every run of the case solves
     x = np.array([e["x_star"][n] for n in p.names])
-    q = make_v2_problem("small", cond="surface-current", track="reference", seed=run_seed(0, 0),
+    q = make_problem("small@surface-current", track="reference", seed=run_seed(0, 0),
                         budget=1)
     assert q.objective.evaluate(x[None, :])[0][0] == e["f_star"]
-    judged = suite_v2.judged_for("small@surface-current", "reference")
+    judged = suites.instance("small@surface-current").judged("reference")
     assert judged.tolist() == (bias <= MAX_TARGET_BIAS).tolist()
-    assert suite_v2.judged_for("small@surface-current", "twin") is None
+    assert suites.instance("small@surface-current").judged("twin") is None
 
 
 def test_targets_show_summarises_the_v2_table(table, use_table, capsys):
@@ -199,15 +200,15 @@ def test_targets_show_summarises_the_v2_table(table, use_table, capsys):
 def test_a_missing_or_mislabelled_table_is_tolerated_or_refused(tmp_path, use_table, table,
                                                                  capsys):
     use_table(tmp_path / "absent.json")   # absent: no fitness targets, every parameter judged
-    assert suite_v2.best_known_for("t7-s00@prior", "twin", 0) is None
-    assert suite_v2.judged_for("t7-s00@prior", "reference") is None
+    assert suites.instance("t7-s00@prior").best_known("twin", 0) is None
+    assert suites.instance("t7-s00@prior").judged("reference") is None
     assert main(["targets", "--suite", "emafdi-v2", "--show"]) != 0   # --show wants it
     assert "absent.json: no best-known table of suite emafdi-v2" in capsys.readouterr().err
     bad = tmp_path / "v1label.json"
     bad.write_text(table.read_text().replace('"emafdi-v2"', '"emafdi-v1"'))
     use_table(bad)
     with pytest.raises(SuiteError, match="not emafdi-v2"):
-        suite_v2.best_known_for("t7-s00@prior", "twin", 0)
+        suites.instance("t7-s00@prior").best_known("twin", 0)
 
 
 def test_a_biased_parameter_loses_its_parameter_targets_on_the_reference_track(
@@ -223,7 +224,7 @@ def test_a_biased_parameter_loses_its_parameter_targets_on_the_reference_track(
 
     case = "small@surface-current"
     truth = instance("small").truth
-    p = make_v2_problem("small", cond="surface-current", track="reference", budget=1)
+    p = make_problem("small@surface-current", track="reference", budget=1)
     off = truth + np.r_[-0.02, 0, 0, 0] * (p.upper - p.lower)
 
     @register_solver("at-off-na", description="test: one point 2 % off on Na", library="numpy")
@@ -253,8 +254,8 @@ def test_a_biased_parameter_loses_its_parameter_targets_on_the_reference_track(
 def test_targets_subset_options_and_suites_do_not_mix(tmp_path):
     import argparse
 
-    from ema_bench.best_known import all_keys, compute_targets
     from ema_bench.cli.targets import _keys
+    from ema_bench.suites.best_known import all_keys, compute_targets
 
     def keys(**kw):
         base = dict(suite="emafdi-v1", cases=None, tiers=None, conditions=None,
@@ -309,7 +310,7 @@ def test_check_reruns_a_v2_board_against_itself_and_refuses_another_suite(board,
     assert "no regression" in said and "40 x tier" in said and "runs at this budget: 8" in said
     recs = [json.loads(x) for x in (out / "runs.jsonl").read_text().splitlines()]
     # a smaller per-dimension budget: every committed run re-scored at its own tier's
-    committed, used = load_baseline(out, lambda c: 20 * suite_v2.parse_case(c)[0].tier, 1)
+    committed, used = load_baseline(out, lambda c: 20 * suites.instance(c).dim, 1)
     assert used == {"same_budget": 0, "re_scored": 12, "other_model_version": 0}
     assert sorted({r["budget"] for r in committed}) == [80, 140, 240]
     with pytest.raises(ValueError, match="suite version emafdi-v1"):
@@ -331,9 +332,9 @@ def test_export_writes_one_ioh_function_per_condition_with_a_dimension_per_tier(
     got = {(r["algorithm_name"], r["function_name"], r["dimension"]): r
            for r in ov.iter_rows(named=True)}
     for rec in recs:
-        inst, cond = suite_v2.parse_case(rec["case"])
-        row = got[(rec["solver"], f"{cond.name}@twin", inst.tier)]
-        assert row["instance"] == 0 and row["evals"] == rec["evaluations"] == 40 * inst.tier
+        inst = suites.instance(rec["case"])
+        row = got[(rec["solver"], f"{inst.group[1]}@twin", inst.dim)]
+        assert row["instance"] == 0 and row["evals"] == rec["evaluations"] == 40 * inst.dim
         assert row["best_y"] == min(y for _, y in rec["trace"])
     meta = json.loads(next((tmp_path / "ioh" / "random").glob("*surface-current*.json"))
                       .read_text())
@@ -344,7 +345,7 @@ def test_export_writes_one_ioh_function_per_condition_with_a_dimension_per_tier(
     assert main(["export", str(out / "runs.jsonl"), "--format", "ioh", "--value",
                  "precision", "--out", str(tmp_path / "p")]) == 0
     rec = next(r for r in recs if r["case"] == "t12-s00@surface-current")
-    known = suite_v2.best_known_for(rec["case"], rec["track"], 0)
+    known = suites.instance(rec["case"]).best_known(rec["track"], 0)
     (run,) = [r for r in read_ioh(tmp_path / "p") if r["algorithm"] == rec["solver"]
               and r["function_name"] == "surface-current@twin" and r["dimension"] == 12]
     assert run["raw_y"] == pytest.approx(
@@ -391,7 +392,7 @@ def test_validate_with_replay_accepts_the_v2_board_and_refuses_a_doctored_record
                  key=full["key"].replace("no-prior", "surface-current"))
     # refused: its targets are not the condition's (f*), nor, given them, its fitness values
     assert any("f_star" in p for p in check_record(claim))
-    known = suite_v2.best_known_for("t7-s00@surface-current", full["track"], full["seed"])
+    known = suites.instance("t7-s00@surface-current").best_known(full["track"], full["seed"])
     claim["targets"] = {**full["targets"], "f_star": known["f_star"],
                         "f_nominal": known["f_nominal"]}
     assert any("fitness" in p for p in check_record(claim))

@@ -24,8 +24,8 @@ import pytest
 import sweep_jobs
 from test_sweep_faults import _alive, _children, _cmdline
 
-from ema_bench import best_known
 from ema_bench.diagnosis import blind
+from ema_bench.suites import best_known
 from ema_bench.sweep.store import Store
 
 COMMANDS = ("leaderboard", "blind", "coverage", "track", "targets")

@@ -23,7 +23,7 @@ from inprocess import CliRun, run_cli
 
 from ema_bench.cli import main
 from ema_bench.leaderboard.run import run_tasks
-from ema_bench.leaderboard.store import read_records, run_identity
+from ema_bench.leaderboard.run_store import read_records, run_identity
 from ema_bench.leaderboard.tasks import failure_record, make_tasks, run_task
 from ema_bench.sweep.executors import execute
 from ema_bench.sweep.store import Store

@@ -13,11 +13,11 @@ from pathlib import Path
 
 import pytest
 
-from ema_bench.best_known import ENTRY_SCHEMA
 from ema_bench.diagnosis.blind import CASE_SCHEMA
-from ema_bench.leaderboard.store import RUN_SCHEMA
-from ema_bench.leaderboard.store import read_records as read_runs
+from ema_bench.leaderboard.run_store import RUN_SCHEMA
+from ema_bench.leaderboard.run_store import read_records as read_runs
 from ema_bench.prognostics.tracking import ERROR_SCHEMA, STEP_SCHEMA
+from ema_bench.suites.best_known import ENTRY_SCHEMA
 from ema_bench.sweep.schema import SchemaError
 from ema_bench.sweep.store import Store, read_records
 from ema_bench.uncertainty.coverage import RECORD_SCHEMA

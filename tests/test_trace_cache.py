@@ -34,7 +34,7 @@ def test_no_entry_holds_the_truth_and_legacy_entries_go(tmp_path, monkeypatch):
     would hand it the truth (the faults, found by matching the measured data)."""
     import numpy as np
 
-    from ema_bench.instances import make_problem
+    from ema_bench.suites.problem import make_problem
     from ema_bench.traces import load_traces
 
     legacy = tmp_path / "reference" / "old.npz"   # what earlier versions wrote

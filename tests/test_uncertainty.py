@@ -16,7 +16,7 @@ from scipy.stats import chi2, norm
 from ema_bench.objective import ProblemError, SearchSpace
 from ema_bench.physics.sensors import SENSORS
 from ema_bench.uncertainty import intervals
-from ema_bench.uncertainty.calibration import conformal_quantile, score
+from ema_bench.uncertainty.conformal import conformal_quantile, score
 from ema_bench.uncertainty.identifiability import correlation
 from ema_bench.uncertainty.local import UncertaintyError
 from ema_bench.uncertainty.noise import known_sigma
@@ -319,7 +319,7 @@ def test_conformal_quantile_and_score():
 
 
 def test_calibration_kind_of_each_track():
-    from ema_bench.uncertainty.calibration import calibration_kind
+    from ema_bench.uncertainty.conformal import calibration_kind
 
     assert calibration_kind("twin") == "twin"
     for track in ("reference", "measured", None):
@@ -363,9 +363,9 @@ def test_calibration_factors_come_from_the_shipped_scores():
     import json
     import math
 
-    from ema_bench.uncertainty import calibration
+    from ema_bench.uncertainty import conformal
 
-    data = json.loads(calibration.PATH.read_text())
+    data = json.loads(conformal.PATH.read_text())
     scores = data["scores"]["twin|laplace|none"]
     factor = []
     for name in ("Na", "Fst", "BLK", "Gprop"):
@@ -400,7 +400,7 @@ def test_a_refit_never_passes_its_evaluation_cap():
 def test_the_step_test_alone_cannot_tell_na_from_fst():
     """The paper's Na/Fst valley, seen from the data side: fitted to the step test alone,
     Na and Fst are confounded; the step and the sine together separate every pair."""
-    from ema_bench.instances import make_problem
+    from ema_bench.suites.problem import make_problem
 
     truth = np.array([0.95, 0.3378, 0.01, 1e5])   # the 'small' case
     pairs = {}

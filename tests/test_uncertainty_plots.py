@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from ema_bench.faults import FAULT_NAMES, LOWER, UPPER
-from ema_bench.instances import make_problem
+from ema_bench.suites.problem import make_problem
 from ema_bench.uncertainty import intervals
 from ema_bench.uncertainty.plots import plot_coverage, plot_profiles, plot_region
 

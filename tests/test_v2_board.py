@@ -100,7 +100,7 @@ def test_the_fit_overlay_shows_the_full_case_with_the_prior():
     """``fit_overlay.png`` shows the best fit of ``full`` on v1's problem (tier 4 with the
     prior): a step-only fit has a smaller fitness (one test weighed) and was shown before."""
     from ema_bench.leaderboard.run import overlay_run
-    from ema_bench.leaderboard.store import read_records
+    from ema_bench.leaderboard.run_store import read_records
 
     records = read_records(BOARD / "runs.jsonl")
     full = [r for r in records if r["case"] == "full@prior" and r["track"] == "reference"]

@@ -256,9 +256,9 @@ def test_the_truth_of_a_case_drawn_from_the_seed_is_the_runs_own_instance():
     # a "seeded" case is drawn from the run's node (root seed, seed): its truth is rebuilt
     # from them, never read from the record; a record without a root seed is root 0
     from ema_bench.faults import FAULT_NAMES
-    from ema_bench.instances import make_problem
     from ema_bench.leaderboard.derive import truth_of
     from ema_bench.seeding import run_seed
+    from ema_bench.suites.problem import make_problem
 
     def runs_truth(track, seed, root):
         p = make_problem("seeded", track=track, seed=run_seed(root, seed), budget=1)

@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from ema_bench.diagnosis.results import Settings, Trial
 from ema_bench.diagnosis.verdict import (
     Discrepancy,
     acceptance_reasons,
@@ -18,7 +19,7 @@ from ema_bench.diagnosis.verdict import (
     parsimony_reasons,
     penalised,
 )
-from ema_bench.diagnosis.workflow import Settings, Trial, _best
+from ema_bench.diagnosis.workflow import _best
 
 # a held-out gap: fitness 1.0 against floor 0.1 and threshold 0.2 (noise band 0.1)
 HELD_OUT = Discrepancy(holdout=1.0, floor=0.1, threshold=0.2, severity=50.0, n_flagged=3)

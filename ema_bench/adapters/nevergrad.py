@@ -32,7 +32,7 @@ from nevergrad.functions import ExperimentFunction
 from ema_bench.adapters.run import AdapterRun, append_record, evaluate_unit
 from ema_bench.instances import TRACKS
 from ema_bench.objective import SearchSpace
-from ema_bench.suite import SANITY_CASES, instance_names
+from ema_bench.suites.v1 import SANITY_CASES, instance_names
 
 #: where each finished run's record is appended
 RUNS_ENV = "EMA_BENCH_RUNS"

@@ -55,7 +55,7 @@ class AdapterRun:
     _t0: float = field(init=False, default=0.0)
 
     def __post_init__(self) -> None:
-        from ..instances import make_problem
+        from ..suites.problem import make_problem
 
         self._task = Task(self.solver, self.case, self.track, int(self.seed), int(self.budget),
                           int(self.root_seed))
@@ -103,7 +103,7 @@ class AdapterRun:
 def append_record(path: str | Path, record: dict[str, Any]) -> None:
     """Append ``record`` to a ``runs.jsonl`` (the leaderboard's store: one run once, locked
     against concurrent writers)."""
-    from ..leaderboard.store import RunStore
+    from ..leaderboard.run_store import RunStore
 
     with RunStore(Path(path)) as store:
         store.append(record)

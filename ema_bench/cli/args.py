@@ -228,7 +228,7 @@ def check_output(path: str | os.PathLike[str] | None, option: str, *, folder: bo
 def read_run_files(paths: Sequence[str]) -> list[dict]:
     """The run records of ``runs.jsonl`` files, in order (not deduplicated); CLIError (one
     line) when a file is missing, not a file, or not a file of run records."""
-    from ..leaderboard.store import read_records
+    from ..leaderboard.run_store import read_records
     from ..sweep.schema import SchemaError
 
     out: list[dict] = []

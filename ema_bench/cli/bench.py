@@ -8,7 +8,8 @@ and 12 and their ratios to tier 4; the numba/C time ratios, scalar and lanes, th
 against the 8-lane C twin on tiers 4 and 12 (needs a C compiler and a source checkout:
 benchmarks/c/monitor.c); the plain-Python baseline (the same equations, JIT off); import,
 cache-load and cold-compile times; the median time to a successful identification for cmaes
-and powell on the four paper cases, in this process and from a cold command line.  See ``ema_bench.bench`` for every key.
+and powell on the four paper cases, in this process and from a cold command line.  See
+``ema_bench.bench`` for every key.
 
 It takes a few minutes; --quick skips the start-up and time-to-success figures.
 """

@@ -18,9 +18,9 @@ Progress: a bar in a terminal, one line per finished case otherwise (--quiet: no
 a reported seed) and writes the nonconformity scores of their intervals to
 OUT/interval_calibration.json (--out is required; the shipped table is never written); about
 15 CPU-seconds per effect case.  The factor widening every named effect's interval comes from
-the shipped table (ema_bench/diagnosis/interval_calibration.py) unless --calibration FILE (or
+the shipped table (ema_bench/diagnosis/effect_interval_calibration.py) unless --calibration FILE (or
 EMA_BENCH_INTERVAL_CALIBRATION) names a user table; the summary names the table and its size.
-Replacing the shipped table is 'python -m ema_bench.calibration_files
+Replacing the shipped table is 'python -m ema_bench.interval_calibration_files
 OUT/interval_calibration.json', in a checkout (docs/diagnosis.md).
 """
 
@@ -87,8 +87,8 @@ def run(args: argparse.Namespace) -> int:
             raise CLIError(f"--only: unknown categories {unknown}; known: {', '.join(KINDS)}")
     if args.calibrate:
         return _calibrate(args)
-    from ..calibration_files import using
     from ..diagnosis.interval_table import TABLE
+    from ..interval_calibration_files import using
 
     with using(TABLE, args.calibration):
         return _run(args, only)
@@ -116,8 +116,8 @@ def _run(args: argparse.Namespace, only: list[str] | None) -> int:
 
 
 def _calibrate(args: argparse.Namespace) -> int:
-    from ..calibration_files import inside_package
-    from ..diagnosis import interval_calibration as ic
+    from ..diagnosis import effect_interval_calibration as ic
+    from ..interval_calibration_files import inside_package
 
     if args.seed not in (0, ic.CALIBRATION_SEED) or args.calibration or args.extra or \
             args.only:

@@ -10,9 +10,10 @@ OUT/TRACK_METHOD.png.
 --calibrate runs the calibration instances (root seed 1, disjoint from the reported ones) and
 writes their nonconformity scores to OUT/calibration.json (--out is required; the shipped
 table is never written).  Intervals take their calibration factors from the shipped table
-(ema_bench/uncertainty/calibration.py) unless --calibration FILE (or the environment variable
+(ema_bench/uncertainty/conformal.py) unless --calibration FILE (or the environment variable
 EMA_BENCH_CALIBRATION) names a user table; the output names the table used and its size.
-Replacing the shipped table is 'python -m ema_bench.calibration_files OUT/calibration.json',
+Replacing the shipped table is
+'python -m ema_bench.interval_calibration_files OUT/calibration.json',
 in a checkout (docs/uncertainty.md).
 
 Examples::
@@ -85,9 +86,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..calibration_files import inside_package, using
+    from ..interval_calibration_files import inside_package, using
     from ..registry import get_solver
-    from ..uncertainty import calibration as cal
+    from ..uncertainty import conformal as cal
     from ..uncertainty.methods import METHODS
 
     if not 0.0 < args.level < 1.0:
@@ -135,10 +136,10 @@ def _summary(records: list[dict], method: str, stem: str, out, args: argparse.Na
     """Write calibration scores (with --calibrate), the summary and the plot of one method."""
     import numpy as np
 
-    from ..calibration_files import describe, using
     from ..faults import FAULT_NAMES
+    from ..interval_calibration_files import describe, using
     from ..jsonio import dumps
-    from ..uncertainty import calibration as cal
+    from ..uncertainty import conformal as cal
     from ..uncertainty.coverage import recalibrated, summarise, write_calibration
 
     kind = cal.calibration_kind(args.track)

@@ -39,7 +39,7 @@ from .args import (
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from ..diagnosis.workflow import Settings
+    from ..diagnosis.results import Settings
 
     d = Settings()
     p = sub.add_parser("diagnose", help="find and name physics the monitor model misses",
@@ -64,7 +64,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..diagnosis.report import write_report
-    from ..diagnosis.workflow import Settings, diagnose
+    from ..diagnosis.results import Settings
+    from ..diagnosis.workflow import diagnose
     from ..progress import progress
     from ..registry import get_solver
     from ..seeding import stream

@@ -49,8 +49,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..leaderboard.ioh import function_name, split_runs
-    from ..leaderboard.store import is_error, unique
-    from ..suite import SANITY_CASES
+    from ..leaderboard.run_store import is_error, unique
+    from ..suites.v1 import SANITY_CASES
     from . import print_result
     from .args import check_output, read_run_files
 

@@ -122,10 +122,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from ..leaderboard.check import compare, load_baseline
     from ..leaderboard.run import leaderboard, select
-    from ..leaderboard.store import RUNS_FILE, read_records
+    from ..leaderboard.run_store import RUNS_FILE, read_records
     from ..leaderboard.tasks import make_tasks
     from ..registry import available_solvers
-    from ..suite import expand_cases
+    from ..suites.v1 import expand_cases
     from . import CLIError, print_result
     from .args import check_output
 
@@ -204,26 +204,26 @@ def run(args: argparse.Namespace) -> int:
 def _v2_sweep(args: argparse.Namespace):
     """Cases and per-case budget of an emafdi-v2 sweep (budget: per-dimension x the tier's
     dimension, or one fixed --budget)."""
-    from .. import suite_v2
+    from ..suites import instance, v2
     from . import CLIError
 
     if args.cases:
         raise CLIError("--suite emafdi-v2 picks its instances with --tiers, --conditions and "
                        "--per-tier, not --cases")
     # SuiteError, or a tier that is not a number: a ValueError, one line by main()
-    tiers = [int(t) for t in (args.tiers or suite_v2.TIERS)]
-    cases = suite_v2.cases(tiers, args.conditions or list(suite_v2.CONDITIONS), args.per_tier)
+    tiers = [int(t) for t in (args.tiers or v2.TIERS)]
+    cases = v2.cases(tiers, args.conditions or list(v2.CONDITIONS), args.per_tier)
     if args.budget is not None:
         return cases, args.budget
-    per_dim = args.budget_per_dim or suite_v2.BUDGET_PER_DIM
-    return cases, lambda case: per_dim * suite_v2.parse_case(case)[0].tier
+    per_dim = args.budget_per_dim or v2.BUDGET_PER_DIM
+    return cases, lambda case: per_dim * instance(case).dim
 
 
 def _shown(budget, args: argparse.Namespace) -> str:
     """The budget of a sweep in words (v2: per dimension x the tier)."""
     if not callable(budget):
         return str(budget)
-    from ..suite_v2 import BUDGET_PER_DIM
+    from ..suites.v2 import BUDGET_PER_DIM
 
     return f"{args.budget_per_dim or BUDGET_PER_DIM} x tier"
 

@@ -6,6 +6,7 @@ Examples::
     ema-bench solve --case small --track reference --solver cmaes --budget 2000 --seed 0
     ema-bench solve --case seeded --heterogeneity 0.5 --seed 3 --solver de --json
     ema-bench solve --case full --effect eccentricity=0.05 --solver least-squares
+    ema-bench solve --case t12-s03@no-prior --solver cmaes --budget 2000   # any suite's case
     ema-bench solve --measured traces.csv --solver cmaes --plot fit.png
     ema-bench solve --measured step.csv sine.csv --test step,sine --solver cmaes
     ema-bench solve --case seeded --seed 4 --track twin --solver de --budget 5000 \
@@ -71,8 +72,10 @@ def _register_solve(sub: argparse._SubParsersAction) -> None:
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     src = p.add_mutually_exclusive_group()
     src.add_argument("--case", default=None,
-                     help="paper case (nominal, small, full, random) or 'seeded' for a random "
-                          "instance drawn from --seed (default small)")
+                     help="a case of any suite: paper case (nominal, small, full, random), "
+                          "seeded instance s00..s19, an emafdi-v2 case instance@condition "
+                          "(t12-s03@no-prior), or 'seeded' for a random instance drawn from "
+                          "--seed (default small)")
     src.add_argument("--measured", nargs="+", action="extend", default=None, metavar="FILE",
                      help="fit measured traces from one or more .csv, .npz or .mat files (no "
                           "truth)")
@@ -107,8 +110,8 @@ def _register_solve(sub: argparse._SubParsersAction) -> None:
 
 
 def _check_args(args: argparse.Namespace) -> None:
-    from ..instances import check_settings
     from ..registry import get_solver
+    from ..suites.problem import check_settings
 
     run_node(args)   # the seeds are valid
     # make_problem's own checks, before any work (the measured path has no case)
@@ -134,7 +137,7 @@ def _case(args: argparse.Namespace):
 
 
 def _make_problem(args: argparse.Namespace):
-    from ..instances import make_problem
+    from ..suites.problem import make_problem
 
     if args.measured is not None:
         return make_problem(measured=load_measured_files(args.measured, args.test),
@@ -280,8 +283,8 @@ def _interval_plots(problem, iv, args: argparse.Namespace) -> list[str]:
 
 def _print_intervals(iv, out: dict) -> None:
     """Estimate and interval per parameter, and what the noise and tests say."""
-    from ..calibration_files import describe
-    from ..uncertainty import calibration as cal
+    from ..interval_calibration_files import describe
+    from ..uncertainty import conformal as cal
 
     # the table the factors came from, shipped or the user's (EMA_BENCH_CALIBRATION), named
     size = cal.calibration_size(iv.calibration, iv.method, iv.model_form)

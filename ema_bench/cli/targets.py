@@ -2,7 +2,7 @@
 
 One long multi-solver polishing run per (instance, track, noise seed) of the suite: zoo
 least-squares warm-started at the truth, zoo powell from its best, zoo cmaes from nominal
-(2700 evaluations in all; ema_bench/best_known.py documents the method).  It writes the JSON
+(2700 evaluations in all; ema_bench/suites/best_known.py documents the method).  It writes the JSON
 the package ships as ema_bench/suite_targets.json (--suite emafdi-v2: the package's
 suite_targets_v2.json, seed 0 shipped, whose seed-0 reference entries also hold the
 clean-data fit that picks the judged parameters); entries are appended to OUT.partial.jsonl as they
@@ -56,9 +56,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _keys(args: argparse.Namespace) -> list[str] | None:
     """The keys to compute (None: v1's default, every key of the suite)."""
-    from .. import suite_v2
     from ..instances import TRACKS
-    from ..suite import SANITY_CASES, TARGET_SEEDS, expand_cases, target_key
+    from ..suites import v2
+    from ..suites.targets import target_key
+    from ..suites.v1 import SANITY_CASES, TARGET_SEEDS, expand_cases
     from . import CLIError
 
     tracks = args.tracks or list(TRACKS)
@@ -70,7 +71,7 @@ def _keys(args: argparse.Namespace) -> list[str] | None:
         if args.cases:
             raise CLIError("--suite emafdi-v2 picks its instances with --tiers, "
                            "--conditions and --per-tier, not --cases")
-        keys = suite_v2.target_keys(args.seeds or suite_v2.TARGET_SEEDS, tracks,
+        keys = v2.target_keys(args.seeds or v2.TARGET_SEEDS, tracks,
                                     [int(t) for t in args.tiers] if args.tiers else None,
                                     args.conditions, args.per_tier)
         if not keys:
@@ -87,19 +88,21 @@ def _keys(args: argparse.Namespace) -> list[str] | None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from .. import suite_v2
-    from ..suite import describe, read_targets, shipped_targets
+    from ..suites import v2
+    from ..suites.targets import read_targets
+    from ..suites.v1 import describe, shipped_targets
     from . import CLIError, print_result
     from .args import check_output
 
-    v2 = args.suite == "emafdi-v2"
+    # a suite with clean-data fits (emafdi-v2) reports what they exclude and their cost
+    clean = args.suite == v2.SUITE_ID
     if args.show:
-        data = read_targets(suite_v2.targets_path(), suite_v2.SUITE_ID, missing_ok=False) \
-            if v2 else shipped_targets()
+        data = read_targets(v2.targets_path(), v2.SUITE_ID, missing_ok=False) \
+            if clean else shipped_targets()
     elif args.out is None:
         raise CLIError("--out FILE.json is required (or --show)")
     else:
-        from ..best_known import compute_targets
+        from ..suites.best_known import compute_targets
 
         keys = _keys(args)
         out = check_output(args.out, "--out", folder=False, suffixes=(".json",))
@@ -109,7 +112,7 @@ def run(args: argparse.Namespace) -> int:
     summary = {"suite": data["suite"], "model_version": data["model_version"],
                "entries": len(entries),
                "largest_bias": [{"key": k, "bias_range_error": b} for b, k in bias[:5]]}
-    if v2:
+    if clean:
         summary["excluded"] = _excluded(entries)
         summary["cost_by_tier"] = _cost_by_tier(entries)
     else:
@@ -118,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
              f"{len(entries)} best-known optima",
              *(f"  {k}: best-known point {100 * b:.2f} % of range from the truth"
                for b, k in bias[:5])]
-    if v2:
+    if clean:
         clean = sum("clean_x" in e for e in entries.values())
         lines += [f"  {clean} clean-data fits; parameters without parameter targets on the "
                   f"reference track (clean-data bias over 0.3 % of range): "
@@ -133,15 +136,17 @@ def run(args: argparse.Namespace) -> int:
 
 def _excluded(entries: dict) -> dict[str, list[str]]:
     """Per entry with a clean-data fit that excludes some: the parameters without
-    parameter targets (:func:`~ema_bench.suite_v2.judged_by_entry`, as scoring judges)."""
-    from ..suite_v2 import judged_by_entry, scoring_frame
+    parameter targets (:func:`~ema_bench.suites.v2.judged_by_entry`, as scoring judges)."""
+    from ..suites import instance
+    from ..suites.v2 import judged_by_entry
 
     out = {}
     for k, e in entries.items():
         case = k.split("|")[0]
-        judged = judged_by_entry(case, e)
+        inst = instance(case)
+        judged = judged_by_entry(inst, e)
         if judged is not None and not judged.all():
-            out[k] = [n for n, j in zip(scoring_frame(case)[0], judged) if not j]
+            out[k] = [n for n, j in zip(inst.names, judged) if not j]
     return out
 
 
@@ -149,11 +154,11 @@ def _cost_by_tier(entries: dict) -> dict[str, dict[str, float]]:
     """Per tier: entries, median and total CPU seconds (those that recorded them)."""
     import statistics
 
-    from ..suite_v2 import parse_case
+    from ..suites import instance
 
     by: dict[int, list[float]] = {}
     for k, e in entries.items():
         if "cpu_s" in e:
-            by.setdefault(parse_case(k.split("|")[0])[0].tier, []).append(e["cpu_s"])
+            by.setdefault(instance(k.split("|")[0]).dim, []).append(e["cpu_s"])
     return {str(d): {"entries": len(v), "cpu_s_median": statistics.median(v),
                      "cpu_s_total": sum(v)} for d, v in sorted(by.items())}

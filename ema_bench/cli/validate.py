@@ -51,10 +51,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..leaderboard.store import is_error, unique
+    from ..leaderboard.run_store import is_error, unique
     from ..leaderboard.validate import LEGACY_UNVERIFIABLE, Finding, validate
     from ..records import schema
-    from ..suite_v2 import suite_of
+    from ..suites import suite_of
     from . import CLIError, print_result
     from .args import read_run_files
 
@@ -63,7 +63,7 @@ def run(args: argparse.Namespace) -> int:
         raise CLIError(f"no run records in {', '.join(args.runs)}")
     found = validate(records, reevaluate=not args.no_reevaluate, complete=not args.partial,
                      per_tier=args.per_tier)
-    SUITE_ID = ", ".join(sorted({suite_of(r.get("case")) for r in records}))  # noqa: N806
+    SUITE_ID = ", ".join(sorted({suite_of(r.get("case")).id for r in records}))  # noqa: N806
     legacy = sum(schema(r) < 2 and not is_error(r) for r in records)
     replayed = _replay(records, "all" if args.replay_key and not args.replay else args.replay,
                        args.replay_seed, set(args.replay_key or ()) or None)

@@ -86,7 +86,8 @@ from ..sweep.store import Store, is_current
 from ..trace_cache import MODEL_VERSION
 from ..traces import Traces
 from . import acquisition, decoys
-from .workflow import Settings, diagnose
+from .results import Settings
+from .workflow import diagnose
 
 DRAWABLE = tuple(n for n in LIBRARY if math.isfinite(EFFECTS[EFFECT_INDEX[n]].detect))
 #: Every unordered pair of different drawable effects (the two-effect cases cycle them).
@@ -297,7 +298,7 @@ def run_case(case: BlindCase, seed: int, settings: Settings) -> dict:
 
 
 def score(case: BlindCase, d: Any) -> dict:
-    """The scores of diagnosis ``d`` (a :class:`~ema_bench.diagnosis.workflow.Diagnosis`)
+    """The scores of diagnosis ``d`` (a :class:`~ema_bench.diagnosis.results.Diagnosis`)
     of ``case``: by kind, see the module's docstring."""
     if case.kind == "null":
         return {"false_alarm": d.verdict != "none"}

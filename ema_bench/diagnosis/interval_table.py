@@ -1,11 +1,12 @@
 """The effect intervals' calibration table: read it, and the factor it gives.
 
-The reader only, in a module of its own: the workflow (:func:`~ema_bench.diagnosis.workflow.
-interval`) reads the factor, while :mod:`~ema_bench.diagnosis.interval_calibration`, which
-makes the table, runs the workflow and the blind suite; neither imports the other's side.  The
+The reader only, in a module of its own: the workflow (:func:`~ema_bench.diagnosis.fitting.
+interval`) reads the factor, while :mod:`~ema_bench.diagnosis.effect_interval_calibration`,
+which makes the table, runs the workflow and the blind suite; neither imports the other's side.  The
 shipped table is ``interval_calibration.json`` beside this module; a user table (``ema-bench
 blind --calibrate --out DIR`` writes DIR/interval_calibration.json) is read only when named
-(``--calibration FILE`` or ``EMA_BENCH_INTERVAL_CALIBRATION``, :mod:`ema_bench.calibration_files`).
+(``--calibration FILE`` or ``EMA_BENCH_INTERVAL_CALIBRATION``,
+:mod:`ema_bench.interval_calibration_files`).
 """
 
 from __future__ import annotations
@@ -14,8 +15,8 @@ import json
 from functools import lru_cache
 from pathlib import Path
 
-from ..calibration_files import TABLES, active, describe
-from ..uncertainty.calibration import conformal_quantile
+from ..interval_calibration_files import TABLES, active, describe
+from ..uncertainty.conformal import conformal_quantile
 
 TABLE = TABLES["interval_calibration.json"]
 #: The shipped table.

@@ -10,7 +10,7 @@ from .. import jsonio
 from ..plots import plt, save_figure
 from ..traces import SIGNALS, UNITS, Traces
 from .features import ORDERS, whiten
-from .workflow import HOLDOUT, TRAIN, Diagnosis, Fit
+from .results import HOLDOUT, TRAIN, Diagnosis, Fit
 
 
 def nrmse(model: Fit, measured: Traces) -> dict[str, dict[str, float]]:

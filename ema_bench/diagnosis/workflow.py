@@ -21,446 +21,49 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from itertools import combinations
 
 import numpy as np
 
-from ..effects import EFFECT_NAMES, EFFECTS, LIBRARY, N_EFFECTS
 from ..faults import FAULT_NAMES
-from ..instances import make_problem
-from ..monitor import simulate_monitor
-from ..objective import KNOWN_TESTS, N_FAULTS, Objective, SearchSpace, signal_weights
-from ..reference import simulate_reference
-from ..registry import run_solver
+from ..objective import N_FAULTS, Objective, SearchSpace, signal_weights
 from ..seeding import SeedLike, stream
-from ..traces import OUTPUT_DT, Traces
+from ..traces import Traces
 from . import acquisition as acq
 from .acquisition import Acquisition
-from .envelopes import Envelope, bootstrap, fitness_of, refit_projector
-from .features import residual_features, whiten
-from .screening import Candidate, score_effects, stack
+from .fitting import (
+    assess,
+    effect_bounds,
+    effect_spec,
+    fit,
+    interval,
+    physical,
+    screen,
+    simulate,
+    subset_traces,
+    trivial,
+)
+from .results import (
+    HOLDOUT,
+    TRAIN,
+    AcquisitionFinding,
+    Assessment,
+    Diagnosis,
+    DiagnosisError,
+    EffectFinding,
+    Fit,
+    Settings,
+    Trial,
+)
 from .stiction import stick_weights
 from .verdict import (
-    Discrepancy,
     acceptance_reasons,
     closure,
-    discrepancy,
-    holdout_test,
     parsimony_reasons,
     penalised,
 )
-
-TRAIN = ("step", "sine")
-HOLDOUT = ("sine2",)
-
-
-class DiagnosisError(ValueError):
-    """Traces the workflow cannot use (e.g. no held-out test)."""
-
-
-@dataclass(frozen=True)
-class Settings:
-    solver: str = "cmaes"
-    budget: int = 3000          # evaluations per fit
-    n_boot: int = 40            # bootstrap replicates
-    # robust deviations beyond which a statistic is anomalous: null cases reach ~9 at high
-    # friction (model-form gap), effects at their detection threshold >= 50
-    z_max: float = 10.0
-    # candidates fitted jointly per round: the linearised score misranks strongly nonlinear
-    # effects (a 1 ms delay ranked 4th behind aero_spring), so fit more than the top few
-    top_k: int = 6
-    min_score: float = 50.0     # screening score (chi2, 1 dof) worth a joint fit
-    accept_closed: float = 0.7  # share of the discrepancy a set must close to be named
-    partial_closed: float = 0.3  # ... to be flagged as the nearest, partial explanation
-    max_effects: int = 3        # largest set of physical effects named at once
-    max_acquisition: int = 2    # largest set of acquisition faults named at once
-    # acquisition faults (best screened, each a joint fit) tried as singles, and on top of a
-    # grown set: they cost a physics fit each, their screening costs none
-    acq_top_k: int = 2
-    pair_pool: int = 4          # best singles (training fit) whose pairs are fitted jointly
-    grow_k: int = 3             # re-screened effects tried on top of an accepted set
-    # each effect beyond the first must close this much more of the discrepancy than the
-    # set without it (the price of a parameter)
-    pair_penalty: float = 0.15
-    # a set grown beyond the pairs must close this share of what its parent leaves (judged
-    # against the parent, each addition also beating the held-out noise band, its interval
-    # excluding zero): a third effect may close little of the base discrepancy but most of
-    # what two left
-    grow_closed: float = 0.3
-
-
-@dataclass
-class Fit:
-    """A fitted (possibly augmented) monitor model and its outputs on every test."""
-
-    augment: tuple[str, ...]
-    x: np.ndarray                 # faults then augmented effect values (physical)
-    fitness: float                # training fitness
-    outputs: dict[str, np.ndarray]  # test -> (n, 4) the record the model predicts
-    evaluations: int
-    # acquisition faults the model carries (applied to ``raw``, the monitor's own outputs)
-    acquisition: tuple[Acquisition, ...] = ()
-    raw: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
-    acq_intervals: dict[str, list[float]] = field(default_factory=dict)
-
-    @property
-    def names(self) -> tuple[str, ...]:
-        """Every suspect the model carries: physical effects and acquisition faults."""
-        return tuple(sorted(self.augment + tuple(a.name for a in self.acquisition)))
-
-    @property
-    def key(self) -> str:
-        return "+".join(self.names)
-
-    @property
-    def values(self) -> dict[str, float]:
-        """Fitted value of every suspect (its unit)."""
-        return {**self.effects, **{a.name: a.value for a in self.acquisition}}
-
-    @property
-    def faults(self) -> dict[str, float]:
-        return dict(zip(FAULT_NAMES, map(float, self.x[:N_FAULTS])))
-
-    @property
-    def effects(self) -> dict[str, float]:
-        return dict(zip(self.augment, map(float, self.x[N_FAULTS:])))
-
-    def effects_vector(self) -> np.ndarray:
-        e = np.zeros(N_EFFECTS)
-        for n, v in self.effects.items():
-            e[EFFECT_NAMES.index(n)] = v
-        return e
-
-
-@dataclass
-class Assessment:
-    """What the model plus noise explains, and where the data leave it."""
-
-    flagged: list[tuple[str, float, float]]  # (feature, value, z)
-    holdout_fitness: float
-    holdout_floor: float          # median bootstrap held-out fitness
-    holdout_z: float
-    holdout_threshold: float      # fitness the model plus noise reaches at worst
-
-    @property
-    def discrepancy(self) -> Discrepancy:
-        return discrepancy(self.holdout_fitness, self.holdout_floor, self.holdout_threshold,
-                           self.flagged)
-
-    @property
-    def detected(self) -> bool:
-        return self.discrepancy.detected
-
-
-@dataclass
-class Trial:
-    """One candidate set of effects fitted jointly with the faults, and how it was judged."""
-
-    effects: tuple[str, ...]        # every effect of the model fitted
-    added: tuple[str, ...]          # those added to the model it is judged against
-    against: str                    # that model: "base" or a set's name
-    values: dict[str, float]        # fitted values of ``effects``, their units
-    intervals: dict[str, list[float]]  # 95 % intervals of ``added`` (empty: not computed)
-    judged_on: str                  # "held-out" | "statistics"
-    closed: float                   # share of the judged discrepancy closed
-    closed_total: float             # ... of the base model's discrepancy
-    holdout_fitness: tuple[float, float]   # before, after
-    train_fitness: tuple[float, float]
-    severity: tuple[float, float]   # flagged statistics' severity before, after
-    still_detected: bool            # the model with the set still leaves the envelopes
-    score: float                    # screening score of the added effects (sum)
-    accepted: bool
-    reason: str = ""
-    partial: bool = False
-
-    @property
-    def name(self) -> str:
-        return "+".join(self.effects)
-
-
-@dataclass
-class EffectFinding:
-    """A named effect: its value and interval, and what the named set closed."""
-
-    name: str
-    params: dict[str, float]
-    interval: list[float]
-    gap_before: float
-    gap_after: float
-    gap_closed: float
-    partial: bool = False     # named, but the augmented model still leaves the envelopes
-
-
-@dataclass
-class AcquisitionFinding:
-    """A named fault of the acquisition chain: its value and interval (the channel's unit,
-    :data:`~ema_bench.diagnosis.acquisition.KINDS`) and a phrase saying what it is."""
-
-    name: str
-    kind: str
-    channel: str
-    value: float
-    interval: list[float]
-    description: str
-    partial: bool = False
-
-
-@dataclass
-class Diagnosis:
-    # "none" | "effect" (a physical effect named, acquisition faults perhaps beside it) |
-    # "acquisition" (only faults of the recording named) | "unexplained"
-    verdict: str
-    effects: list[EffectFinding]
-    candidates: list[Trial]           # every candidate set fitted, accepted or not
-    faults: dict[str, dict[str, float]]
-    gap: dict[str, object]            # the discrepancy before and after (one computation)
-    flagged: list[tuple[str, float, float]]
-    screening: list[dict[str, float]]
-    evaluations: int
-    fits: dict[str, Fit] = field(default_factory=dict, repr=False)
-    message: str = ""
-    flagged_after: list[tuple[str, float, float]] = field(default_factory=list)
-    acquisition: list[AcquisitionFinding] = field(default_factory=list)
-
-    @property
-    def named(self) -> list[str]:
-        """Everything named: physical effects, then acquisition faults."""
-        return [e.name for e in self.effects] + [a.name for a in self.acquisition]
-
-    @property
-    def final(self) -> Fit:
-        """The model the verdict rests on: with the named suspects, else the base fit."""
-        return self.fits["+".join(sorted(self.named))] if self.named else self.fits["base"]
-
-    def as_dict(self) -> dict[str, object]:
-        return {
-            "verdict": self.verdict, "message": self.message,
-            "effects": [asdict(f) for f in self.effects],
-            "acquisition": [asdict(f) for f in self.acquisition],
-            "candidates": [{**asdict(t), "name": t.name} for t in self.candidates],
-            "faults": self.faults, "gap": self.gap,
-            "flagged": [{"feature": n, "value": v, "z": z} for n, v, z in self.flagged[:20]],
-            "flagged_after": [{"feature": n, "value": v, "z": z}
-                              for n, v, z in self.flagged_after[:20]],
-            "screening": self.screening, "evaluations": self.evaluations,
-        }
-
-
-def _commands(tests: tuple[str, ...]) -> dict[str, np.ndarray]:
-    """Each test's command at the output sample times (window centres), rad."""
-    out = {}
-    for t in tests:
-        spec = KNOWN_TESTS[t]
-        n = spec.n_samples()
-        dt_c = 1e-4
-        cmd = spec.command_at_samples(dt_c)
-        out[t] = np.interp((np.arange(n) + 0.5) * OUTPUT_DT, np.arange(cmd.size) * dt_c, cmd)
-    return out
-
-
-def subset_traces(tr: Traces, tests: tuple[str, ...]) -> Traces:
-    """The traces of ``tests`` only (same sampling, same metadata)."""
-    return Traces({t: tr.data[t] for t in tests}, dt=tr.dt, meta=dict(tr.meta))
-
-
-def _simulate(x: np.ndarray, augment: tuple[str, ...], tests: tuple[str, ...],
-              faults: tuple[Acquisition, ...] = ()) -> dict[str, np.ndarray]:
-    """Monitor outputs of one or more parameter vectors (rows) on ``tests``: (k, n, 4),
-    through the acquisition ``faults`` the model carries."""
-    X = np.atleast_2d(x)
-    out, _ = simulate_monitor(X[:, :4], SearchSpace.of(augment).effects_for(X),
-                              tests=tuple(KNOWN_TESTS[t] for t in tests), check=False)
-    return acq.carry(out, faults)
-
-
-class CarriedObjective(Objective):
-    """The fitness of a model that carries acquisition ``faults``: the monitor's outputs go
-    through them before they meet the record (their spikes weigh zero through
-    ``sample_weights``)."""
-
-    def __init__(self, measured: Traces, space: SearchSpace, *,
-                 sample_weights: dict[str, np.ndarray], faults: tuple[Acquisition, ...]
-                 ) -> None:
-        super().__init__(measured, space, sample_weights=sample_weights)
-        self.faults = faults
-
-    def outputs(self, X: np.ndarray) -> tuple[dict[str, np.ndarray], np.ndarray]:
-        out, ok = super().outputs(X)
-        return acq.carry(out, self.faults), ok
-
-
-def _fit_weights(measured: Traces, faults: tuple[Acquisition, ...]) -> dict[str, np.ndarray]:
-    """Per-sample weights of a fit: the stuck rotor's current and the spikes weigh zero."""
-    sw = stick_weights(measured)
-    aw = acq.weights(faults, {t: v.shape for t, v in sw.items()})
-    return {t: sw[t] * aw[t] for t in sw}
-
-
-def fit(measured: Traces, augment: tuple[str, ...], settings: Settings, seed: SeedLike,
-        start: np.ndarray | None = None, faults: tuple[Acquisition, ...] = ()) -> Fit:
-    """Fit faults (and augmented effects) to the training tests with the chosen solver,
-    warm-started at ``start`` when given; the stuck rotor's current has no weight
-    (:mod:`~ema_bench.diagnosis.stiction`).
-
-    With acquisition ``faults`` (their starting values) the model carries them: the physics
-    is fitted through them held fixed, then each is fitted again at the new monitor outputs
-    (one alternation; their parameters need no simulation, :mod:`.acquisition`)."""
-    train = subset_traces(measured, TRAIN)
-    weights = _fit_weights(train, faults)
-    problem = make_problem(measured=train, budget=settings.budget, augment=augment,
-                           start=start, sample_weights=weights)
-    if faults:
-        # the problem's objective is swapped for one that carries the faults (the solvers
-        # only ever call problem.objective)
-        problem.objective = CarriedObjective(train, problem.space, sample_weights=weights,
-                                             faults=faults)
-    res = run_solver(settings.solver, problem, settings.budget, seed=seed)
-    raw = {t: v[0] for t, v in _simulate(res.x, augment, measured.tests).items()}
-    if not faults:
-        return Fit(augment, res.x, res.fitness, raw, res.evaluations, (), raw)
-    new, ivs = acq.refit(faults, raw, measured.data, stick_weights(measured), TRAIN)
-    new = tuple(new)
-    weights = _fit_weights(train, new)
-    obj = CarriedObjective(train, problem.space, sample_weights=weights, faults=new)
-    fitness = float(obj.evaluate(res.x[None, :])[0][0])
-    return Fit(augment, res.x, fitness, acq.carry(raw, new), res.evaluations, new, raw, ivs)
-
-
-def assess(measured: Traces, model: Fit, weights: dict[str, np.ndarray],
-           settings: Settings, seed: SeedLike) -> tuple[Assessment, Envelope]:
-    """Compare the residuals of a fit with bootstrap envelopes of that fit (``weights``:
-    per test, per-sample weights of the held-out fitness; the residual statistics drop the
-    samples they weigh zero)."""
-    aw = acq.weights(model.acquisition, {t: measured.data[t].shape for t in measured.tests})
-    weights = {t: weights[t] * aw[t] for t in weights}
-    mask = {t: (weights[t] > 0.0).astype(float) for t in TRAIN}
-    clean = simulate_reference(model.x[:N_FAULTS], model.effects_vector(),
-                               tests=tuple(KNOWN_TESTS[t] for t in measured.tests),
-                               noise=False, adc=False)
-    commands = _commands(measured.tests)
-    lo, hi = _bounds(model.augment)
-    _, jac = _jacobian(model.x, model.augment, lo, hi, TRAIN, faults=model.acquisition)
-    jac = jac * np.concatenate([mask[t].ravel() for t in TRAIN])[:, None]
-    project = refit_projector(jac, TRAIN, {t: measured.data[t].shape for t in TRAIN})
-    # the replicates' record goes through the acquisition chain the model carries, after
-    # the sensor noise, as the data's did
-    env, boot_fit = bootstrap(dict(clean.data), model.outputs, commands, weights, TRAIN,
-                              settings.n_boot, seed, project, mask,
-                              (lambda d: acq.carry(d, model.acquisition))
-                              if model.acquisition else None)
-    feats = residual_features(project({t: (measured.data[t] - model.outputs[t]) * mask[t]
-                                       for t in TRAIN}),
-                              {t: measured.data[t] for t in TRAIN},
-                              {t: commands[t] for t in TRAIN})
-    flagged = env.outside(feats, settings.z_max)
-    f_ho = fitness_of({t: model.outputs[t] for t in HOLDOUT},
-                      {t: measured.data[t] for t in HOLDOUT}, weights)
-    ho = sum(f_ho.values())
-    med, z, threshold = holdout_test(ho, sum(boot_fit[t] for t in HOLDOUT), settings.z_max)
-    return Assessment(flagged, ho, med, z, threshold), env
-
-
-def _jacobian(x: np.ndarray, augment: tuple[str, ...], lower: np.ndarray,
-              upper: np.ndarray, tests: tuple[str, ...], rel: float = 1e-3,
-              faults: tuple[Acquisition, ...] = ()) -> tuple[np.ndarray, np.ndarray]:
-    """Whitened outputs at ``x`` and their forward-difference Jacobian (physical units)."""
-    h = rel * (upper - lower)
-    X = np.tile(x, (len(x) + 1, 1))
-    for i in range(len(x)):
-        # step inwards from a bound
-        h[i] = h[i] if X[0, i] + h[i] <= upper[i] else -h[i]
-        X[i + 1, i] += h[i]
-    y = stack(_simulate(X, augment, tests, faults), tests)
-    return y[0], (y[1:] - y[0]).T / h
-
-
-def profile(model: Fit, measured: Traces, params: tuple[str, ...], level: float = 0.95):
-    """Profile-likelihood intervals of the augmented effects ``params`` on the training tests
-    (:func:`ema_bench.uncertainty.intervals`, an :class:`~ema_bench.uncertainty.Intervals`):
-    the noise level is estimated from the residuals, so misfit widens them, and the faults
-    and other effects are re-optimised along each profile, so it follows a curved valley
-    instead of its tangent."""
-    from ..uncertainty import intervals
-
-    train = subset_traces(measured, TRAIN)
-    objective = CarriedObjective(train, SearchSpace.of(model.augment),
-                                 sample_weights=_fit_weights(train, model.acquisition),
-                                 faults=model.acquisition)
-    return intervals(objective, model.x, method="profile", level=level, track="measured",
-                     params=params, model_form="none", calibrate=False)
-
-
-def interval(model: Fit, measured: Traces, params: tuple[str, ...] | None = None,
-             level: float = 0.95, calibrate: bool = True) -> dict[str, list[float]]:
-    """Intervals of augmented effects (default: the last one), ``name -> [low, high]``:
-    their :func:`profile` intervals, each half-width multiplied (with ``calibrate``) by the
-    shipped split-conformal factor for the model-form bias the noise does not account for
-    (:mod:`~ema_bench.diagnosis.interval_calibration`; the active table:
-    :mod:`~ema_bench.diagnosis.interval_table`)."""
-    from .interval_table import factor
-
-    params = params or model.augment[-1:]
-    iv = profile(model, measured, params, level)
-    q = factor(level) if calibrate else 1.0
-    out = {}
-    for n in params:
-        i = N_FAULTS + model.augment.index(n)
-        c = float(iv.estimate[i])      # the profiles' centre (the polished fit)
-        out[n] = [c - q * (c - float(iv.low[i])), c + q * (float(iv.high[i]) - c)]
-    return out
-
-
-def screen(measured: Traces, model: Fit, lower: np.ndarray, upper: np.ndarray,
-           exclude: tuple[str, ...]) -> list[Candidate]:
-    """Score every observable library effect not already in the model.
-
-    The score uses the held-out test beside the training ones: some effects (a current-sensor
-    gain, a soft gear) are absorbed by the faults on the training tests and show only where
-    the fit has to extrapolate.  Only the ordering of candidates uses it; every candidate is
-    still fitted on the training tests alone and judged on the held-out one."""
-    tests = TRAIN + HOLDOUT
-    names = [n for n in LIBRARY if n not in exclude
-             and math.isfinite(EFFECTS[EFFECT_NAMES.index(n)].detect)]
-    y0, J = _jacobian(model.x, model.augment, lower, upper, tests, faults=model.acquisition)
-    sw = _fit_weights(measured, model.acquisition)
-    keep = np.concatenate([sw[t].ravel() for t in tests])
-    y0, J = y0 * keep, J * keep[:, None]
-    data = np.concatenate([whiten(measured.data[t]).ravel() for t in tests]) * keep
-    base_e = model.effects_vector()
-    X = np.tile(model.x[:N_FAULTS], (len(names), 1))
-    E = np.tile(base_e, (len(names), 1))
-    steps = {}
-    for i, n in enumerate(names):
-        spec = EFFECTS[EFFECT_NAMES.index(n)]
-        h = spec.detect if spec.upper > 0 else -spec.detect
-        E[i, EFFECT_NAMES.index(n)] += h
-        steps[n] = h
-    out, _ = simulate_monitor(X, E, tests=tuple(KNOWN_TESTS[t] for t in tests), check=False)
-    ys = stack(acq.carry(out, model.acquisition), tests) * keep
-    cols = {n: (ys[i], steps[n]) for i, n in enumerate(names)}
-    return score_effects(data - y0, y0, J, cols)
-
-
-def _bounds(augment: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
-    space = SearchSpace.of(augment)
-    return np.asarray(space.lower), np.asarray(space.upper)
-
-
-def effect_spec(name: str):
-    """The library entry (:class:`~ema_bench.effects.Effect`) of the physical effect ``name``."""
-    return EFFECTS[EFFECT_NAMES.index(name)]
-
-
-def _trivial(name: str) -> float:
-    """The trivial band of a physical effect or an acquisition fault (its unit)."""
-    return acq.trivial(name) if acq.is_acquisition(name) else effect_spec(name).trivial
-
-
-def _physical(names: tuple[str, ...]) -> tuple[str, ...]:
-    return tuple(n for n in names if not acq.is_acquisition(n))
 
 
 @dataclass
@@ -497,7 +100,7 @@ class _Search:
             self.n_trials += 1
             if faults is None:
                 faults = tuple(self.guess[n] for n in effects if acq.is_acquisition(n))
-            f = fit(self.measured, _physical(effects), s,
+            f = fit(self.measured, physical(effects), s,
                     stream(self.seed, "fit", 1, self.n_trials), start, faults)
             self.guess.update({a.name: a for a in f.acquisition})
             self.evaluations += f.evaluations
@@ -512,7 +115,7 @@ class _Search:
         values = f.values
         kw = dict(base=before, after=after, fit_before=ref_fit.fitness, fit_after=f.fitness,
                   values={n: values[n] for n in added},
-                  trivial={n: _trivial(n) for n in added},
+                  trivial={n: trivial(n) for n in added},
                   accept_closed=s.accept_closed if accept is None else accept)
         where, closed = closure(before, after)
         _, closed_total = closure(self.base_status.discrepancy, after)
@@ -565,7 +168,7 @@ class _Search:
             train)).evaluate(x[None, :])[0][0])
         if fitness >= self.fits[key].fitness:
             return None
-        outputs = {t: v[0] for t, v in _simulate(x, keep, self.measured.tests).items()}
+        outputs = {t: v[0] for t, v in simulate(x, keep, self.measured.tests).items()}
         self.fits[key] = Fit(keep, x, fitness, outputs, 0, (), outputs)
         self.n_trials += 1
         self.status[key], _ = assess(self.measured, self.fits[key], self.weights,
@@ -580,7 +183,7 @@ class _Search:
         (else zero), in bounds."""
         return np.r_[faults, [np.clip(values.get(n, 0.0), effect_spec(n).lower,
                                       effect_spec(n).upper)
-                              for n in _physical(effects)]]
+                              for n in physical(effects)]]
 
     def screen_acquisition(self, f: Fit) -> list[acq.Estimate]:
         """The acquisition faults ``f`` does not carry, fitted at its residuals, best first
@@ -599,7 +202,7 @@ class _Search:
         leaves."""
         s = self.settings
         f = self.fits[from_.name]
-        lo, hi = _bounds(f.augment)
+        lo, hi = effect_bounds(f.augment)
         cands: list[tuple[str, float, dict[str, float]]] = []
         if len(f.augment) < s.max_effects:
             cands += [(c.name, c.score, {c.name: c.step})
@@ -678,7 +281,7 @@ def _search(search: _Search, result: Diagnosis) -> Trial | None:
     then triples on the best pair when no pair is accepted, then growth of the accepted
     set."""
     s, base = search.settings, search.base
-    lo, hi = _bounds(())
+    lo, hi = effect_bounds(())
     ranked = screen(search.measured, base, lo, hi, ())
     acq_ranked = search.screen_acquisition(base)
     result.screening = ([{"name": c.name, "score": c.score, "step": c.step} for c in ranked]
@@ -712,7 +315,7 @@ def _search(search: _Search, result: Diagnosis) -> Trial | None:
         # held-out fit 3x worse on the nominal case with a soft gear, the pair closes it)
         pool = sorted((t for t in singles
                        if t.train_fitness[1] < t.train_fitness[0]
-                       and all(abs(v) > _trivial(n) for n, v in t.values.items())),
+                       and all(abs(v) > trivial(n) for n, v in t.values.items())),
                       key=lambda t: t.train_fitness[1])[:s.pair_pool]
         pairs = [_pair(search, a, b) for a, b in combinations(pool, 2)]
         chosen = _best(search.trials, s.pair_penalty)
@@ -747,15 +350,15 @@ def _triples(search: _Search, pool: list[Trial], pairs: list[Trial]) -> Trial | 
     s = search.settings
     best = max(pairs, key=lambda t: t.closed_total)
     if best.closed_total < s.partial_closed or \
-            len(_physical(best.effects)) > s.max_effects:
+            len(physical(best.effects)) > s.max_effects:
         return None
     out = []
     for c in pool:
         if set(c.effects) <= set(best.effects):
             continue
         effects = tuple(sorted(best.effects + c.effects))
-        if len(_physical(effects)) > s.max_effects or \
-                len(effects) - len(_physical(effects)) > s.max_acquisition:
+        if len(physical(effects)) > s.max_effects or \
+                len(effects) - len(physical(effects)) > s.max_acquisition:
             continue
         f = search.fits[best.name]
         start = search.start(effects, {**f.effects, **c.values}, f.x[:N_FAULTS])
@@ -810,7 +413,7 @@ def _conclude(result: Diagnosis, search: _Search, chosen: Trial | None) -> None:
     missing = tuple(n for n in chosen.effects if n not in ivs)
     if missing:
         ivs.update(search.intervals(f, missing))
-    phys = _physical(chosen.effects)
+    phys = physical(chosen.effects)
     result.verdict = "effect" if phys else "acquisition"
     result.effects = [EffectFinding(n, {n: f.effects[n]}, ivs[n], d0.gap, d1.gap, closed,
                                     partial=chosen.partial) for n in phys]

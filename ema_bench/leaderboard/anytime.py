@@ -1,6 +1,6 @@
 """Anytime scores of run records: fixed-target ERT, ECDF area, fixed-budget quantiles.
 
-Targets (:mod:`~ema_bench.suite`) of a run on a suite instance: four fitness targets
+Targets (:mod:`~ema_bench.suites.targets`) of a run on a suite instance: four fitness targets
 ``f* + p (f_nominal - f*)``, ``p`` = 1e-1 .. 1e-4, and three parameter targets (the best-so-far
 point within 10, 3, 1 % of every fault's range of the truth).  A record's ``targets`` field
 holds the evaluation at which each was first reached.
@@ -37,15 +37,15 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
-from ..suite import (
+from ..suites.targets import (
     BUDGET_CHECKPOINTS,
     FITNESS_PRECISIONS,
     PARAMETER_TARGETS,
-    SANITY_CASES,
     precision_key,
 )
+from ..suites.v1 import SANITY_CASES
 from .derive import derived, precision
-from .store import is_error
+from .run_store import is_error
 
 CONFIDENCE = 0.95
 N_RESAMPLES = 2000

@@ -25,10 +25,11 @@ from pathlib import Path
 
 from scipy import stats
 
-from ..suite import SANITY_CASES, SUITE_ID
+from ..suites import DEFAULT, suite_of
+from ..suites.v1 import SANITY_CASES
 from .anytime import run_area
+from .run_store import RUNS_FILE, is_current, read_records, run_identity
 from .scores import ALL
-from .store import RUNS_FILE, is_current, read_records, run_identity
 
 #: Family-wise false-alarm level of one check (all solvers and tracks together).
 ALPHA = 0.05
@@ -37,15 +38,15 @@ ALPHA = 0.05
 PACKAGED_BASELINE = "share/ema-bench/leaderboards"
 
 
-def suite_of(record: dict) -> str:
+def record_suite(record: dict) -> str:
     """The suite version a record was scored under (records before suites: ``"none"``)."""
     return str(record.get("suite", "none"))
 
 
-def check_suites(records: list[dict], where: str, suite: str = SUITE_ID) -> None:
+def check_suites(records: list[dict], where: str, suite: str = DEFAULT.id) -> None:
     """ValueError naming both versions when ``records`` are of another suite version than
     ``suite``."""
-    other = sorted({suite_of(r) for r in records} - {suite})
+    other = sorted({record_suite(r) for r in records} - {suite})
     if other:
         raise ValueError(f"{where} holds runs of suite version {', '.join(other)}; this is "
                          f"{suite}: their targets differ and they cannot be compared "
@@ -128,9 +129,7 @@ def compare(now: list[dict], committed: list[dict], alpha: float = ALPHA
     areas (now smaller) significant at ``alpha`` / number of comparisons.  Both sides must
     be runs of one suite version, that of ``now``'s cases (v1, or emafdi-v2 for v2 case
     keys); ValueError otherwise."""
-    from ..suite_v2 import suite_of as suite_of_case
-
-    suites = sorted({suite_of_case(r["case"]) for r in now}) or [SUITE_ID]
+    suites = sorted({suite_of(r["case"]).id for r in now}) or [DEFAULT.id]
     if len(suites) > 1:
         raise ValueError(f"this run mixes suites {', '.join(suites)}: check each apart")
     check_suites(committed, "the baseline", suites[0])

@@ -39,17 +39,15 @@ import numpy as np
 from ..faults import FAULT_NAMES, LOWER, N_FAULTS, UPPER
 from ..records import schema
 from ..scoring import SUCCESS_RANGE_ERROR, paper_accuracy, range_error
-from ..suite import (
+from ..suites import find
+from ..suites.targets import (
     BUDGET_CHECKPOINTS,
     FITNESS_PRECISIONS,
     PARAMETER_TARGETS,
     fitness_targets,
-    instance_faults,
-    is_instance,
     precision_key,
 )
-from ..suite_v2 import best_known_for, is_v2_case, judged_for, scoring_frame
-from .store import is_error
+from .run_store import is_error, model_version
 
 
 class DerivationError(ValueError):
@@ -86,19 +84,13 @@ _NO_HITS = dict.fromkeys(map(precision_key, PARAMETER_TARGETS))
 def truth_of(record: dict) -> np.ndarray:
     """The true faults of the record's instance, from the suite (or, for a case drawn from the
     seed, the rebuilt instance), never from the record."""
-    case = record["case"]
-    if is_v2_case(case):
-        return scoring_frame(case)[1][:N_FAULTS]
-    if is_instance(case):
-        return instance_faults(case)
-    return _rebuilt_truth(case, record["track"], int(record["seed"]),
-                          int(record.get("root_seed", 0)))
+    return frame_of(record)[0][:N_FAULTS]
 
 
 @lru_cache(maxsize=256)
 def _rebuilt_truth(case: str, track: str, seed: int, root_seed: int) -> np.ndarray:
-    from ..instances import make_problem
     from ..seeding import run_seed
+    from ..suites.problem import make_problem
 
     p = make_problem(case, track=track, seed=run_seed(root_seed, seed), budget=1)
     return np.array([p.score(p.nominal).truth[n] for n in FAULT_NAMES])
@@ -106,14 +98,16 @@ def _rebuilt_truth(case: str, track: str, seed: int, root_seed: int) -> np.ndarr
 
 def frame_of(record: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Truth, ranges and judged mask of the parameters the record's parameter targets and
-    success judge: the faults (v1), or every searched parameter of a v2 tier (its effects
-    too) but, on the reference track, those with a large clean-data bias
-    (:func:`~ema_bench.suite_v2.judged_for`, from the shipped table, never the record)."""
-    if is_v2_case(record["case"]):
-        _, truth, ranges = scoring_frame(record["case"])
-        judged = judged_for(record["case"], record["track"])
-        return truth, ranges, np.ones(truth.size, bool) if judged is None else judged
-    return truth_of(record), UPPER - LOWER, np.ones(N_FAULTS, bool)
+    success judge: the instance's frame (:meth:`~ema_bench.suites.base.Instance.frame`: every
+    searched parameter, on a suite's reference track maybe fewer, from the shipped table,
+    never the record), or the faults of a case drawn from the seed, rebuilt."""
+    inst = find(record["case"])
+    if inst is None:
+        truth = _rebuilt_truth(record["case"], record["track"], int(record["seed"]),
+                               int(record.get("root_seed", 0)))
+        return truth, UPPER - LOWER, np.ones(N_FAULTS, bool)
+    truth, ranges, judged = inst.frame(record["track"])
+    return truth, ranges, np.ones(truth.size, bool) if judged is None else judged
 
 
 def _points(record: dict) -> tuple[list[int], list[float], list[np.ndarray] | None]:
@@ -154,8 +148,8 @@ def derive(record: dict) -> Derived:
     keep = [i for i, e in enumerate(ev) if e <= cut] or [0]
     ev, fit = [ev[i] for i in keep], [fit[i] for i in keep]
     vecs = None if vecs is None else [vecs[i] for i in keep]
-    truth = truth_of(record)
     every, ranges, judged = frame_of(record)   # parameter targets and success judge these
+    truth = every[:N_FAULTS]
     if vecs is not None:
         final = vecs[-1][:N_FAULTS]
     else:
@@ -164,8 +158,10 @@ def derive(record: dict) -> Derived:
         except (KeyError, TypeError, ValueError) as exc:
             raise DerivationError(f"final vector x unreadable ({exc})") from None
     err = range_error(final, truth)
-    known = best_known_for(record["case"], record["track"], int(record["seed"]),
-                       int(record.get("root_seed", 0)))
+    inst = find(record["case"])
+    known = None if inst is None else inst.best_known(
+        record["track"], int(record["seed"]), int(record.get("root_seed", 0)),
+        model_version(record))
     # improvements only: a legacy trace ends with the last evaluation, which may repeat
     imp = [i for i in range(len(fit)) if i == 0 or fit[i] < fit[i - 1]]
     last = ev[imp[-1]]

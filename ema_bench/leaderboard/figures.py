@@ -11,10 +11,9 @@ from pathlib import Path
 import numpy as np
 
 from ..faults import CASES, FAULT_NAMES, NOMINAL, check_faults
-from ..instances import make_problem
 from ..plots import plot_traces, plt, save_figure
-from ..suite import SANITY_CASES
-from ..suite_v2 import build_problem
+from ..suites.problem import make_problem
+from ..suites.v1 import SANITY_CASES
 from ..traces import Traces
 from .anytime import ecdf_curve
 from .scaling import group_of, groups
@@ -217,7 +216,7 @@ def overlay_plot(record: dict, path: Path) -> None:
     task = Task(record["solver"], record["case"], record["track"], record["seed"],
                 record["budget"], record["root_seed"])
     # a v2 case too (its searched effects: the healthy point has them at 0)
-    problem = build_problem(task.case, track=task.track, seed=task.node(), budget=1)
+    problem = make_problem(task.case, track=task.track, seed=task.node(), budget=1)
     x = check_faults([record["x"][n] for n in FAULT_NAMES])
     if problem.dim > len(FAULT_NAMES):   # the effects: from the best point's full vector
         x = np.asarray(record["trajectory"][-1][2], dtype=float)

@@ -68,10 +68,10 @@ from pathlib import Path
 from typing import Any
 
 from ..faults import FAULT_NAMES
-from ..suite import FITNESS_PRECISIONS, PARAMETER_TARGETS, SANITY_CASES
-from ..suite_v2 import CONDITIONS, best_known_for, is_v2_case, parse_case
-from ..suite_v2 import instance_names as v2_instance_names
-from .store import is_error
+from ..suites import DEFAULT, SUITES, find
+from ..suites.targets import FITNESS_PRECISIONS, PARAMETER_TARGETS
+from ..suites.v1 import SANITY_CASES
+from .run_store import is_error, model_version
 
 log = logging.getLogger("ema_bench")
 
@@ -84,10 +84,6 @@ ATTRIBUTES = ("evaluations", "raw_y")
 RUN_ATTRIBUTES = ("seed", "root_seed", "budget")
 #: per-run numbers written where the suite knows them (floats)
 OPTIMUM_ATTRIBUTES = ("f_star", "f_nominal")
-#: IOH tools store instance ids as unsigned 16-bit integers (iohinspector: ``UInt16``)
-MAX_INSTANCE = 2**16 - 1
-#: suite emafdi-v2: IOH instance = this x the instance's position in its tier + the seed
-V2_SEEDS = 1000
 #: what the data files' ``raw_y`` holds
 VALUES = ("raw", "precision")
 
@@ -98,35 +94,29 @@ def function_name(record: Mapping[str, Any]) -> str:
     """The IOH function of a run record: ``case@track`` (v1), ``condition@track`` (suite
     emafdi-v2: one function per condition, one dimension per tier)."""
     case = str(record["case"])
-    if is_v2_case(case):
-        return f"{parse_case(case)[1].name}@{record['track']}"
-    return f"{case}@{record['track']}"
+    inst = find(case)
+    return f"{case if inst is None else inst.ioh_function}@{record['track']}"
 
 
 def dimension_of(record: Mapping[str, Any]) -> int:
-    """The IOH dimension of a run: 4 (v1), the tier (v2)."""
-    case = str(record["case"])
-    return parse_case(case)[0].tier if is_v2_case(case) else DIMENSION
+    """The IOH dimension of a run: its instance's searched parameters (4: the faults)."""
+    inst = find(str(record["case"]))
+    return DIMENSION if inst is None else inst.dim
 
 
 def instance_of(record: Mapping[str, Any]) -> int:
-    """The IOH instance of a run: its seed (0 .. 65535; the root seed is a run attribute);
-    suite emafdi-v2, whose function spans a tier's instances: ``V2_SEEDS x`` the
-    instance's position in its tier plus the seed."""
+    """The IOH instance of a run (0 .. 65535; the root seed is a run attribute): its seed,
+    or (suite emafdi-v2, whose function spans a tier's instances) ``1000 x`` the instance's
+    position in its tier plus the seed
+    (:meth:`~ema_bench.suites.base.Instance.ioh_instance`)."""
     seed, root = int(record["seed"]), int(record.get("root_seed") or 0)
     if seed < 0 or root < 0:
         raise ValueError(f"run {_label(record)}: negative seed or root seed")
-    case = str(record["case"])
-    if is_v2_case(case):
-        if seed >= V2_SEEDS:
-            raise ValueError(f"run {_label(record)}: seed {seed} is beyond the {V2_SEEDS} "
-                             "seeds per instance an emafdi-v2 export numbers")
-        inst = parse_case(case)[0]
-        return V2_SEEDS * v2_instance_names(inst.tier).index(inst.name) + seed
-    if seed > MAX_INSTANCE:
-        raise ValueError(f"run {_label(record)}: seed {seed} is beyond IOH's 16-bit instance "
-                         f"ids (at most {MAX_INSTANCE})")
-    return seed
+    inst = find(str(record["case"]))
+    try:
+        return (DEFAULT if inst is None else inst.suite).ioh_instance(inst, seed)
+    except ValueError as exc:
+        raise ValueError(f"run {_label(record)}: {exc}") from None
 
 
 def optimum(record: Mapping[str, Any]) -> tuple[float, float] | None:
@@ -134,8 +124,10 @@ def optimum(record: Mapping[str, Any]) -> tuple[float, float] | None:
     re-derivation uses, else None (root seed other than 0, seed beyond the shipped ones, the
     sanity case, a custom case).  Never the record's own claim: a record that states a lower
     ``f_star`` would export better precisions than it reached."""
-    known = best_known_for(str(record["case"]), str(record["track"]), int(record["seed"]),
-                           int(record.get("root_seed") or 0))
+    inst = find(str(record["case"]))
+    known = None if inst is None else inst.best_known(
+        str(record["track"]), int(record["seed"]), int(record.get("root_seed") or 0),
+        model_version(record))
     return None if known is None else (float(known["f_star"]), float(known["f_nominal"]))
 
 
@@ -249,10 +241,8 @@ def suite_function_ids() -> dict[str, int]:
     order, tracks alternating (``nominal@reference`` 1, ``nominal@twin`` 2, ...); then
     emafdi-v2's ``condition@track`` in its order (``prior@reference`` 49, ...)."""
     from ..instances import TRACKS
-    from ..suite import instance_names
 
-    names = [f"{c}@{t}" for c in instance_names() for t in TRACKS]
-    names += [f"{c}@{t}" for c in CONDITIONS for t in TRACKS]
+    names = [f"{f}@{t}" for s in SUITES.values() for f in s.ioh_functions() for t in TRACKS]
     return {n: i for i, n in enumerate(names, 1)}
 
 
@@ -302,7 +292,7 @@ def _function_files(folder: Path, solver: str, name: str, fid: int, group: list[
         best_y = min(y for _, y in trace)
         best_e = next(e for e, y in trace if y == best_y)
         run = {"instance": instance_of(r), "evals": _int(r, "evaluations"),
-               "best": {"evals": best_e, "y": best_y, "x": _x(r, dim)},
+               "best": {"evals": best_e, "y": best_y, "x": _x(r)},
                **{a: _int(r, a) for a in attrs}}
         if known:
             run.update(zip(OPTIMUM_ATTRIBUTES, opt))
@@ -364,22 +354,20 @@ def _trace(r: Mapping[str, Any]) -> list[tuple[int, float]]:
     return trace
 
 
-def _x(r: Mapping[str, Any], dim: int = DIMENSION) -> list[float]:
-    """The run's final vector: the faults (``x``), then (v2) its ``fitted_effects`` in the
-    tier's order."""
+def _x(r: Mapping[str, Any]) -> list[float]:
+    """The run's final vector: the faults (``x``), then its instance's fitted effects
+    (``fitted_effects``) in the instance's order."""
+    inst = find(str(r["case"]))
     try:
         x = [float(r["x"][n]) for n in FAULT_NAMES]
     except (KeyError, TypeError, ValueError):
         raise ValueError(f"run {_label(r)}: 'x' lacks one of {', '.join(FAULT_NAMES)}") from None
-    if dim == DIMENSION:
-        return x
-    from ..suite_v2 import tier
-
+    effects = () if inst is None else inst.augment
     try:
-        return x + [float(r["fitted_effects"][n]) for n in tier(dim).effects]
+        return x + [float(r["fitted_effects"][n]) for n in effects]
     except (KeyError, TypeError, ValueError):
         raise ValueError(f"run {_label(r)}: 'fitted_effects' lacks one of "
-                         f"{', '.join(tier(dim).effects)}") from None
+                         f"{', '.join(effects)}") from None
 
 
 def _info(r: Mapping[str, Any]) -> str:
@@ -387,68 +375,3 @@ def _info(r: Mapping[str, Any]) -> str:
     lib = str(r.get("info") or "")
     version = (r.get("library") or {}).get(lib) if lib else None
     return f"{lib} {version}" if version else lib
-
-
-def read_ioh(folder: Path) -> list[dict[str, Any]]:
-    """The runs of the IOHprofiler data under ``folder`` (every ``IOHprofiler_*.json`` meta
-    file below it and the data files it names), read from the format alone.
-
-    Returns
-    -------
-    list of dict
-        Per run: ``algorithm``, ``algorithm_info``, ``suite``, ``function_id``,
-        ``function_name``, ``maximization``, ``dimension``, ``instance``, ``run_evals`` (the
-        run's evaluations), ``evals`` and ``raw_y`` (the data lines), ``best_y``,
-        ``best_evals``, ``best_x`` and the run attributes (``attributes``).
-
-    Raises
-    ------
-    ValueError
-        A data file's runs do not match its meta file's, or a line does not parse.
-    """
-    out = []
-    for meta_path in sorted(Path(folder).rglob("IOHprofiler_*.json")):
-        meta = json.loads(meta_path.read_text(encoding="utf-8"))
-        for scen in meta["scenarios"]:
-            dat = meta_path.parent / scen["path"]
-            blocks = _dat_runs(dat)
-            if len(blocks) != len(scen["runs"]):
-                raise ValueError(f"{dat}: {len(blocks)} runs, {meta_path} lists "
-                                 f"{len(scen['runs'])}")
-            for run, (header, rows) in zip(scen["runs"], blocks):
-                cols = {h: [row[i] for row in rows] for i, h in enumerate(header)}
-                out.append({
-                    "algorithm": meta["algorithm"]["name"],
-                    "algorithm_info": meta["algorithm"]["info"],
-                    "suite": meta["suite"], "function_id": meta["function_id"],
-                    "function_name": meta["function_name"],
-                    "maximization": meta["maximization"], "dimension": scen["dimension"],
-                    "instance": run["instance"], "run_evals": run["evals"],
-                    "evals": [int(v) for v in cols["evaluations"]], "raw_y": cols["raw_y"],
-                    "best_y": run["best"]["y"], "best_evals": run["best"]["evals"],
-                    "best_x": run["best"]["x"],
-                    "attributes": {a: run[a] for a in meta.get("run_attributes", [])},
-                })
-    return out
-
-
-def _dat_runs(path: Path) -> list[tuple[list[str], list[list[float]]]]:
-    """``(header, rows)`` per run of a .dat file: a line that does not start with a number
-    is a header and starts a run."""
-    runs: list[tuple[list[str], list[list[float]]]] = []
-    for n, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
-        fields = line.split()
-        if not fields:
-            continue
-        try:
-            float(fields[0])
-        except ValueError:
-            runs.append((fields, []))
-            continue
-        if not runs:
-            raise ValueError(f"{path}:{n}: data before the first header line")
-        try:
-            runs[-1][1].append([float(v) for v in fields])
-        except ValueError:
-            raise ValueError(f"{path}:{n}: not a number in {line!r}") from None
-    return runs

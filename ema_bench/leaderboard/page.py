@@ -14,8 +14,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from ..suite import SUITE_ID, instance_names
-from ..suite_v2 import SUITE_ID as V2_ID
+from ..suites import board_suite, case_order
 from ..trace_cache import MODEL_VERSION
 from . import scaling
 from .anytime import anytime_scores, sanity_scores
@@ -30,7 +29,6 @@ from .report import (
     sanity_rows,
     scaling_rows,
 )
-from .scaling import is_v2_board
 
 #: options whose value is a local path or address, and what the page shows instead
 _LOCAL = {"--out": "OUT", "--check": "DIR", "--scheduler": "ADDRESS"}
@@ -51,7 +49,7 @@ def shareable(header: str) -> str:
 def higher_better(columns: list[str]) -> list[str]:
     """The columns where a larger value is better: areas, hit rates, the sanity count and
     the per-instance areas (named by instance)."""
-    instances = set(instance_names())
+    instances = set(case_order())
     return [c for c in columns
             if "area" in c or "reached" in c or c.startswith("stayed")
             or c in instances]
@@ -70,10 +68,11 @@ def _table(caption: str, rows: list[dict[str, object]], note: str = "") -> Table
 
 def write_page(records: list[dict], path: Path, header: str, images: list[Path]) -> Path:
     """Write the page of ``records`` to ``path`` (atomically); returns ``path``."""
-    if is_v2_board(records):
-        return write_html(path, f"ema-bench leaderboard ({V2_ID})", shareable(header),
+    suite = board_suite(records)
+    if suite.grouped:
+        return write_html(path, f"ema-bench leaderboard ({suite.id})", shareable(header),
                           [*v2_sections(records), Section("Plots", images=images)],
-                          footer=f"suite {V2_ID}, model version {MODEL_VERSION}")
+                          footer=f"suite {suite.id}, model version {MODEL_VERSION}")
     scores = anytime_scores(records, per_case=True)
     sanity = sanity_scores(records)
     sections = [Section(
@@ -85,9 +84,9 @@ def write_page(records: list[dict], path: Path, header: str, images: list[Path])
                 _table("Sanity: the healthy actuator (not ranked)", sanity_rows(sanity, track)),
                 _table("ECDF area per instance", instance_rows(scores, track))])
         for track in dict.fromkeys(r["track"] for r in records)]
-    return write_html(path, f"ema-bench leaderboard ({SUITE_ID})", shareable(header),
+    return write_html(path, f"ema-bench leaderboard ({suite.id})", shareable(header),
                       [*sections, Section("Plots", images=images)],
-                      footer=f"suite {SUITE_ID}, model version {MODEL_VERSION}")
+                      footer=f"suite {suite.id}, model version {MODEL_VERSION}")
 
 
 def v2_sections(records: list[dict]) -> list[Section]:

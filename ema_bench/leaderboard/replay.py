@@ -30,8 +30,8 @@ import numpy as np
 from ..faults import FAULT_NAMES
 from ..manifest import blas_kernel
 from ..registry import run_solver
-from ..suite_v2 import build_problem
-from .store import is_error
+from ..suites.problem import make_problem
+from .run_store import is_error
 from .tasks import Task
 
 #: Relative agreement of a replayed fitness or vector with the record's (the runs are
@@ -96,8 +96,8 @@ def replay(records: list[dict], k: int | None = None, seed: int = REPLAY_SEED,
         try:
             # the truthful problem is freed at once: while the solver runs, no truth of a
             # non-public instance is in memory to be read
-            problem = build_problem(task.case, track=task.track, seed=task.node(),
-                                    budget=task.budget).without_truth()
+            problem = make_problem(task.case, track=task.track, seed=task.node(),
+                                   budget=task.budget).without_truth()
             res = run_solver(task.solver, problem, task.budget, seed=task.node())
             finding = compare(r, problem.history(), res.x)
         except Exception as exc:   # a solver that cannot be replayed is a finding, not a crash

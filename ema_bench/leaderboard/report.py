@@ -14,8 +14,7 @@ import numpy as np
 
 from ..escape import csv_value, markdown
 from ..faults import CASES, FAULT_NAMES, FAULT_UNITS
-from ..suite import instance_names
-from ..suite_v2 import is_v2_case, parse_case
+from ..suites import board_suite, case_order, find
 from . import scaling
 from .anytime import (
     FITNESS_TARGETS,
@@ -99,7 +98,7 @@ def sanity_rows(sanity: list[SanityScore], track: str) -> list[dict[str, object]
 def instance_rows(scores: list[AnytimeScore], track: str) -> list[dict[str, object]]:
     """Solvers x instances: the ECDF area of each solver on each instance."""
     per = [s for s in scores if s.track == track and s.cases != ALL]
-    order = {c: i for i, c in enumerate(instance_names())}   # the suite's order, then others
+    order = case_order()   # the suites' order, then others
     cases = sorted(dict.fromkeys(s.cases for s in per), key=lambda c: (order.get(c, 1e9), c))
     solvers = [s.solver for s in scores if s.track == track and s.cases == ALL]
     area = {(s.solver, s.cases): s.area[0] for s in per}
@@ -113,8 +112,9 @@ def write_leaderboards(records: list[dict], out: Path, header: str) -> list[Path
     instance); returns the paths written."""
     scores = anytime_scores(records, per_case=True)
     sanity = sanity_scores(records)
-    v2 = scaling.is_v2_board(records)
-    # emafdi-v2: every (tier, condition) scored apart too (CSV rows cases=t7@no-prior)
+    v2 = board_suite(records).grouped
+    # a grouped suite (emafdi-v2): every (tier, condition) scored apart too (CSV rows
+    # cases=t7@no-prior)
     grouped = scaling.group_scores(records) if v2 else []
     written = []
     for track in dict.fromkeys(r["track"] for r in records):
@@ -316,11 +316,10 @@ def write_paper_tables(records: list[dict], scores: list[SolverScore], out: Path
 
 def paper_case(case: str) -> str:
     """The paper case a run's case is: a v1 case as it is; an emafdi-v2 tier-4 case with the
-    prior (v1's problem, bit for bit) by its instance (``small@prior`` -> ``small``)."""
-    if is_v2_case(case):
-        inst, cond = parse_case(case)
-        return inst.name if inst.tier == 4 and cond.name == "prior" else case
-    return case
+    prior (v1's problem, bit for bit) by its instance (``small@prior`` -> ``small``;
+    :attr:`~ema_bench.suites.base.Instance.paper_case`)."""
+    inst = find(case)
+    return case if inst is None else inst.paper_case
 
 
 def load_paper_results() -> dict:

@@ -10,7 +10,8 @@ from pathlib import Path
 
 from .. import jsonio
 from ..faults import CASES
-from ..suite import SANITY_CASES, SUITE_ID
+from ..suites import DEFAULT, board_suite
+from ..suites.v1 import SANITY_CASES
 from ..sweep.executors import Runner
 from ..sweep.loop import run_sweep
 from ..trace_cache import MODEL_VERSION
@@ -27,15 +28,14 @@ from .figures import (
 )
 from .page import write_page
 from .report import load_paper_results, paper_case, write_leaderboards, write_paper_tables
+from .run_store import RUNS_FILE, RunStore, is_error, read_records, run_identity, unique
 from .scaling import (
     global_vs_local,
     group_scores,
-    is_v2_board,
     saturation_lines,
     scaling_points,
 )
 from .scores import score_records
-from .store import RUNS_FILE, RunStore, is_error, read_records, run_identity, unique
 from .tasks import Task, failure_record, make_tasks, run_task
 
 
@@ -85,7 +85,7 @@ def write_outputs(records: list[dict], out: Path, command: str, plots: bool = Tr
     failed = failures(records)
     errors = (f" {len(failed)} runs failed with an error (counted as unsuccessful at their "
               "budget; summary.json lists them)." if failed else "")
-    suites = ", ".join(sorted({str(r.get("suite", SUITE_ID)) for r in records}))
+    suites = ", ".join(sorted({str(r.get("suite", DEFAULT.id)) for r in records}))
     header = (f"Produced by `{command}`: {len(records)} runs, suite {suites}, model "
               f"version {MODEL_VERSION}.{partial}{errors}")
     # scores and the ECDF count failed runs as unsuccessful; what needs a fit, finished runs
@@ -101,8 +101,10 @@ def write_outputs(records: list[dict], out: Path, command: str, plots: bool = Tr
         images.append(out / name)
         plot(*data, images[-1])
 
-    if plots and is_v2_board(records):
-        # emafdi-v2: tiers have their own budgets; one ECDF per tier and condition instead
+    grouped = board_suite(records).grouped
+    if plots and grouped:
+        # a grouped suite (emafdi-v2): tiers have their own budgets; one ECDF per tier and
+        # condition instead
         for track in dict.fromkeys(r["track"] for r in records):
             draw(f"ecdf_tiers_{track}.png", ecdf_tiers_plot, records, track)
         draw("ert_scaling.png", ert_scaling_plot, records, scaling_points(group_scores(records)))
@@ -121,7 +123,7 @@ def write_outputs(records: list[dict], out: Path, command: str, plots: bool = Tr
             draw("figure5_landscape.png", landscape_plot, land)
             summary["figure5_valley_rise"] = {"raw": valley_rise(land["raw"]),
                                               "normalised": valley_rise(land["normalised"])}
-    if is_v2_board(records):   # the answers the v2 report states, for scripts
+    if grouped:   # the answers the v2 report states, for scripts
         grouped = group_scores(records)
         summary["global_vs_local"] = [asdict(r) for r in global_vs_local(records)]
         summary["saturation"] = {t: saturation_lines(records, grouped, t)

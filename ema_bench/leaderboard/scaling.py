@@ -16,8 +16,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..suite import precision_key
-from ..suite_v2 import CONDITIONS, instance_names, is_v2_case, parse_case
+from ..suites import find, instance
+from ..suites.targets import precision_key
+from ..suites.v2 import CONDITIONS, instance_names
 from .anytime import AnytimeScore, anytime_score, group_seed, hits, mean_ci, run_area
 
 #: The target of the scaling plot and of the global-vs-local success rates: the best-so-far
@@ -27,15 +28,10 @@ P_TARGET = f"p{precision_key(0.01)}"
 FIFTH = 5
 
 
-def is_v2_board(records: list[dict]) -> bool:
-    """Whether any record is a run of suite emafdi-v2 (its case is ``instance@condition``)."""
-    return any(is_v2_case(r["case"]) for r in records)
-
-
 def group_of(record: dict) -> tuple[int, str]:
-    """The (tier, condition) of a v2 record."""
-    inst, cond = parse_case(record["case"])
-    return inst.tier, cond.name
+    """The (tier, condition) of a record of a grouped suite
+    (:attr:`~ema_bench.suites.base.Instance.group`)."""
+    return instance(record["case"]).group
 
 
 def group_label(tier: int, cond: str) -> str:
@@ -49,12 +45,13 @@ def _order(key: tuple[int, str]) -> tuple[int, int]:
 
 
 def groups(records: list[dict]) -> dict[tuple[str, int, str], list[dict]]:
-    """(track, tier, condition) -> the v2 records of that group, tiers ascending, conditions
-    in the suite's order (v1 records are left out)."""
+    """(track, tier, condition) -> the records of that group, tiers ascending, conditions
+    in the suite's order (records of a suite scored per instance are left out)."""
     out: dict[tuple[str, int, str], list[dict]] = defaultdict(list)
     for r in records:
-        if is_v2_case(r["case"]):
-            out[(r["track"], *group_of(r))].append(r)
+        inst = find(r["case"])
+        if inst is not None and inst.group is not None:
+            out[(r["track"], *inst.group)].append(r)
     return dict(sorted(out.items(), key=lambda kv: (kv[0][0], *_order(kv[0][1:]))))
 
 

@@ -26,7 +26,7 @@ import numpy as np
 from ..faults import FAULT_NAMES
 from .anytime import ert as hit_ert
 from .derive import derived
-from .store import is_error
+from .run_store import is_error
 
 ALL = "all"
 

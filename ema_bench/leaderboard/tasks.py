@@ -12,10 +12,11 @@ import numpy as np
 from ..records import run_record
 from ..registry import get_solver, run_solver
 from ..seeding import run_seed
-from ..suite_v2 import build_problem, suite_of
+from ..suites import suite_of
+from ..suites.problem import make_problem
 from ..sweep.executors import Failure
 from ..trace_cache import MODEL_VERSION
-from .store import IDENTITY_FIELDS
+from .run_store import IDENTITY_FIELDS
 
 
 @dataclass(frozen=True)
@@ -32,7 +33,7 @@ class Task:
 
     @property
     def identity(self) -> tuple:
-        """:func:`~ema_bench.leaderboard.store.run_identity` of this task's record."""
+        """:func:`~ema_bench.leaderboard.run_store.run_identity` of this task's record."""
         return (self.solver, self.case, self.track, self.seed, self.budget, self.root_seed,
                 MODEL_VERSION)
 
@@ -65,7 +66,7 @@ def make_tasks(solvers, cases, tracks, seeds: int, budget: int | Callable[[str],
 def run_task(task: Task) -> dict:
     """Run one task and return its JSON record (deterministic apart from ``wall_s``)."""
     t0 = time.perf_counter()
-    problem = build_problem(task.case, track=task.track, seed=task.node(), budget=task.budget)
+    problem = make_problem(task.case, track=task.track, seed=task.node(), budget=task.budget)
     result = run_solver(task.solver, problem, task.budget, seed=task.node())
     return run_record(problem, result, case=task.case, track=task.track, seed=task.seed,
                       budget=task.budget, root_seed=task.root_seed,
@@ -77,7 +78,7 @@ def failure_record(task: Task, failure: Failure) -> dict[str, Any]:
     count it as an unsuccessful run at its budget; a score a record carries is not read).
     The ``on_error`` of the leaderboard's sweep."""
     return {"key": task.key, **{f: getattr(task, f) for f in IDENTITY_FIELDS},
-            "model_version": MODEL_VERSION, "suite": suite_of(task.case), "status": "error",
+            "model_version": MODEL_VERSION, "suite": suite_of(task.case).id, "status": "error",
             "error_type": failure.error_type, "error": failure.error,
             "traceback": failure.traceback, "wall_s": failure.wall_s}
 

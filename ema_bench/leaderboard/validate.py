@@ -29,29 +29,18 @@ from ..manifest import REQUIRED_MANIFEST_KEYS
 from ..records import RECORD_SCHEMA, schema
 from ..scoring import SUCCESS_RANGE_ERROR, range_error
 from ..seeding import run_seed
-from ..suite import (
+from ..suites import DEFAULT, SUITES, find, is_case, suite_of
+from ..suites.problem import make_problem
+from ..suites.targets import (
     BUDGET_CHECKPOINTS,
     FITNESS_PRECISIONS,
     PARAMETER_TARGETS,
-    SANITY_CASES,
-    SUITE_ID,
     fitness_targets,
-    instance_names,
-    is_instance,
     precision_key,
 )
-from ..suite_v2 import (
-    best_known_for,
-    build_problem,
-    case_key,
-    is_v2_case,
-    parse_case,
-    suite_of,
-)
-from ..suite_v2 import instance_names as instance_names_v2
 from ..trace_cache import COMPATIBLE_VERSIONS, MODEL_VERSION, is_comparable
 from .derive import DerivationError, Derived, derive, truth_of
-from .store import IDENTITY_FIELDS, is_error
+from .run_store import IDENTITY_FIELDS, is_error, model_version
 
 #: A fitness this far (in units of the instance's f*-to-nominal gap) below the suite's
 #: best-known f* is a claim to confirm, not a record to accept.
@@ -101,17 +90,17 @@ def check_record(r: dict, reevaluate: bool = True) -> list[str]:
     if missing:
         return [f"missing field(s) {missing}"]
     bad = []
-    if r.get("suite") != suite_of(r["case"]):
-        bad.append(f"suite version {r.get('suite')!r}, expected {suite_of(r['case'])!r}")
+    if r.get("suite") != suite_of(r["case"]).id:
+        bad.append(f"suite version {r.get('suite')!r}, expected {suite_of(r['case']).id!r}")
     if not is_comparable(str(r.get("model_version"))):
         bad.append(f"model version {r.get('model_version')!r}, expected {MODEL_VERSION!r}"
                    f" (or a compatible {', '.join(map(repr, COMPATIBLE_VERSIONS))})")
     if schema(r) not in (1, RECORD_SCHEMA):
         bad.append(f"record schema {r.get('schema')!r}, expected {RECORD_SCHEMA} (or legacy)")
-    if r["track"] not in TRACKS or not (is_instance(r["case"]) or is_v2_case(r["case"])):
-        return bad + [f"not an instance of suite {SUITE_ID}: case {r['case']!r}, track "
-                      f"{r['track']!r} (instances: {', '.join(instance_names())}; tracks: "
-                      f"{', '.join(TRACKS)})"]
+    if r["track"] not in TRACKS or not is_case(r["case"]):
+        return bad + [f"not an instance of suite {' or '.join(SUITES)}: case {r['case']!r}, "
+                      f"track {r['track']!r} (instances: {', '.join(DEFAULT.case_order())}, "
+                      f"or instance@condition; tracks: {', '.join(TRACKS)})"]
     if is_error(r):
         scored = [f for f in SCORE_FIELDS if r.get(f) not in (None, False)]
         return bad + ([f"error record carries a score: {f}={r[f]!r}" for f in scored[:1]])
@@ -139,7 +128,7 @@ def _check_no_prior(r: dict) -> list[str]:
     handed it, so it took it from elsewhere (``ema_bench.faults.NOMINAL``).  The first
     evaluation is always in the trajectory, so a start there is always caught (a later,
     non-improving visit is not evidence the record keeps)."""
-    if schema(r) < 2 or not is_v2_case(r["case"]) or parse_case(r["case"])[1].prior:
+    if schema(r) < 2 or find(r["case"]).prior:
         return []
     for p in r["trajectory"]:
         if np.array_equal(np.asarray(p[2][:N_FAULTS], dtype=float), NOMINAL):
@@ -212,7 +201,7 @@ def _check_claims(r: dict, d: Derived) -> list[str]:
                 not _close(claimed.get(n), derived[n]) for n in FAULT_NAMES):
             bad.append(_claim(field, claimed, derived))
     t = r["targets"] if isinstance(r["targets"], dict) else {}
-    known = best_known_for(r["case"], r["track"], r["seed"], r["root_seed"])
+    known = find(r["case"]).best_known(r["track"], r["seed"], r["root_seed"], model_version(r))
     if known is not None:
         for k in ("f_star", "f_nominal"):
             if t.get(k) != known[k]:
@@ -326,8 +315,8 @@ def _reevaluate(r: dict, d: Derived) -> list[str]:
     the final vector and the start (legacy: the trace's first point at evaluation 1 is the
     start point when their fitness agree, which fixes the parameter hits at 1); and the
     truth, for ``fitness_at_truth``."""
-    problem = build_problem(r["case"], track=r["track"],
-                            seed=run_seed(r["root_seed"], r["seed"]), budget=10**6)
+    problem = make_problem(r["case"], track=r["track"],
+                           seed=run_seed(r["root_seed"], r["seed"]), budget=10**6)
     if d.schema >= 2:
         tj = r["trajectory"]
         X, claimed, ev = np.array([p[2] for p in tj], float), [p[1] for p in tj], \
@@ -367,7 +356,6 @@ def check_complete(records: list[dict], per_tier: int | None = None) -> list[Fin
     for the same seeds as its other runs (leaving out hard instances is not allowed).
     ``per_tier`` (emafdi-v2): the first N instances of each tier, in the suite's order (a
     board declared with ``--per-tier N``: the subset is fixed before any run, not chosen)."""
-    v1_cases = [c for c in instance_names() if c not in SANITY_CASES]
     have: dict[tuple[str, str], set[tuple[str, int]]] = defaultdict(set)
     for r in records:
         if "solver" in r and "track" in r:
@@ -375,11 +363,11 @@ def check_complete(records: list[dict], per_tier: int | None = None) -> list[Fin
     out = []
     for (solver, track), runs in sorted(have.items()):
         seeds = sorted({s for _, s in runs})
-        # emafdi-v2: every instance of each (tier, condition) the solver entered
-        v2 = {(parse_case(c)[0].tier, parse_case(c)[1].name) for c, _ in runs
-              if is_v2_case(c)}
-        cases = [case_key(n, cond) for d, cond in sorted(v2)
-                 for n in instance_names_v2(d)[:per_tier]] if v2 else v1_cases
+        # per suite entered: the cases it asks of the instances entered (v2: every
+        # instance of each (tier, condition))
+        entered = [i for i in map(find, dict.fromkeys(c for c, _ in runs)) if i is not None]
+        cases = [c for s in dict.fromkeys(i.suite for i in entered)
+                 for c in s.complete_cases([i for i in entered if i.suite is s], per_tier)]
         lacking = [f"{c}/{s}" for c in cases for s in seeds if (c, s) not in runs]
         if lacking:
             out.append(Finding("*", f"{solver} on the {track} track lacks {len(lacking)} runs "

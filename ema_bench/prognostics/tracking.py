@@ -107,7 +107,7 @@ class Inspection:
         every candidate, e.g. the confounders a tracker infers from the logged ``conditions``
         (:func:`ema_bench.prognostics.laws.confounders`)."""
         if effects is None:
-            from ..instances import make_problem
+            from ..suites.problem import make_problem
 
             return make_problem(measured=self.traces, start=start, budget=budget)
         from ..problem import Problem

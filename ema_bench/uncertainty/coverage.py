@@ -28,7 +28,7 @@ from ..sweep import store as sweep_store
 from ..sweep.executors import Job
 from ..sweep.loop import run_sweep
 from ..sweep.schema import opt, req
-from . import calibration as cal
+from . import conformal as cal
 from .local import UncertaintyError
 from .methods import MISFIT_RATIO
 
@@ -78,7 +78,7 @@ def _of(settings: Settings):
 
 
 def _problem(track: str, root_seed: int, index: int, budget: int):
-    from ..instances import make_problem
+    from ..suites.problem import make_problem
 
     return make_problem("seeded", track=track, seed=run_seed(root_seed, index), budget=budget)
 
@@ -275,14 +275,14 @@ def write_calibration(runs: Mapping[str, Sequence[Mapping]], path: Path) -> dict
     """Write the calibration table ``path`` (``--calibrate --out DIR``: DIR/calibration.json)
     from calibration runs (key ``kind|method|model_form`` -> records), keeping the entries of
     other keys already in that file.  Never the shipped table: ValueError for a path inside
-    the package (:mod:`ema_bench.calibration_files` ships a table, in a checkout)."""
-    from ..calibration_files import inside_package
+    the package (:mod:`ema_bench.interval_calibration_files` ships a table, in a checkout)."""
+    from ..interval_calibration_files import inside_package
     from ..jsonio import write_atomic
 
     if inside_package(path):
         raise ValueError(f"{path}: inside the package, whose data is read-only; write the "
                          "calibration elsewhere and ship it with 'python -m "
-                         "ema_bench.calibration_files' in a checkout")
+                         "ema_bench.interval_calibration_files' in a checkout")
     # read from disk, not the cached copy: another calibration run may have written since
     data = json.loads(Path(path).read_text()) if Path(path).exists() else {"scores": {}}
     data = {"faults": list(FAULT_NAMES), "root_seed": cal.CALIBRATION_ROOT_SEED,

@@ -28,7 +28,7 @@ from ..seeding import SeedLike, as_seed_sequence
 from ..traces import SIGNALS
 from . import model_form as mf
 from .bootstrap import N_BOOT, bootstrap_estimates, normal_interval
-from .calibration import calibration_factor, calibration_kind
+from .conformal import calibration_factor, calibration_kind
 from .identifiability import report
 from .local import Counter, UncertaintyError, jacobian, refit, sandwich
 from .noise import estimated_sigma, known_sigma, weighed
@@ -225,7 +225,7 @@ def intervals(objective: Objective, x: np.ndarray, *, method: str = "laplace",
         Multiplies the noise level (a sensitivity study; 1 is the honest value).
     calibrate : bool
         Multiply each fault's half-width by its shipped calibration factor
-        (:mod:`~ema_bench.uncertainty.calibration`: split-conformal, from coverage runs on
+        (:mod:`~ema_bench.uncertainty.conformal`: split-conformal, from coverage runs on
         instances disjoint from those coverage is reported on).
     params : sequence of str, optional
         The parameters the profile method profiles (default all; the others get their

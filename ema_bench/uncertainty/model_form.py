@@ -1,11 +1,11 @@
 """The monitor's model-form allowance, calibrated on the twin/reference pair.
 
 On the reference track (and on real data) the monitor model did not make the data: even on
-noise-free traces its best fit lies off the truth (:func:`~ema_bench.calibrate.clean_bias`).
+noise-free traces its best fit lies off the truth (:func:`~ema_bench.monitor_bias.clean_bias`).
 That bias is systematic, so intervals from the noise alone are over-confident however much
 data there is.  The allowance of a fault at level ``p`` is the ``p`` quantile of ``|bias|``
 over the calibration instances (the suite's paper cases and Latin-hypercube instances,
-:mod:`~ema_bench.suite`), which are disjoint from the seeded random instances coverage is
+:mod:`~ema_bench.suites.v1`), which are disjoint from the seeded random instances coverage is
 measured on; :func:`~ema_bench.uncertainty.methods.intervals` adds it in quadrature to the
 noise half-width.  The biases ship as ``model_form.json`` (those of
 ``benchmarks/results/clean_bias_suite.txt``, made by ``python benchmarks/clean_bias.py``);
@@ -47,14 +47,14 @@ def calibrate(path: Path | str, instances: list[str] | None = None,
     ``path`` has no default: shipped data is read-only, so the shipped ``model_form.json``
     (:data:`PATH`) is regenerated only by naming it, in a checkout; a path inside an
     installed package raises ValueError (one line) before any work."""
-    from ..calibration_files import checkout_root, inside_package
+    from ..interval_calibration_files import checkout_root, inside_package
 
     if inside_package(path) and checkout_root() is None:
         raise ValueError(f"{path} is inside the installed package, not a checkout: shipped "
                          "data is read-only; write the biases elsewhere, or regenerate them "
                          "in a git checkout of ema-bench")
-    from ..calibrate import clean_bias
-    from ..suite import instance_faults, instance_names
+    from ..monitor_bias import clean_bias
+    from ..suites.v1 import instance_faults, instance_names
 
     names = list(instances or instance_names("all"))
     rows = {}

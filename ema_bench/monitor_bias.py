@@ -8,7 +8,7 @@ reference traces at the known faults is 1.0000 +- 5e-5 on every case: nothing le
 calibrate, and ``kt_factor`` ships at 1.  This module reproduces that check; a fitted value
 away from 1 means the monitor and the reference have drifted apart.
 
-Run ``python -m ema_bench.calibrate`` to reproduce it.  :func:`clean_bias` measures the
+Run ``python -m ema_bench.monitor_bias`` to reproduce it.  :func:`clean_bias` measures the
 monitor's model-form bias on the faults themselves (``benchmarks/clean_bias.py`` tabulates it).
 """
 

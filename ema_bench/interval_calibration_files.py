@@ -6,7 +6,8 @@ and the effect intervals' ``diagnosis/interval_calibration.json``).  Shipped dat
 it, a user file is used only when asked for (an environment variable, which the commands'
 ``--calibration`` option sets, so worker processes inherit it), and every command that uses
 one names it.
-Replacing a shipped table is ``python -m ema_bench.calibration_files FILE``, run in a checkout;
+Replacing a shipped table is ``python -m ema_bench.interval_calibration_files FILE``, run in a
+checkout;
 it refuses an installed package.
 """
 
@@ -127,7 +128,8 @@ def ship(source: str | os.PathLike[str], package: Path = PACKAGE) -> Path:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m ema_bench.calibration_files FILE...``: ship each FILE (in a checkout)."""
+    """``python -m ema_bench.interval_calibration_files FILE...``: ship each FILE (in a
+    checkout)."""
     args = sys.argv[1:] if argv is None else argv
     if not args or args[0] in ("-h", "--help"):
         print(__doc__)

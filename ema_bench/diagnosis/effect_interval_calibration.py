@@ -1,6 +1,6 @@
 """Split-conformal calibration of the named effects' intervals.
 
-The workflow's interval of a named effect (:func:`~ema_bench.diagnosis.workflow.interval`) is
+The workflow's interval of a named effect (:func:`~ema_bench.diagnosis.fitting.interval`) is
 a profile-likelihood interval: it counts the sensor noise (estimated from the residuals), not
 the model-form bias of data the monitor did not make.  On the reference model the fit of the
 right effect set lies off the truth by a few noise widths in a few cases (a near-threshold
@@ -8,8 +8,8 @@ delay of 0.584 ms fitted at 0.575 ms with a 2.2 us half-width), so 38 of 44 name
 effects of the blind suite of seed 6988 were covered, 86 % of a 95 % interval.
 
 Each half-width is therefore multiplied by one factor: the split-conformal quantile
-(:func:`~ema_bench.uncertainty.calibration.conformal_quantile`) of the nonconformity scores
-``|t - t_hat| / h`` (:func:`~ema_bench.uncertainty.calibration.score`) of *calibration* cases:
+(:func:`~ema_bench.uncertainty.conformal.conformal_quantile`) of the nonconformity scores
+``|t - t_hat| / h`` (:func:`~ema_bench.uncertainty.conformal.score`) of *calibration* cases:
 the effect cases (single, near-threshold, two-effect) of a blind suite drawn at root seed
 :data:`CALIBRATION_SEED`, whose right effect set is fitted as the workflow fits it (base fit,
 then the set warm-started at the base faults and each effect's screening step).  Blind suites
@@ -28,13 +28,14 @@ from pathlib import Path
 
 import numpy as np
 
-from ..calibration_files import inside_package
+from ..interval_calibration_files import inside_package
 from ..jsonio import write_atomic
 from ..objective import N_FAULTS
 from ..seeding import run_seed, stream
-from ..uncertainty.calibration import conformal_quantile, score
+from ..uncertainty.conformal import conformal_quantile, score
+from .fitting import effect_spec, fit, profile, subset_traces
 from .interval_table import TABLE, read
-from .workflow import HOLDOUT, TRAIN, Settings, effect_spec, fit, profile, subset_traces
+from .results import HOLDOUT, TRAIN, Settings
 
 #: The shipped table (read-only: :func:`calibrate` writes a user file).
 PATH = TABLE.shipped
@@ -75,7 +76,7 @@ def calibrate(path: Path | str, cases: int = 60, workers: int = 1,
     and write the scores to the user file ``path`` (about 15 CPU-seconds per case).
 
     ValueError for a path inside the package: the shipped table is replaced only by
-    ``python -m ema_bench.calibration_files``, in a checkout."""
+    ``python -m ema_bench.interval_calibration_files``, in a checkout."""
     if inside_package(path):
         raise ValueError(f"{path}: inside the package, whose data is read-only")
     from .blind import draw_cases, run_cases

@@ -20,20 +20,24 @@ Version history (the Gymnasium id in brackets):
 from __future__ import annotations
 
 import functools
-import json
-import math
 from collections.abc import Sequence
-from importlib import resources
-from importlib.resources.abc import Traversable
 
 import numpy as np
 
-from .faults import CASES, FAULT_NAMES, LOWER, UPPER, FaultError, faults_to_dict
-from .trace_cache import MODEL_VERSION
+from ..faults import CASES, FAULT_NAMES, LOWER, UPPER, FaultError, faults_to_dict
+from .base import Instance, Suite
+from .targets import (
+    FITNESS_PRECISIONS,
+    PARAMETER_TARGETS,
+    SUITE_MODEL_VERSION,
+    TARGET_ROOT_SEED,
+    SuiteError,
+    package_file,
+    read_targets,
+    target_key,
+)
 
 SUITE_ID = "emafdi-v1"
-#: The model version the suite's targets were computed on.
-SUITE_MODEL_VERSION = "3"
 #: Root of the draw of the seeded instances (never changes within a suite version).
 SUITE_SEED = 20261123
 N_SEEDED = 20
@@ -42,21 +46,13 @@ PAPER_CASES: tuple[str, ...] = tuple(CASES)
 SANITY_CASES: tuple[str, ...] = ("nominal",)
 #: Noise seeds (leaderboard rows, root seed 0) whose ``f*`` the suite ships.
 TARGET_SEEDS = 10
-TARGET_ROOT_SEED = 0
-#: Fitness targets: ``f* + p (f_nominal - f*)`` for each precision ``p``.
-FITNESS_PRECISIONS: tuple[float, ...] = (1e-1, 1e-2, 1e-3, 1e-4)
-#: Parameter targets: the best-so-far point within this fraction of every fault's range.
-PARAMETER_TARGETS: tuple[float, ...] = (0.1, 0.03, 0.01)
-#: Checkpoints of the fixed-budget view (evaluations), up to the run's budget.
-BUDGET_CHECKPOINTS: tuple[int, ...] = (10, 20, 50, 100, 200, 500, 1000, 2000, 5000, 10000,
-                                       20000, 50000, 100000)
+#: The board's budget (evaluations per run).
+BUDGET = 5000
+#: IOH tools store instance ids as unsigned 16-bit integers (iohinspector: ``UInt16``).
+MAX_IOH_INSTANCE = 2**16 - 1
 TARGETS_FILE = "suite_targets.json"
 #: Names of instance groups (:func:`instance_names`).
 GROUPS = ("all", "paper", "lhs", "quick")
-
-
-class SuiteError(ValueError):
-    """A suite instance, version or target file that cannot be used."""
 
 
 @functools.lru_cache(maxsize=1)
@@ -106,47 +102,11 @@ def instance_faults(name: str) -> np.ndarray:
                      f"{N_SEEDED} seeded instances s00..s{N_SEEDED - 1:02d}, or 'seeded'")
 
 
-def is_instance(name: object) -> bool:
-    return isinstance(name, str) and (name in CASES or name in seeded_instances())
-
-
-def check_model_version() -> None:
-    """The suite's targets hold only on the models they were computed on."""
-    if MODEL_VERSION != SUITE_MODEL_VERSION:
-        raise SuiteError(f"suite {SUITE_ID} was built on model version {SUITE_MODEL_VERSION}, "
-                         f"the installed models are version {MODEL_VERSION}: bump the suite")
-
-
-# --- fixed targets -------------------------------------------------------------------------
-def target_key(case: str, track: str, seed: int) -> str:
-    return f"{case}|{track}|{seed}"
-
-
-def read_targets(path: Traversable, suite: str, missing_ok: bool = True) -> dict:
-    """A best-known table (``ema-bench targets``' JSON) of ``suite`` on the installed model
-    version: ``{"suite", "model_version", "entries": {key: {"f_star", "f_nominal",
-    "x_star", ..}}}``; an empty ``entries`` when the file is missing and ``missing_ok`` (a
-    checkout before ``ema-bench targets``), else :class:`SuiteError`; SuiteError when it is
-    labelled for another suite or model version."""
-    name = getattr(path, "name", str(path))
-    if not path.is_file():
-        if missing_ok:
-            return {"suite": suite, "model_version": SUITE_MODEL_VERSION, "entries": {}}
-        raise SuiteError(f"{name}: no best-known table of suite {suite} there; compute it "
-                         "with 'ema-bench targets'")
-    data = json.loads(path.read_text())
-    if data.get("suite") != suite or data.get("model_version") != SUITE_MODEL_VERSION:
-        raise SuiteError(f"{name} is for suite {data.get('suite')!r} on model version "
-                         f"{data.get('model_version')!r}, not {suite} on "
-                         f"{SUITE_MODEL_VERSION}: regenerate it with 'ema-bench targets'")
-    return data
-
-
 @functools.lru_cache(maxsize=1)
 def shipped_targets() -> dict:
     """The best-known optima shipped with the package (``ema_bench/suite_targets.json``,
     :func:`read_targets`)."""
-    return read_targets(resources.files("ema_bench").joinpath(TARGETS_FILE), SUITE_ID)
+    return read_targets(package_file(TARGETS_FILE), SUITE_ID)
 
 
 def best_known(case: str, track: str, seed: int, root_seed: int = 0) -> dict | None:
@@ -158,20 +118,6 @@ def best_known(case: str, track: str, seed: int, root_seed: int = 0) -> dict | N
     return shipped_targets()["entries"].get(target_key(case, track, seed))
 
 
-def fitness_targets(f_star: float, f_nominal: float) -> list[float]:
-    """The ladder ``f* + p (f_nominal - f*)`` for :data:`FITNESS_PRECISIONS`."""
-    gap = f_nominal - f_star
-    if not (math.isfinite(gap) and gap > 0):
-        raise SuiteError(f"no fitness targets: f_nominal {f_nominal!r} is not above "
-                         f"f* {f_star!r}")
-    return [f_star + p * gap for p in FITNESS_PRECISIONS]
-
-
-def precision_key(p: float) -> str:
-    """The JSON key of a target level (``1e-3``, ``0.03``)."""
-    return f"{p:g}"
-
-
 def describe() -> dict[str, object]:
     """The suite as JSON: id, model version, instances with their truths, targets."""
     return {"suite": SUITE_ID, "model_version": SUITE_MODEL_VERSION, "suite_seed": SUITE_SEED,
@@ -179,3 +125,32 @@ def describe() -> dict[str, object]:
             "sanity": list(SANITY_CASES), "fitness_precisions": list(FITNESS_PRECISIONS),
             "parameter_targets": list(PARAMETER_TARGETS), "target_seeds": TARGET_SEEDS,
             "targets_shipped": len(shipped_targets()["entries"])}
+
+
+# --- the Suite value ------------------------------------------------------------------------
+def _lookup(name: str, cond: str | None) -> Instance | None:
+    """A v1 case is an instance's bare name (no condition)."""
+    if cond is not None or not (name in CASES or name in seeded_instances()):
+        return None
+    return Instance(case=name, name=name, suite=SUITE, names=FAULT_NAMES,
+                    truth=instance_faults(name), lower=LOWER, upper=UPPER, budget=BUDGET,
+                    ranked=name not in SANITY_CASES, paper_case=name, ioh_function=name)
+
+
+def _ioh_instance(inst: Instance, seed: int) -> int:
+    """The run seed (the root seed is a run attribute)."""
+    if seed > MAX_IOH_INSTANCE:
+        raise ValueError(f"seed {seed} is beyond IOH's 16-bit instance ids (at most "
+                         f"{MAX_IOH_INSTANCE})")
+    return seed
+
+
+SUITE = Suite(
+    id=SUITE_ID, lookup=_lookup,
+    # v1's entries hold for every compatible model version (its problems have no trigonometry)
+    best_known=lambda inst, track, seed, root, _version: best_known(inst.name, track, seed, root),
+    judged=lambda inst, track: None,   # every fault (v1's clean-data fits exclude none)
+    ioh_instance=_ioh_instance, ioh_functions=lambda: instance_names(),
+    complete_cases=lambda entered, per_tier: [c for c in instance_names()
+                                              if c not in SANITY_CASES],
+    case_order=lambda: instance_names())

@@ -11,7 +11,7 @@ is named ``ema-bench case@track`` and its IOH instance is the run seed (the expo
 mapping); where the suite ships ``f*`` it is IOH's optimum (``problem.optimum``)::
 
     import ioh
-    from ema_bench.adapters.ioh import IOHProblem
+    from ema_bench.adapters.ioh_problem import IOHProblem
     from ema_bench.adapters.run import AdapterRun
 
     run = AdapterRun("my-es", case="small", track="twin", budget=500, library="ioh")
@@ -30,7 +30,7 @@ from typing import Any
 import ioh
 import numpy as np
 
-from ..suite import best_known
+from ..suites import find
 from .run import AdapterRun, evaluate_unit
 
 
@@ -43,7 +43,8 @@ class IOHProblem:
         self.run = run
         self.problem = run.problem
         self._pending: deque[tuple[np.ndarray, float]] = deque()
-        known = best_known(run.case, run.track, run.seed, run.root_seed)
+        inst = find(run.case)   # None: a case outside the suites (no f*)
+        known = None if inst is None else inst.best_known(run.track, run.seed, run.root_seed)
         optimum = None
         if known is not None:
             x_star = self.problem.to_unit(np.array([known["x_star"][n]

@@ -24,8 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..calibration_files import TABLES, active
 from ..faults import FAULT_NAMES
+from ..interval_calibration_files import TABLES, active
 
 #: The root seed of the calibration runs (coverage is reported at root seed 0).
 CALIBRATION_ROOT_SEED = 1
@@ -65,7 +65,7 @@ def read(path: Path) -> dict[str, object]:
 
 def active_table() -> dict[str, object]:
     """The active calibration: the shipped file, or the user file named by
-    ``EMA_BENCH_CALIBRATION`` (:mod:`ema_bench.calibration_files`)."""
+    ``EMA_BENCH_CALIBRATION`` (:mod:`ema_bench.interval_calibration_files`)."""
     return read(active(TABLE)[0])
 
 

@@ -30,29 +30,27 @@ from pathlib import Path
 
 import numpy as np
 
-from .faults import NOMINAL, faults_to_dict
-from .instances import TRACKS, make_problem
-from .jsonio import write_atomic
-from .registry import run_solver
-from .scoring import range_error
-from .seeding import run_seed
-from .suite import (
-    SANITY_CASES,
-    SUITE_ID,
+from ..faults import NOMINAL, faults_to_dict
+from ..instances import TRACKS
+from ..jsonio import write_atomic
+from ..registry import run_solver
+from ..scoring import range_error
+from ..seeding import run_seed
+from ..sweep.executors import Job
+from ..sweep.loop import run_sweep
+from ..sweep.schema import req
+from ..sweep.store import Store
+from . import DEFAULT, instance, suite_of
+from .problem import make_problem
+from .targets import (
     SUITE_MODEL_VERSION,
     TARGET_ROOT_SEED,
-    TARGET_SEEDS,
     SuiteError,
     check_model_version,
-    instance_faults,
-    instance_names,
     target_key,
 )
-from .suite_v2 import CLEAN_SEED, is_v2_case, make_v2_problem, parse_case, target_condition
-from .sweep.executors import Job
-from .sweep.loop import run_sweep
-from .sweep.schema import req
-from .sweep.store import Store
+from .v1 import SANITY_CASES, TARGET_SEEDS, instance_names
+from .v2 import CLEAN_SEED
 
 #: (solver, budget, start) of the polishing stages; start "truth", "previous" or "nominal"
 STAGES: tuple[tuple[str, int, str], ...] = (
@@ -87,21 +85,20 @@ def polish(case: str, track: str, seed: int) -> dict[str, object]:
     """The best-known entry of one instance: ``f_star``, ``x_star``, ``f_nominal``,
     ``fitness_at_truth``, ``bias_range_error`` and the fitness each stage reached.
 
-    ``case`` is a v1 instance or a v2 instance key (``t7-s03@prior``: the polish runs on
-    the tier's search space and the condition's objective (tests, outputs), from the truth
-    of every searched parameter; the entry then also holds ``bias_range_errors``, per
-    parameter).  A v2 reference-track entry of seed
-    :data:`~ema_bench.suite_v2.CLEAN_SEED` also holds the clean-data fit ``clean_x``
-    (:func:`clean_fit`), from which the reference track's parameter targets are chosen
-    (:func:`~ema_bench.suite_v2.judged_for`)."""
+    ``case`` is a case of a suite with the prior (``small``, ``t7-s03@prior``: the polish
+    runs on the instance's search space and objective (tests, outputs), from the truth of
+    every searched parameter; the entry also holds ``bias_range_errors``, per parameter).
+    In a suite whose reference track judges the parameters its clean-data fit keeps
+    (:attr:`~ema_bench.suites.base.Suite.clean_fits`), the reference-track entry of seed
+    :data:`~ema_bench.suites.v2.CLEAN_SEED` also holds the clean-data fit ``clean_x``
+    (:func:`clean_fit`)."""
     node = run_seed(TARGET_ROOT_SEED, seed)
-    v2 = is_v2_case(case)
-    truth = parse_case(case)[0].truth if v2 else instance_faults(case)
+    inst = instance(case)
+    truth = inst.truth
     nominal = np.r_[NOMINAL, np.zeros(truth.size - NOMINAL.size)]   # effects off
 
     def make(budget: int, x0: np.ndarray):
-        return (_v2_problem(case, track, node, budget, x0) if v2 else
-                make_problem(case, track=track, seed=node, budget=budget, start=x0))
+        return make_problem(case, track=track, seed=node, budget=budget, start=x0)
 
     best_x, best_f, stages, first = _run_stages(make, STAGES, truth, nominal, node)
     f_nominal = float(first.objective.evaluate(nominal[None, :])[0][0])
@@ -111,12 +108,11 @@ def polish(case: str, track: str, seed: int) -> dict[str, object]:
              "bias_range_error": float(np.max(range_error(best_x[:NOMINAL.size],
                                                           truth[:NOMINAL.size]))),
              "stages": stages}
-    if v2:
-        errs = np.abs(best_x - truth) / (first.upper - first.lower)
-        entry["x_star"] = dict(zip(first.names, map(float, best_x)))
-        entry["bias_range_errors"] = dict(zip(first.names, map(float, errs)))
-        if track == "reference" and seed == CLEAN_SEED:
-            entry.update(clean_fit(case))
+    errs = np.abs(best_x - truth) / (first.upper - first.lower)
+    entry["x_star"] = dict(zip(first.names, map(float, best_x)))
+    entry["bias_range_errors"] = dict(zip(first.names, map(float, errs)))
+    if inst.suite.clean_fits and track == "reference" and seed == CLEAN_SEED:
+        entry.update(clean_fit(case))
     return entry
 
 
@@ -131,25 +127,22 @@ def clean_fit(case: str) -> dict[str, object]:
     :data:`CLEAN_STAGES`: ``clean_x`` (name -> value) and ``clean_bias`` (name -> distance
     from the truth in fractions of range).  No solver gets closer to the truth on the
     reference track than this on average: a parameter whose clean bias exceeds
-    :data:`~ema_bench.suite_v2.MAX_TARGET_BIAS` carries no parameter target there.  (v1's
-    tabulation, :func:`ema_bench.calibrate.clean_bias`, spends 12,000 CMA-ES evaluations
+    :data:`~ema_bench.suites.v2.MAX_TARGET_BIAS` carries no parameter target there.  (v1's
+    tabulation, :func:`ema_bench.monitor_bias.clean_bias`, spends 12,000 CMA-ES evaluations
     on the faults only.)"""
-    from .effects import effects_vector
-    from .objective import KNOWN_TESTS
-    from .protocol import STANDARD_TESTS
-    from .reference import simulate_reference
-    from .suite_v2 import tier
+    from ..effects import effects_vector
+    from ..objective import KNOWN_TESTS
+    from ..protocol import STANDARD_TESTS
+    from ..reference import simulate_reference
 
-    inst, c = parse_case(case)
-    t = tier(inst.tier)
-    cond = target_condition(c)
-    specs = STANDARD_TESTS if cond.tests is None else tuple(KNOWN_TESTS[n] for n in cond.tests)
-    clean = simulate_reference(inst.faults, effects_vector(dict(inst.effects)), tests=specs,
-                               noise=False, adc=False)
+    inst = instance(case)
+    specs = STANDARD_TESTS if inst.tests is None else tuple(KNOWN_TESTS[n] for n in inst.tests)
+    clean = simulate_reference(inst.truth[:NOMINAL.size], effects_vector(dict(inst.effects)),
+                               tests=specs, noise=False, adc=False)
     truth = inst.truth
 
     def make(budget: int, x0: np.ndarray):
-        return make_problem(measured=clean, augment=t.effects, signals=cond.signals,
+        return make_problem(measured=clean, augment=inst.augment, signals=inst.signals,
                             budget=budget, start=x0)
 
     # the solvers' streams: the seed-0 entry's node (the clean data have no noise to seed)
@@ -160,24 +153,16 @@ def clean_fit(case: str) -> dict[str, object]:
             "clean_bias": dict(zip(first.names, map(float, errs)))}
 
 
-def _v2_problem(case: str, track: str, node, budget: int, start: np.ndarray):
-    """A v2 instance's problem for the polish: its tier's space and data (the tests and
-    outputs of its :func:`~ema_bench.suite_v2.target_condition`), the prior handed in as
-    the warm start."""
-    inst, cond = parse_case(case)
-    return make_v2_problem(inst.name, cond=target_condition(cond).name, track=track,
-                           seed=node, budget=budget, start=start)
-
-
 #: The fields of a best-known entry, by JSON type.
 ENTRY_SCHEMA = {"key": req("str"), "f_star": req("number"), "x_star": req("dict"),
                 "f_nominal": req("number"), "fitness_at_truth": req("number"),
                 "bias_range_error": req("number"), "stages": req("dict")}
 
 
-#: Optional fields of an entry: v2's per-parameter point and biases, the clean-data fit
-#: (seed-0 reference entries), and what the entry cost (CPU seconds in its worker, wall).
-V2_FIELDS = ("bias_range_errors", "clean_x", "clean_bias")
+#: Optional fields of an entry in a suite with clean-data fits: the per-parameter biases, the
+#: clean-data fit (seed-0 reference entries), and what the entry cost (CPU seconds in its
+#: worker, wall).
+CLEAN_FIELDS = ("bias_range_errors", "clean_x", "clean_bias")
 COST_FIELDS = ("cpu_s", "wall_s")
 
 
@@ -204,19 +189,16 @@ def all_keys() -> list[str]:
 def compute_targets(out: Path, workers: int | None = None, quiet: bool = False,
                     keys: list[str] | None = None) -> dict:
     """Polish every instance (resuming from ``<out>.partial.jsonl``) and write ``out``: the
-    table of suite v1 (default keys :func:`all_keys`) or, for keys of v2 cases
-    (:func:`~ema_bench.suite_v2.target_keys`), of suite emafdi-v2; SuiteError for keys of
-    both."""
-    from .suite_v2 import suite_of
-
-    check_model_version()
+    table of the suite of ``keys`` (default: v1's, :func:`all_keys`; v2's:
+    :func:`~ema_bench.suites.v2.target_keys`); SuiteError for keys of two suites."""
     out = Path(out)
     partial = out.with_name(out.name + ".partial.jsonl")
     keys = all_keys() if keys is None else keys
-    suites = {suite_of(k.split("|")[0]) for k in keys}
+    suites = {suite_of(k.split("|")[0]).id: suite_of(k.split("|")[0]) for k in keys}
     if len(suites) > 1:
         raise SuiteError(f"keys of suites {sorted(suites)} in one table: compute each apart")
-    suite = suites.pop() if suites else SUITE_ID
+    suite = next(iter(suites.values()), DEFAULT)
+    check_model_version(suite.id)
     workers = workers or os.cpu_count() or 1
     with Store(partial, identity=_key, schema=ENTRY_SCHEMA) as store:
         run_sweep([Job(k, k) for k in keys], _polish_key,
@@ -226,10 +208,10 @@ def compute_targets(out: Path, workers: int | None = None, quiet: bool = False,
     fields = ("f_star", "f_nominal", "x_star", "fitness_at_truth", "bias_range_error")
     method = {"stages": [list(s) for s in STAGES], "root_seed": TARGET_ROOT_SEED,
               "command": "ema-bench targets"}
-    if suite != SUITE_ID:
-        fields += V2_FIELDS + COST_FIELDS
+    if suite.clean_fits:
+        fields += CLEAN_FIELDS + COST_FIELDS
         method["clean_stages"] = [list(s) for s in CLEAN_STAGES]
-    data = {"suite": suite, "model_version": SUITE_MODEL_VERSION, "method": method,
+    data = {"suite": suite.id, "model_version": SUITE_MODEL_VERSION, "method": method,
             "entries": {k: {f: done[k][f] for f in fields if f in done[k]}
                         for k in keys if k in done}}
     # two runs on one file both write: each through its own temporary file
