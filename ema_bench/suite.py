@@ -22,9 +22,11 @@ from __future__ import annotations
 import functools
 import json
 import math
+import os
 from collections.abc import Sequence
 from importlib import resources
 from importlib.resources.abc import Traversable
+from pathlib import Path
 
 import numpy as np
 
@@ -51,6 +53,10 @@ PARAMETER_TARGETS: tuple[float, ...] = (0.1, 0.03, 0.01)
 BUDGET_CHECKPOINTS: tuple[int, ...] = (10, 20, 50, 100, 200, 500, 1000, 2000, 5000, 10000,
                                        20000, 50000, 100000)
 TARGETS_FILE = "suite_targets.json"
+#: Best-known tables of other root seeds (``ema-bench targets --root-seed R``): their paths,
+#: separated by ``os.pathsep``; the commands' ``--targets FILE`` sets it (worker processes
+#: inherit it).
+TARGETS_ENV = "EMA_BENCH_TARGETS"
 #: Names of instance groups (:func:`instance_names`).
 GROUPS = ("all", "paper", "lhs", "quick")
 
@@ -149,13 +155,66 @@ def shipped_targets() -> dict:
     return read_targets(resources.files("ema_bench").joinpath(TARGETS_FILE), SUITE_ID)
 
 
+def table_root_seed(data: dict) -> int:
+    """The root seed a best-known table was computed at (``method.root_seed``; tables
+    written before it was recorded are of :data:`TARGET_ROOT_SEED`)."""
+    return int((data.get("method") or {}).get("root_seed", TARGET_ROOT_SEED))
+
+
+@functools.lru_cache(maxsize=8)
+def _user_tables(paths: str) -> tuple[dict, ...]:
+    tables = []
+    for p in filter(None, paths.split(os.pathsep)):
+        path = Path(p)
+        if not path.is_file():
+            raise SuiteError(f"{TARGETS_ENV}: {p}: no such best-known table (make one with "
+                             "'ema-bench targets --root-seed R --out FILE')")
+        suite = json.loads(path.read_text()).get("suite")   # checked by read_targets
+        tables.append(read_targets(path, str(suite)))
+    return tuple(tables)
+
+
+def user_targets() -> tuple[dict, ...]:
+    """The best-known tables named in :data:`TARGETS_ENV` (each checked by
+    :func:`read_targets`: a suite and the installed model version), in order."""
+    return _user_tables(os.environ.get(TARGETS_ENV, ""))
+
+
+def user_entry(suite: str, key: str, root_seed: int) -> dict | None:
+    """The entry ``key`` of ``suite`` at ``root_seed`` in the first user table
+    (:func:`user_targets`) that has it, or None."""
+    for data in user_targets():
+        if data["suite"] == suite and table_root_seed(data) == root_seed:
+            entry = data["entries"].get(key)
+            if entry is not None:
+                return entry
+    return None
+
+
 def best_known(case: str, track: str, seed: int, root_seed: int = 0) -> dict | None:
-    """``{"f_star", "f_nominal", "x_star"}`` of an instance, or None where the suite has no
-    fixed target (a root seed other than :data:`TARGET_ROOT_SEED`, a seed beyond
-    :data:`TARGET_SEEDS`, the sanity case, a custom case)."""
+    """``{"f_star", "f_nominal", "x_star"}`` of an instance, or None where no fixed target
+    is known: at :data:`TARGET_ROOT_SEED` the shipped table's (none for a seed beyond
+    :data:`TARGET_SEEDS`, the sanity case, a custom case), at another root seed a user
+    table's (:func:`user_entry`; none without one)."""
+    key = target_key(case, track, seed)
     if root_seed != TARGET_ROOT_SEED:
-        return None
-    return shipped_targets()["entries"].get(target_key(case, track, seed))
+        return user_entry(SUITE_ID, key, root_seed)
+    return shipped_targets()["entries"].get(key)
+
+
+def targets_note(root_seeds: Sequence[int], with_f_star: int, runs: int) -> str:
+    """Which targets a board or export ranks on, in one sentence: fitness and parameter
+    targets where every run has a best-known ``f*``; else how many lack it and how to
+    compute the table of their root seed."""
+    if runs and with_f_star == runs:
+        return "Targets: fitness (best-known f*) and parameter targets."
+    roots = [r for r in root_seeds if r != TARGET_ROOT_SEED] or list(root_seeds)
+    r = roots[0] if roots else TARGET_ROOT_SEED
+    what = ("parameter targets only" if with_f_star == 0 else
+            f"fitness targets on {with_f_star} of {runs} runs, parameter targets on all")
+    return (f"Targets: {what}: no best-known f* for {runs - with_f_star} runs (root seed "
+            f"{', '.join(map(str, root_seeds))}); compute it with 'ema-bench targets "
+            f"--root-seed {r} --out T.json' and pass --targets T.json.")
 
 
 def fitness_targets(f_star: float, f_nominal: float) -> list[float]:

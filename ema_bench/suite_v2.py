@@ -393,18 +393,20 @@ def best_known_for(case: str, track: str, seed: int, root_seed: int = 0) -> dict
     A tier-4 case with full information (``prior``, ``no-prior``) is v1's problem, data
     and all: v1's shipped entry holds (test_suite_v2 checks the fitness to the bit).  Other
     v2 cases: the entry of :func:`target_case` in ``suite_targets_v2.json``
-    (:func:`shipped_targets`; None while it is absent or lacks the key, or for a root seed
-    other than 0); v1 cases: :func:`ema_bench.suite.best_known`."""
-    from .suite import TARGET_ROOT_SEED, best_known, target_key
+    (:func:`shipped_targets`; None while it is absent or lacks the key), or at a root seed
+    other than 0 a user table's (:func:`ema_bench.suite.user_entry`); v1 cases:
+    :func:`ema_bench.suite.best_known`."""
+    from .suite import TARGET_ROOT_SEED, best_known, target_key, user_entry
 
     if not is_v2_case(case):
         return best_known(case, track, seed, root_seed)
     inst, c = parse_case(case)
     if inst.tier == 4 and c.full_information:
         return best_known(inst.name, track, seed, root_seed)
+    key = target_key(target_case(case), track, seed)
     if root_seed != TARGET_ROOT_SEED:
-        return None
-    return shipped_targets()["entries"].get(target_key(target_case(case), track, seed))
+        return user_entry(SUITE_ID, key, root_seed)
+    return shipped_targets()["entries"].get(key)
 
 
 def judged_for(case: str, track: str) -> np.ndarray | None:

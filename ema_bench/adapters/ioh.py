@@ -30,7 +30,8 @@ from typing import Any
 import ioh
 import numpy as np
 
-from ..suite import best_known
+from ..leaderboard.ioh import function_id, function_name, instance_of
+from ..suite_v2 import best_known_for
 from .run import AdapterRun, evaluate_unit
 
 
@@ -43,7 +44,8 @@ class IOHProblem:
         self.run = run
         self.problem = run.problem
         self._pending: deque[tuple[np.ndarray, float]] = deque()
-        known = best_known(run.case, run.track, run.seed, run.root_seed)
+        self._loggers: list[Any] = []
+        known = best_known_for(run.case, run.track, run.seed, run.root_seed)
         optimum = None
         if known is not None:
             x_star = self.problem.to_unit(np.array([known["x_star"][n]
@@ -52,9 +54,34 @@ class IOHProblem:
 
             def optimum(instance: int, dimension: int) -> tuple[list[float], float]:
                 return list(map(float, x_star)), f_star
-        self.ioh = ioh.wrap_problem(self._value, name=f"ema-bench {run.case}@{run.track}",
-                                    dimension=self.problem.dim, instance=int(run.seed),
+        # the export's identity of this run (ema_bench/leaderboard/ioh.py), so both pool
+        ident = {"case": run.case, "track": run.track, "seed": run.seed,
+                 "root_seed": run.root_seed}
+        name = function_name(ident)
+        self.ioh = ioh.wrap_problem(self._value, name=f"ema-bench {name}",
+                                    dimension=self.problem.dim, instance=instance_of(ident),
                                     lb=0.0, ub=1.0, calculate_objective=optimum)
+        # wrap_problem takes the first free id and registers the name: both set afterwards
+        self.ioh.set_id(function_id(name))
+        self.ioh.set_name(name)
+
+    def attach_logger(self, logger: Any) -> None:
+        """Attach an IOH logger and hold it for the problem's lifetime (ioh does not: a
+        logger attached as a temporary would be freed while IOH still writes to it)."""
+        self.ioh.attach_logger(logger)
+        self._loggers.append(logger)
+
+    def detach_logger(self) -> None:
+        """Detach the loggers (IOH's ``detach_logger``); they stay held until
+        :meth:`close`."""
+        self.ioh.detach_logger()
+
+    def close(self) -> None:
+        """End the IOH run and close every logger attached (their files are complete
+        only then)."""
+        self.ioh.reset()
+        for logger in self._loggers:
+            logger.close()
 
     def _value(self, x: np.ndarray) -> float:
         """The wrapped function: the value computed for this point in the current batch."""

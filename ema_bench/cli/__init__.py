@@ -88,8 +88,10 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     configure_logging(quiet=getattr(args, "quiet", False))
     from ..sweep.loop import SweepError
+    from .args import use_targets
 
     try:
+        use_targets(args)
         return int(args.func(args) or 0)
     except (CLIError, ValueError, LookupError, OSError, MemoryError, SweepError) as exc:
         # OSError: a write that fails late (disk full, folder removed) is one line too

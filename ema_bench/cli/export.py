@@ -29,7 +29,7 @@ FORMATS: dict[str, Callable[..., list[Path]]] = {"ioh": export_ioh}
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from .args import add_json
+    from .args import add_json, add_targets
 
     p = sub.add_parser("export", help="convert run records for other tools (IOHprofiler)",
                        description=__doc__,
@@ -43,6 +43,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="raw fitness (default) or precision (f - f*) / (f_nominal - f*)")
     p.add_argument("--include-sanity", action="store_true",
                    help="export the sanity case (nominal) too, marked; left out by default")
+    add_targets(p)
     add_json(p, "a summary")
     p.set_defaults(func=run)
 

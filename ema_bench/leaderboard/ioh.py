@@ -40,13 +40,14 @@ seed, ``1000 x`` the instance's position in its tier plus the seed (seeds below 
 Values (``experiment_attributes`` ``value``): ``raw`` (default) writes the best-so-far fitness;
 ``precision`` writes ``(f - f*) / (f_nominal - f*)``, the precision the suite's fitness targets
 are defined on (1e-1 .. 1e-4), so IOH's fixed targets equal the board's; a run without a
-shipped ``f*`` (root seed other than 0, seed beyond the shipped ten) cannot be written so and
-is refused.  Precision is floored at 0: a fit below the best-known ``f*`` (it fits the
-noise a little better than the best fit found) has reached every target, and a negative value
-would make a log-scaled analysis (iohinspector's ``transform_fval``) NaN; the raw export keeps
-the exact value.  The sanity
-instances (``nominal``, outside every ranking) are left out unless asked for, and then marked
-by the experiment attribute ``sanity`` (iohinspector: a column of its overview).
+known ``f*`` (a seed beyond the shipped ten; a root seed other than 0 without a user table,
+``ema-bench targets --root-seed R`` and ``--targets``) cannot be written so and is refused.
+Precision is floored at 0: a fit below the best-known ``f*`` (it fits the noise a little
+better than the best fit found) has reached every target, and a negative value would make a
+log-scaled analysis (iohinspector's ``transform_fval``) NaN; the raw export keeps the exact
+value.  The sanity instances (``nominal``, outside every ranking) are left out unless asked
+for, and then marked by the experiment attribute ``sanity`` (iohinspector: a column of its
+overview).
 
 ``raw_y`` is the best-so-far value at each recorded evaluation: at an improvement it is the
 evaluated value itself; the last line of a run, at its last evaluation, repeats the best-so-far
@@ -212,7 +213,9 @@ def export_ioh(records: Iterable[dict], out: Path,
         if lacking:
             raise ValueError(f"{len(lacking)} runs have no known f* for a precision export "
                              f"(e.g. {', '.join(lacking[:3])}): the suite ships f* for root "
-                             "seed 0 and its first seeds only; export raw values instead")
+                             "seed 0 and its first seeds only; compute a table of their root "
+                             "seed ('ema-bench targets --root-seed R --out T.json') and pass "
+                             "--targets T.json, or export raw values")
     if skipped:
         log.warning("IOH export: skipped %d runs (%d failed with an error, the others made no "
                     "evaluation)", len(skipped), sum(map(is_error, skipped)))
@@ -254,6 +257,13 @@ def suite_function_ids() -> dict[str, int]:
     names = [f"{c}@{t}" for c in instance_names() for t in TRACKS]
     names += [f"{c}@{t}" for c in CONDITIONS for t in TRACKS]
     return {n: i for i, n in enumerate(names, 1)}
+
+
+def function_id(name: str) -> int:
+    """The IOH function id of ``case@track`` (or ``condition@track``) in an export without
+    given ids: its :func:`suite_function_ids` id, or the first id after the suite's for a
+    custom instance (what the ioh adapter logs, so its data and an export pool)."""
+    return _function_ids([name], None)[name]
 
 
 def _function_ids(names: list[str], given: Mapping[str, int] | None) -> dict[str, int]:

@@ -10,7 +10,8 @@ from pathlib import Path
 
 from .. import jsonio
 from ..faults import CASES
-from ..suite import SANITY_CASES, SUITE_ID
+from ..suite import SANITY_CASES, SUITE_ID, targets_note
+from ..suite_v2 import best_known_for
 from ..sweep.executors import Runner
 from ..sweep.loop import run_sweep
 from ..trace_cache import MODEL_VERSION
@@ -76,6 +77,13 @@ def overlay_run(finished: list[dict]) -> dict:
     return min(full, key=lambda r: r["fitness"])
 
 
+def _has_f_star(record: dict) -> bool:
+    """Whether a run is scored on fitness targets: its instance has a best-known ``f*``
+    (looked up as the scores' re-derivation does, :mod:`.derive`)."""
+    return best_known_for(str(record["case"]), str(record["track"]), int(record["seed"]),
+                          int(record.get("root_seed") or 0)) is not None
+
+
 def write_outputs(records: list[dict], out: Path, command: str, plots: bool = True,
                   landscape_n: int = 40, expected: int | None = None) -> dict[str, object]:
     """Tables and plots of ``records`` under ``out``; returns a summary."""
@@ -86,14 +94,17 @@ def write_outputs(records: list[dict], out: Path, command: str, plots: bool = Tr
     errors = (f" {len(failed)} runs failed with an error (counted as unsuccessful at their "
               "budget; summary.json lists them)." if failed else "")
     suites = ", ".join(sorted({str(r.get("suite", SUITE_ID)) for r in records}))
+    ranked = [r for r in records if r["case"] not in SANITY_CASES]
+    targets = targets_note(sorted({int(r.get("root_seed") or 0) for r in ranked}),
+                           sum(_has_f_star(r) for r in ranked), len(ranked))
     header = (f"Produced by `{command}`: {len(records)} runs, suite {suites}, model "
-              f"version {MODEL_VERSION}.{partial}{errors}")
+              f"version {MODEL_VERSION}. {targets}{partial}{errors}")
     # scores and the ECDF count failed runs as unsuccessful; what needs a fit, finished runs
     finished = [r for r in records if not is_error(r)]
     scores = score_records(records)
     written = write_leaderboards(records, out, header)
     written.append(write_paper_tables(finished, scores, out, header, load_paper_results()))
-    summary: dict[str, object] = {"errors": failed}
+    summary: dict[str, object] = {"errors": failed, "targets": targets}
     images: list[Path] = []
 
     def draw(name: str, plot: Callable[..., None], *data: object) -> None:
