@@ -88,7 +88,6 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     configure_logging(quiet=getattr(args, "quiet", False))
     from ..sweep.loop import SweepError
-    from .args import use_targets
 
     try:
         use_targets(args)
@@ -97,6 +96,23 @@ def main(argv: Sequence[str] | None = None) -> int:
         # OSError: a write that fails late (disk full, folder removed) is one line too
         print(f"ema-bench {args.command}: error: {_message(exc)}", file=sys.stderr)
         return 2
+
+
+def use_targets(args: argparse.Namespace) -> None:
+    """Make a command's ``--targets`` tables active for this process and its workers
+    (:data:`ema_bench.suite.TARGETS_ENV`), each checked first (ValueError, one line)."""
+    import os
+    from pathlib import Path
+
+    from ..suite import TARGETS_ENV, user_targets
+
+    files = getattr(args, "targets", None)
+    if not files:
+        return
+    known = [p for p in os.environ.get(TARGETS_ENV, "").split(os.pathsep) if p]
+    os.environ[TARGETS_ENV] = os.pathsep.join(
+        dict.fromkeys([str(Path(f).resolve()) for f in files] + known))
+    user_targets()   # a missing or mislabelled file fails here, before any work
 
 
 def _message(exc: BaseException) -> str:

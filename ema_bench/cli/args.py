@@ -148,25 +148,12 @@ def add_json(p: argparse.ArgumentParser, what: str = "the result") -> None:
 
 def add_targets(p: argparse.ArgumentParser) -> None:
     """``--targets FILE``: a best-known table of another root seed (``ema-bench targets
-    --root-seed R``), used where the shipped one has no entry (:func:`use_targets`)."""
+    --root-seed R``), used where the shipped one has no entry (``cli.use_targets``, run by
+    ``main`` before the command)."""
     p.add_argument("--targets", action="append", default=None, metavar="FILE.json",
                    help="best-known table of another root seed (ema-bench targets "
                         "--root-seed R --out FILE.json): its f* gives the runs of that root "
                         "seed fitness targets (repeatable)")
-
-
-def use_targets(args: argparse.Namespace) -> None:
-    """Make ``--targets`` tables active for this process and its workers
-    (:data:`ema_bench.suite.TARGETS_ENV`), each checked first (ValueError, one line)."""
-    from ..suite import TARGETS_ENV, user_targets
-
-    files = getattr(args, "targets", None)
-    if not files:
-        return
-    known = [p for p in os.environ.get(TARGETS_ENV, "").split(os.pathsep) if p]
-    os.environ[TARGETS_ENV] = os.pathsep.join(
-        dict.fromkeys([str(Path(f).resolve()) for f in files] + known))
-    user_targets()   # a missing or mislabelled file fails here, before any work
 
 
 def add_quiet(p: argparse.ArgumentParser) -> None:

@@ -462,3 +462,18 @@ def _dat_runs(path: Path) -> list[tuple[list[str], list[list[float]]]]:
         except ValueError:
             raise ValueError(f"{path}:{n}: not a number in {line!r}") from None
     return runs
+
+
+def optima(folder: Path | str) -> list[dict[str, Any]]:
+    """``{function_id, instance, f_star, f_nominal}`` of each instance in the IOHprofiler
+    data under ``folder`` that has them: run attributes, which iohinspector (0.0.8) does not
+    read; join these rows to its frame on ``function_id`` and ``instance`` (one export holds
+    one root seed, so the pair names one instance's ``f*``)."""
+    rows: dict[tuple[int, int], dict[str, Any]] = {}
+    for r in read_ioh(Path(folder)):
+        a = r["attributes"]
+        if "f_star" in a:
+            rows.setdefault((r["function_id"], r["instance"]), {
+                "function_id": r["function_id"], "instance": r["instance"],
+                "f_star": a["f_star"], "f_nominal": a["f_nominal"]})
+    return list(rows.values())
