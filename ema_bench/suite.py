@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from .faults import CASES, FAULT_NAMES, LOWER, UPPER, FaultError, faults_to_dict
+from .sweep.schema import check, opt, req
 from .trace_cache import MODEL_VERSION
 
 SUITE_ID = "emafdi-v1"
@@ -128,6 +129,12 @@ def target_key(case: str, track: str, seed: int) -> str:
     return f"{case}|{track}|{seed}"
 
 
+#: A best-known table file (``ema-bench targets``' JSON, what ``--targets`` reads), by JSON
+#: type; each entry: :data:`ema_bench.best_known.ENTRY_SCHEMA`'s fields.
+TABLE_SCHEMA = {"suite": req("str"), "model_version": req("str"), "method": opt("dict"),
+                "entries": req("dict")}
+
+
 def read_targets(path: Traversable, suite: str, missing_ok: bool = True) -> dict:
     """A best-known table (``ema-bench targets``' JSON) of ``suite`` on the installed model
     version: ``{"suite", "model_version", "entries": {key: {"f_star", "f_nominal",
@@ -140,7 +147,7 @@ def read_targets(path: Traversable, suite: str, missing_ok: bool = True) -> dict
             return {"suite": suite, "model_version": SUITE_MODEL_VERSION, "entries": {}}
         raise SuiteError(f"{name}: no best-known table of suite {suite} there; compute it "
                          "with 'ema-bench targets'")
-    data = json.loads(path.read_text())
+    data = check(json.loads(path.read_text()), TABLE_SCHEMA, name)
     if data.get("suite") != suite or data.get("model_version") != SUITE_MODEL_VERSION:
         raise SuiteError(f"{name} is for suite {data.get('suite')!r} on model version "
                          f"{data.get('model_version')!r}, not {suite} on "
@@ -169,8 +176,8 @@ def _user_tables(paths: str) -> tuple[dict, ...]:
         if not path.is_file():
             raise SuiteError(f"{TARGETS_ENV}: {p}: no such best-known table (make one with "
                              "'ema-bench targets --root-seed R --out FILE')")
-        suite = json.loads(path.read_text()).get("suite")   # checked by read_targets
-        tables.append(read_targets(path, str(suite)))
+        suite = check(json.loads(path.read_text()), TABLE_SCHEMA, p)["suite"]
+        tables.append(read_targets(path, suite))   # and its model version
     return tuple(tables)
 
 

@@ -26,6 +26,7 @@ from __future__ import annotations
 import importlib.util
 import re
 from dataclasses import dataclass, field
+from importlib.metadata import entry_points
 from pathlib import Path
 
 import pytest
@@ -103,12 +104,14 @@ def clean_registries():
     from ema_bench.prognostics.tracking import _TRACKERS
     from ema_bench.registry import _SOLVERS
 
-    saved = [(r, dict(r.entries), r.loaded) for r in (_SOLVERS, _TRACKERS)]
+    saved = [(r, set(r.entries)) for r in (_SOLVERS, _TRACKERS)]
     yield
-    for reg, entries, loaded in saved:
-        reg.entries.clear()
-        reg.entries.update(entries)
-        reg.loaded = loaded
+    for reg, before in saved:
+        # the installed plugins stay (their modules are imported once: never registered
+        # again); the example's own go
+        plugins = {ep.name for ep in entry_points(group=reg.group)}
+        for name in set(reg.entries) - before - plugins:
+            del reg.entries[name]
 
 
 def _run(ex: Example, ns: dict) -> None:

@@ -30,6 +30,7 @@ COMMANDS: dict[str, str] = {
     "targets": "targets",
     "coverage": "coverage",
     "campaign": "campaign",
+    "schema": "schema",
 }
 
 

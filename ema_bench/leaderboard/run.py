@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import shlex
 import sys
 from collections.abc import Callable
@@ -14,6 +15,7 @@ from ..suite import SANITY_CASES, SUITE_ID, targets_note
 from ..suite_v2 import best_known_for
 from ..sweep.executors import Runner
 from ..sweep.loop import run_sweep
+from ..sweep.schema import check, opt, req
 from ..trace_cache import MODEL_VERSION
 from .anytime import anytime_scores
 from .figures import (
@@ -75,6 +77,16 @@ def overlay_run(finished: list[dict]) -> dict:
     ref = [r for r in finished if r["track"] == "reference"] or finished
     full = [r for r in ref if paper_case(r["case"]) == "full"] or ref
     return min(full, key=lambda r: r["fitness"])
+
+
+#: ``OUT/summary.json`` of a board, by JSON type: checked before it is written, so the
+#: published JSON Schema (``ema-bench schema leaderboard-summary``) and the file agree
+#: (``targets``: boards written before issue 45 lack it).
+SUMMARY_SCHEMA = {"command": req("str"), "runs": req("int"), "suite": req("str"),
+                  "model_version": req("str"), "errors": req("list"), "targets": opt("str"),
+                  "files": req("list"), "anytime": req("list"), "scores": req("list"),
+                  "figure5_valley_rise": opt("dict"), "global_vs_local": opt("list"),
+                  "saturation": opt("dict")}
 
 
 def _has_f_star(record: dict) -> bool:
@@ -140,11 +152,13 @@ def write_outputs(records: list[dict], out: Path, command: str, plots: bool = Tr
     written += images
     written.append(write_page(records, out / "leaderboard.html", header, images))
     summary["files"] = [str(p) for p in written]
-    (out / "summary.json").write_text(jsonio.dumps(
-        {"command": command, "runs": len(records), "suite": suites,
-         "model_version": MODEL_VERSION, **summary,
-         "anytime": [s.row() for s in anytime_scores(records)],
-         "scores": [s.row() for s in scores]}, indent=1, default=str))
+    doc = {"command": command, "runs": len(records), "suite": suites,
+           "model_version": MODEL_VERSION, **summary,
+           "anytime": [s.row() for s in anytime_scores(records)],
+           "scores": [s.row() for s in scores]}
+    text = jsonio.dumps(doc, indent=1, default=str)
+    check(json.loads(text), SUMMARY_SCHEMA, str(out / "summary.json"))   # as read back
+    (out / "summary.json").write_text(text)
     return summary
 
 
