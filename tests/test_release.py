@@ -57,6 +57,7 @@ def test_the_sdist_holds_the_tests_and_what_they_read(tmp_path):
         assert missing == [], missing[:10]
     for needed in ("tests/conftest.py", "leaderboards/quick/runs.jsonl",
                    "leaderboards/runs.jsonl", "docs/schemas/run-record.schema.json",
-                   "benchmarks/c/monitor.c", ".ci/run", "CHANGELOG.md", "README.md"):
+                   "benchmarks/c/monitor.c", ".ci/run", "CHANGELOG.md", "README.md",
+                   "mkdocs.yml", "docs_site.py", "docs/tutorial.ipynb"):
         assert needed in names, needed
     assert not [n for n in names if "__pycache__" in n or n.endswith(".pyc")]
