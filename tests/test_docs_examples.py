@@ -16,6 +16,10 @@ the HTML comment just above it (invisible on the rendered page) says otherwise:
 - ``<!-- docs-test: needs MODULE -->``: skipped, with the reason, where an optional extra is
   not installed (CI installs them all with ``[test]``).
 
+The Python examples of the package's docstrings (a ``::`` literal block that starts with an
+import: the API reference of the docs site shows them) run the same way; their reductions
+are in :data:`DOCSTRING_REPLACE`, since a docstring has no hidden comment.
+
 Blocks of other languages (``bash``, ``text``) are commands and outputs: the README's two
 commands are CI's (``tests/test_readme.py``); the CLI examples are run by the CLI tests.
 Solvers and trackers that examples register are removed again after each block.
@@ -23,8 +27,10 @@ Solvers and trackers that examples register are removed again after each block.
 
 from __future__ import annotations
 
+import ast
 import importlib.util
 import re
+import textwrap
 from dataclasses import dataclass, field
 from importlib.metadata import entry_points
 from pathlib import Path
@@ -88,14 +94,45 @@ def _directive(ex: Example, body: str) -> None:
         raise ValueError(f"{ex.id}: unknown docs-test directive {body!r}")
 
 
-ALL = [ex for page in PAGES for ex in examples(page)]
+#: module -> replacements of its docstring example (the reference track's traces, about 40
+#: CPU-s each, by the twin's; a budget cut)
+DOCSTRING_REPLACE = {
+    "ema_bench/__init__.py": [('track="reference"', 'track="twin"'),
+                              ("budget=2000", "budget=300")],
+    "ema_bench/env.py": [('track="reference"', 'track="twin"')],
+    "ema_bench/adapters/ioh.py": [("budget=500", "budget=100")],
+    "ema_bench/adapters/pymoo.py": [("budget=500", "budget=100")],
+}
+DOCSTRING_BLOCK = re.compile(r"::\n\n((?:    .*\n|[ \t]*\n)+)")
+
+
+def docstring_examples(path: Path) -> list[Example]:
+    """The Python examples in the docstrings of a module."""
+    rel = path.relative_to(REPO).as_posix()
+    out = []
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if not isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef)):
+            continue
+        doc = ast.get_docstring(node, clean=True)
+        for m in DOCSTRING_BLOCK.finditer((doc or "") + "\n"):
+            code = textwrap.dedent(m.group(1)).strip() + "\n"
+            if code.startswith(("import ", "from ")):
+                line = getattr(node, "lineno", 1)
+                out.append(Example(path, line, code, replace=DOCSTRING_REPLACE.get(rel, [])))
+    return out
+
+
+ALL = [ex for page in PAGES for ex in examples(page)] + [
+    ex for module in sorted((REPO / "ema_bench").rglob("*.py"))
+    for ex in docstring_examples(module)]
 
 
 def test_the_pages_have_examples_and_every_directive_parses():
     # a page that stops matching (a renamed fence) would silently drop its examples
     assert len(ALL) >= 13
     assert {ex.page.name for ex in ALL} >= {"README.md", "adapters.md", "uncertainty.md",
-                                           "writing-a-solver.md", "submitting-results.md"}
+                                           "writing-a-solver.md", "submitting-results.md",
+                                           "ioh.py", "scipy.py", "env.py"}
 
 
 @pytest.fixture

@@ -6,20 +6,28 @@ call's points as one counted batch on the ema-bench problem first, then passes t
 wrapped IOH problem, whose function returns the values just computed: IOH's state
 (evaluations, best so far) and any IOH logger attached (``ioh.logger.Analyzer``: the
 IOHprofiler data IOHanalyzer and iohinspector read) see every point, in order, with the value
-the ema-bench problem counted.  The search space is the unit box ``[0, 1]^dim``; the function
-is named ``ema-bench case@track`` and its IOH instance is the run seed (the export's
-mapping); where the suite ships ``f*`` it is IOH's optimum (``problem.optimum``)::
+the ema-bench problem counted.  The search space is the unit box ``[0, 1]^dim``.  The
+function id, name and instance are the export's (``ema-bench export --format ioh``:
+:func:`~ema_bench.leaderboard.ioh.function_id`, ``case@track``, the run seed), so the
+adapter's logs and an export of the same run pool; where a best-known ``f*`` is known (the
+shipped table at root seed 0, a user table of another root seed named in
+``EMA_BENCH_TARGETS``) it is IOH's optimum (``problem.optimum``).  The problem holds every
+logger attached to it: ioh 0.4 keeps none alive itself, and a logger attached as a temporary
+was freed at once and crashed the interpreter at the next evaluation::
 
     import ioh
+    import numpy as np
     from ema_bench.adapters.ioh import IOHProblem
     from ema_bench.adapters.run import AdapterRun
 
     run = AdapterRun("my-es", case="small", track="twin", budget=500, library="ioh")
     f = IOHProblem(run)
     f.attach_logger(ioh.logger.Analyzer(root="ioh-data", algorithm_name="my-es"))
+    rng = np.random.default_rng(run.solver_seed())
     while f.remaining >= 10:
-        f(population)                      # (10, 4) in [0, 1]: one batch, ten IOH lines
+        f(rng.random((10, 4)))             # (10, 4) in [0, 1]: one batch, ten IOH lines
     record = run.record("budget")
+    f.close()                              # ends the IOH run: the logger's files are complete
 """
 
 from __future__ import annotations
