@@ -69,6 +69,10 @@ def test_board_export_and_validate_at_root_seed_70(table70, tmp_path, cli):
     res = cli("export", "--format", "ioh", tmp_path / "bare" / "runs.jsonl", "--value",
               "precision", "--out", tmp_path / "x", env=NO_TABLE)
     assert res.returncode == 2 and "--targets" in res.stderr
+    res = cli("export", "--format", "ioh", tmp_path / "bare" / "runs.jsonl", "--out",
+              tmp_path / "raw", env=NO_TABLE, check=True)
+    assert "f* (run attribute, fitness targets) on 0 of 1 runs" in res.stdout
+    assert "targets --root-seed 70" in res.stdout
     # with the table: fitness targets, validate accepts, the export carries f*
     res = cli(*board, "--targets", table70, "--out", tmp_path / "lb", env=NO_TABLE,
               check=True)
@@ -79,8 +83,9 @@ def test_board_export_and_validate_at_root_seed_70(table70, tmp_path, cli):
     runs = tmp_path / "lb" / "runs.jsonl"
     assert cli("validate", runs, "--partial", "--targets", table70, env=NO_TABLE).returncode == 0
     assert cli("validate", runs, "--partial", env=NO_TABLE).returncode != 0
-    cli("export", "--format", "ioh", runs, "--value", "precision", "--targets", table70,
-        "--out", tmp_path / "ioh", env=NO_TABLE, check=True)
+    res = cli("export", "--format", "ioh", runs, "--value", "precision", "--targets", table70,
+              "--out", tmp_path / "ioh", env=NO_TABLE, check=True)
+    assert "f* (run attribute, fitness targets) on 1 of 1 runs\n" in res.stdout
     (meta,) = (tmp_path / "ioh").rglob("IOHprofiler_*.json")
     run = json.loads(meta.read_text())["scenarios"][0]["runs"][0]
     assert run["f_star"] == f_star and run["root_seed"] == 70
