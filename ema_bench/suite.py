@@ -176,8 +176,13 @@ def _user_tables(paths: str) -> tuple[dict, ...]:
         if not path.is_file():
             raise SuiteError(f"{TARGETS_ENV}: {p}: no such best-known table (make one with "
                              "'ema-bench targets --root-seed R --out FILE')")
-        suite = check(json.loads(path.read_text()), TABLE_SCHEMA, p)["suite"]
-        tables.append(read_targets(path, suite))   # and its model version
+        data = check(json.loads(path.read_text()), TABLE_SCHEMA, p)
+        if table_root_seed(data) == TARGET_ROOT_SEED:
+            # the shipped table is the one of root seed 0: a second would rank the same runs
+            # on other targets than everyone else's
+            raise SuiteError(f"{p} is a table of root seed {TARGET_ROOT_SEED}, whose f* the "
+                             "package ships; --targets takes tables of other root seeds")
+        tables.append(read_targets(path, data["suite"]))   # and its model version
     return tuple(tables)
 
 

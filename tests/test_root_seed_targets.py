@@ -48,6 +48,11 @@ def test_the_table_is_polished_on_the_root_seeds_own_noise(table70, monkeypatch)
     monkeypatch.setenv(TARGETS_ENV, str(table70.with_name("missing.json")))
     with pytest.raises(SuiteError, match="no such best-known table"):
         best_known("small", "twin", 0, 70)
+    root0 = table70.with_name("root0.json")
+    root0.write_text(json.dumps({**data, "method": {**data["method"], "root_seed": 0}}))
+    monkeypatch.setenv(TARGETS_ENV, str(root0))
+    with pytest.raises(SuiteError, match="the package ships"):
+        best_known("small", "twin", 0, 70)
 
 
 def test_a_partial_file_of_another_root_seed_is_refused(table70, monkeypatch):
