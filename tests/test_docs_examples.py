@@ -21,7 +21,8 @@ import: the API reference of the docs site shows them) run the same way; their r
 are in :data:`DOCSTRING_REPLACE`, since a docstring has no hidden comment.
 
 Blocks of other languages (``bash``, ``text``) are commands and outputs: the README's two
-commands are CI's (``tests/test_readme.py``); the CLI examples are run by the CLI tests.
+commands are CI's (``tests/test_readme.py``); every ``ema-bench`` command line of the pages
+is parsed by the real parser here (a stale option fails), and run by the CLI tests.
 Solvers and trackers that examples register are removed again after each block.
 """
 
@@ -180,3 +181,50 @@ def test_example_runs_as_written(ex: Example, tmp_path, monkeypatch, clean_regis
     ns: dict = {"__name__": "__docs_example__"}
     for e in page[first:i + 1]:
         _run(e, ns)
+
+
+# --- the command lines of the pages --------------------------------------------------------
+FENCE = re.compile(r"^```(\w*)[ \t]*\n(.*?)^```", re.S | re.M)
+
+
+def command_lines(page: Path) -> list[str]:
+    """The ``ema-bench ...`` lines of a page's non-Python blocks (continuations joined,
+    ``$ `` prompts and ``VAR=value`` prefixes dropped); diagrams (box drawing) and elided
+    lines (``...``) are not commands."""
+    out = []
+    for m in FENCE.finditer(page.read_text(encoding="utf-8")):
+        if m.group(1) == "python" or "─" in m.group(2):
+            continue
+        for line in m.group(2).replace("\\\n", " ").splitlines():
+            line = re.sub(r"^(\w+=\S+ )+", "", line.strip().removeprefix("$ "))
+            if line.startswith("ema-bench ") and "..." not in line:
+                out.append(line)
+    return out
+
+
+COMMANDS = [(page, line) for page in PAGES for line in command_lines(page)]
+
+
+def test_every_command_line_of_the_pages_parses():
+    """Each ``ema-bench`` command the README and docs/ show is accepted by the real parser
+    (a renamed or removed option fails here; the commands' runs are the CLI tests')."""
+    import contextlib
+    import io
+    import shlex
+
+    from ema_bench.cli import build_parser
+
+    parser = build_parser()
+    assert len(COMMANDS) >= 35
+    bad = []
+    for page, line in COMMANDS:
+        argv = shlex.split(line, comments=True)
+        argv = argv[:argv.index("|")] if "|" in argv else argv
+        err = io.StringIO()
+        try:
+            with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+                parser.parse_args(argv[1:])
+        except SystemExit as exc:
+            if exc.code:
+                bad.append(f"{page.name}: {line}: {err.getvalue().strip().splitlines()[-1]}")
+    assert bad == []
