@@ -175,6 +175,43 @@ def test_ioh_keeps_the_batch_logs_with_iohs_logger_and_solves(tmp_path):
         f.ioh(np.zeros(4))   # around the count: refused
 
 
+IOH_TEMPORARY_LOGGER = """
+import gc, json, sys
+import ioh, numpy as np
+from ema_bench.adapters.ioh_problem import IOHProblem
+from ema_bench.adapters.run import AdapterRun
+run = AdapterRun("my-es", case="small", track="twin", seed=2, budget=20, library="ioh")
+f = IOHProblem(run)
+f.attach_logger(ioh.logger.Analyzer(root=sys.argv[1], folder_name="adapter",
+                                    algorithm_name="my-es"))
+gc.collect()   # ioh 0.4 keeps no reference: the logger lived only while the adapter held it
+f(np.random.default_rng(0).random((20, 4)))
+f.close()
+print(json.dumps(run.record("budget")))
+"""
+
+
+def test_ioh_logger_held_and_the_adapters_data_pools_with_the_export(tmp_path):
+    pytest.importorskip("ioh", reason="ioh not installed (pip install 'ema-bench[ioh]')")
+    from ema_bench.leaderboard.ioh import export_ioh
+
+    # a subprocess: the temporary logger used to crash the interpreter (SIGSEGV, rc 139)
+    res = subprocess.run([sys.executable, "-c", IOH_TEMPORARY_LOGGER, str(tmp_path)],
+                         capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr[-2000:]
+    rec = json.loads(res.stdout.splitlines()[-1])
+    export_ioh([rec], tmp_path / "export")
+    (logged,) = (tmp_path / "adapter").glob("IOHprofiler_*.json")
+    (exported,) = (tmp_path / "export").rglob("IOHprofiler_*.json")
+    assert logged.name == exported.name   # same file name: IOHprofiler_f<id>_<name>.json
+    a, e = json.loads(logged.read_text()), json.loads(exported.read_text())
+    assert (a["function_id"], a["function_name"]) == (e["function_id"], e["function_name"])
+    ra, re_ = a["scenarios"][0]["runs"], e["scenarios"][0]["runs"]
+    assert [r["instance"] for r in ra] == [r["instance"] for r in re_] == [2]
+    assert [r["evals"] for r in ra] == [r["evals"] for r in re_] == [20]
+    assert ra[0]["best"]["y"] == re_[0]["best"]["y"] == rec["fitness"]
+
+
 # --- nevergrad --------------------------------------------------------------------------
 
 def test_nevergrad_function_runs_as_the_benchmark_runs_it(tmp_path, monkeypatch):

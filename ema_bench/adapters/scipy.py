@@ -9,7 +9,7 @@ problem has left, and a batch the budget cannot hold ends the run with the best 
 problem logged (``success`` False, ``message`` saying so)::
 
     from ema_bench.adapters.run import AdapterRun
-    from ema_bench.adapters.scipy import minimize
+    from ema_bench.adapters.scipy import minimize, simplex
 
     run = AdapterRun("scipy-nelder-mead", case="small", track="twin", budget=400,
                      library="scipy")

@@ -30,6 +30,7 @@ COMMANDS: dict[str, str] = {
     "targets": "targets",
     "coverage": "coverage",
     "campaign": "campaign",
+    "schema": "schema",
 }
 
 
@@ -90,11 +91,29 @@ def main(argv: Sequence[str] | None = None) -> int:
     from ..sweep.loop import SweepError
 
     try:
+        use_targets(args)
         return int(args.func(args) or 0)
     except (CLIError, ValueError, LookupError, OSError, MemoryError, SweepError) as exc:
         # OSError: a write that fails late (disk full, folder removed) is one line too
         print(f"ema-bench {args.command}: error: {_message(exc)}", file=sys.stderr)
         return 2
+
+
+def use_targets(args: argparse.Namespace) -> None:
+    """Make a command's ``--targets`` tables active for this process and its workers
+    (:data:`ema_bench.suites.targets.TARGETS_ENV`), each checked first (ValueError, one line)."""
+    import os
+    from pathlib import Path
+
+    from ..suites.targets import TARGETS_ENV, user_targets
+
+    files = getattr(args, "targets", None)
+    if not files:
+        return
+    known = [p for p in os.environ.get(TARGETS_ENV, "").split(os.pathsep) if p]
+    os.environ[TARGETS_ENV] = os.pathsep.join(
+        dict.fromkeys([str(Path(f).resolve()) for f in files] + known))
+    user_targets()   # a missing or mislabelled file fails here, before any work
 
 
 def _message(exc: BaseException) -> str:

@@ -146,6 +146,16 @@ def add_json(p: argparse.ArgumentParser, what: str = "the result") -> None:
     p.add_argument("--json", action="store_true", help=f"print {what} as JSON")
 
 
+def add_targets(p: argparse.ArgumentParser) -> None:
+    """``--targets FILE``: a best-known table of another root seed (``ema-bench targets
+    --root-seed R``), used where the shipped one has no entry (``cli.use_targets``, run by
+    ``main`` before the command)."""
+    p.add_argument("--targets", action="append", default=None, metavar="FILE.json",
+                   help="best-known table of another root seed (ema-bench targets "
+                        "--root-seed R --out FILE.json): its f* gives the runs of that root "
+                        "seed fitness targets (repeatable)")
+
+
 def add_quiet(p: argparse.ArgumentParser) -> None:
     """``--quiet``: no progress bar and no progress lines (errors are still printed)."""
     p.add_argument("--quiet", "-q", action="store_true",

@@ -29,7 +29,7 @@ FORMATS: dict[str, Callable[..., list[Path]]] = {"ioh": export_ioh}
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from .args import add_json
+    from .args import add_json, add_targets
 
     p = sub.add_parser("export", help="convert run records for other tools (IOHprofiler)",
                        description=__doc__,
@@ -43,12 +43,13 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="raw fitness (default) or precision (f - f*) / (f_nominal - f*)")
     p.add_argument("--include-sanity", action="store_true",
                    help="export the sanity case (nominal) too, marked; left out by default")
+    add_targets(p)
     add_json(p, "a summary")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..leaderboard.ioh import function_name, split_runs
+    from ..leaderboard.ioh import function_name, optimum, split_runs
     from ..leaderboard.run_store import is_error, unique
     from ..suites.v1 import SANITY_CASES
     from . import print_result
@@ -68,17 +69,23 @@ def run(args: argparse.Namespace) -> int:
     sanity = [] if args.include_sanity else [r for r in runs if r["case"] in SANITY_CASES]
     runs = [r for r in runs if args.include_sanity or r["case"] not in SANITY_CASES]
     errors = sum(map(is_error, skipped))
+    known = sum(optimum(r) is not None for r in runs)
+    roots = sorted({int(r.get("root_seed") or 0) for r in runs})
     summary = {
         "format": args.format, "out": str(out), "runs": len(runs),
         "skipped": len(skipped), "skipped_errors": errors, "sanity_left_out": len(sanity),
         "solvers": sorted({str(r["solver"]) for r in runs}),
         # the exporter's names (emafdi-v2: condition@track, one dimension per tier)
         "functions": sorted({function_name(r) for r in runs}),
-        "files": [str(f) for f in files],
+        "files": [str(f) for f in files], "with_f_star": known,
     }
     return print_result(args, summary, [
         f"{len(runs)} runs of {len(summary['solvers'])} solvers on "
         f"{len(summary['functions'])} functions -> {out} ({len(files)} files)",
+        f"f* (run attribute, fitness targets) on {known} of {len(runs)} runs" + (
+            "" if known == len(runs) else
+            f"; compute the rest with 'ema-bench targets --root-seed {roots[-1]} --out "
+            "T.json' and pass --targets T.json"),
         *([f"skipped {len(skipped)} runs: {errors} failed with an error, "
            f"{len(skipped) - errors} made no evaluation"] if skipped else []),
         *([f"left out {len(sanity)} runs of the sanity case (--include-sanity to export "

@@ -52,6 +52,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         MAX_BUDGET,
         add_json,
         add_quiet,
+        add_targets,
         comma_list,
         count,
         seed_number,
@@ -114,6 +115,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--report-only", action="store_true",
                    help="run nothing: rebuild tables and plots from the records already in "
                         "OUT (e.g. after merging shards or to publish a partial sweep)")
+    add_targets(p)
     add_json(p, "a summary")
     add_quiet(p)
     p.set_defaults(func=run)
@@ -193,6 +195,7 @@ def run(args: argparse.Namespace) -> int:
     errors = summary["errors"]   # the runs that failed, one line each (scored as unsuccessful)
     print_result(args, {"out": str(out), **summary}, [
         *lines, f"{summary['runs']} runs ({summary['ran']} new) -> {out}",
+        str(summary["targets"]),
         *(f"  {f}" for f in summary.get("files", [])),
         *([f"{len(errors)} runs FAILED with an error (scored as unsuccessful at their "
            "budget; rerun the command to retry them):"] if errors else []),

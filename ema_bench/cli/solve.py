@@ -43,6 +43,7 @@ from .args import (
     add_faults,
     add_json,
     add_seeds,
+    add_targets,
     add_test_names,
     check_output,
     count,
@@ -104,6 +105,7 @@ def _register_solve(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--interval-plot", default=None, metavar="PNG",
                    help="with --intervals: draw the Na/Fst plane with the confidence region "
                         "to PNG (and, for profile, the profiles to PNG's name + _profiles)")
+    add_targets(p)
     add_json(p)
     p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     p.set_defaults(func=run)

@@ -22,7 +22,7 @@ import argparse
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from .args import add_json, count, seed_number
+    from .args import add_json, add_targets, count, seed_number
 
     p = sub.add_parser("validate", help="check third-party run records (suite, manifest, "
                                         "budget, re-evaluated fitness)",
@@ -46,6 +46,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--replay-key", action="append", default=None, metavar="KEY",
                    help="replay the record with this key (solver|case|track|seed; "
                         "repeatable) instead of a sample")
+    add_targets(p)
     add_json(p, "the findings")
     p.set_defaults(func=run)
 

@@ -40,13 +40,14 @@ seed, ``1000 x`` the instance's position in its tier plus the seed (seeds below 
 Values (``experiment_attributes`` ``value``): ``raw`` (default) writes the best-so-far fitness;
 ``precision`` writes ``(f - f*) / (f_nominal - f*)``, the precision the suite's fitness targets
 are defined on (1e-1 .. 1e-4), so IOH's fixed targets equal the board's; a run without a
-shipped ``f*`` (root seed other than 0, seed beyond the shipped ten) cannot be written so and
-is refused.  Precision is floored at 0: a fit below the best-known ``f*`` (it fits the
-noise a little better than the best fit found) has reached every target, and a negative value
-would make a log-scaled analysis (iohinspector's ``transform_fval``) NaN; the raw export keeps
-the exact value.  The sanity
-instances (``nominal``, outside every ranking) are left out unless asked for, and then marked
-by the experiment attribute ``sanity`` (iohinspector: a column of its overview).
+known ``f*`` (a seed beyond the shipped ten; a root seed other than 0 without a user table,
+``ema-bench targets --root-seed R`` and ``--targets``) cannot be written so and is refused.
+Precision is floored at 0: a fit below the best-known ``f*`` (it fits the noise a little
+better than the best fit found) has reached every target, and a negative value would make a
+log-scaled analysis (iohinspector's ``transform_fval``) NaN; the raw export keeps the exact
+value.  The sanity instances (``nominal``, outside every ranking) are left out unless asked
+for, and then marked by the experiment attribute ``sanity`` (iohinspector: a column of its
+overview).
 
 ``raw_y`` is the best-so-far value at each recorded evaluation: at an improvement it is the
 evaluated value itself; the last line of a run, at its last evaluation, repeats the best-so-far
@@ -204,7 +205,9 @@ def export_ioh(records: Iterable[dict], out: Path,
         if lacking:
             raise ValueError(f"{len(lacking)} runs have no known f* for a precision export "
                              f"(e.g. {', '.join(lacking[:3])}): the suite ships f* for root "
-                             "seed 0 and its first seeds only; export raw values instead")
+                             "seed 0 and its first seeds only; compute a table of their root "
+                             "seed ('ema-bench targets --root-seed R --out T.json') and pass "
+                             "--targets T.json, or export raw values")
     if skipped:
         log.warning("IOH export: skipped %d runs (%d failed with an error, the others made no "
                     "evaluation)", len(skipped), sum(map(is_error, skipped)))
@@ -244,6 +247,13 @@ def suite_function_ids() -> dict[str, int]:
 
     names = [f"{f}@{t}" for s in SUITES.values() for f in s.ioh_functions() for t in TRACKS]
     return {n: i for i, n in enumerate(names, 1)}
+
+
+def function_id(name: str) -> int:
+    """The IOH function id of ``case@track`` (or ``condition@track``) in an export without
+    given ids: its :func:`suite_function_ids` id, or the first id after the suite's for a
+    custom instance (what the ioh adapter logs, so its data and an export pool)."""
+    return _function_ids([name], None)[name]
 
 
 def _function_ids(names: list[str], given: Mapping[str, int] | None) -> dict[str, int]:
@@ -375,3 +385,83 @@ def _info(r: Mapping[str, Any]) -> str:
     lib = str(r.get("info") or "")
     version = (r.get("library") or {}).get(lib) if lib else None
     return f"{lib} {version}" if version else lib
+
+
+def read_ioh(folder: Path) -> list[dict[str, Any]]:
+    """The runs of the IOHprofiler data under ``folder`` (every ``IOHprofiler_*.json`` meta
+    file below it and the data files it names), read from the format alone.
+
+    Returns
+    -------
+    list of dict
+        Per run: ``algorithm``, ``algorithm_info``, ``suite``, ``function_id``,
+        ``function_name``, ``maximization``, ``dimension``, ``instance``, ``run_evals`` (the
+        run's evaluations), ``evals`` and ``raw_y`` (the data lines), ``best_y``,
+        ``best_evals``, ``best_x`` and the run attributes (``attributes``).
+
+    Raises
+    ------
+    ValueError
+        A data file's runs do not match its meta file's, or a line does not parse.
+    """
+    out = []
+    for meta_path in sorted(Path(folder).rglob("IOHprofiler_*.json")):
+        meta = json.loads(meta_path.read_text(encoding="utf-8"))
+        for scen in meta["scenarios"]:
+            dat = meta_path.parent / scen["path"]
+            blocks = _dat_runs(dat)
+            if len(blocks) != len(scen["runs"]):
+                raise ValueError(f"{dat}: {len(blocks)} runs, {meta_path} lists "
+                                 f"{len(scen['runs'])}")
+            for run, (header, rows) in zip(scen["runs"], blocks):
+                cols = {h: [row[i] for row in rows] for i, h in enumerate(header)}
+                out.append({
+                    "algorithm": meta["algorithm"]["name"],
+                    "algorithm_info": meta["algorithm"]["info"],
+                    "suite": meta["suite"], "function_id": meta["function_id"],
+                    "function_name": meta["function_name"],
+                    "maximization": meta["maximization"], "dimension": scen["dimension"],
+                    "instance": run["instance"], "run_evals": run["evals"],
+                    "evals": [int(v) for v in cols["evaluations"]], "raw_y": cols["raw_y"],
+                    "best_y": run["best"]["y"], "best_evals": run["best"]["evals"],
+                    "best_x": run["best"]["x"],
+                    "attributes": {a: run[a] for a in meta.get("run_attributes", [])},
+                })
+    return out
+
+
+def _dat_runs(path: Path) -> list[tuple[list[str], list[list[float]]]]:
+    """``(header, rows)`` per run of a .dat file: a line that does not start with a number
+    is a header and starts a run."""
+    runs: list[tuple[list[str], list[list[float]]]] = []
+    for n, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
+        fields = line.split()
+        if not fields:
+            continue
+        try:
+            float(fields[0])
+        except ValueError:
+            runs.append((fields, []))
+            continue
+        if not runs:
+            raise ValueError(f"{path}:{n}: data before the first header line")
+        try:
+            runs[-1][1].append([float(v) for v in fields])
+        except ValueError:
+            raise ValueError(f"{path}:{n}: not a number in {line!r}") from None
+    return runs
+
+
+def optima(folder: Path | str) -> list[dict[str, Any]]:
+    """``{function_id, instance, f_star, f_nominal}`` of each instance in the IOHprofiler
+    data under ``folder`` that has them: run attributes, which iohinspector (0.0.8) does not
+    read; join these rows to its frame on ``function_id`` and ``instance`` (one export holds
+    one root seed, so the pair names one instance's ``f*``)."""
+    rows: dict[tuple[int, int], dict[str, Any]] = {}
+    for r in read_ioh(Path(folder)):
+        a = r["attributes"]
+        if "f_star" in a:
+            rows.setdefault((r["function_id"], r["instance"]), {
+                "function_id": r["function_id"], "instance": r["instance"],
+                "f_star": a["f_star"], "f_nominal": a["f_nominal"]})
+    return list(rows.values())

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import shlex
 import sys
 from collections.abc import Callable
@@ -10,10 +11,12 @@ from pathlib import Path
 
 from .. import jsonio
 from ..faults import CASES
-from ..suites import DEFAULT, board_suite
+from ..suites import DEFAULT, board_suite, find
+from ..suites.targets import targets_note
 from ..suites.v1 import SANITY_CASES
 from ..sweep.executors import Runner
 from ..sweep.loop import run_sweep
+from ..sweep.schema import check, opt, req
 from ..trace_cache import MODEL_VERSION
 from .anytime import anytime_scores
 from .figures import (
@@ -28,7 +31,15 @@ from .figures import (
 )
 from .page import write_page
 from .report import load_paper_results, paper_case, write_leaderboards, write_paper_tables
-from .run_store import RUNS_FILE, RunStore, is_error, read_records, run_identity, unique
+from .run_store import (
+    RUNS_FILE,
+    RunStore,
+    is_error,
+    model_version,
+    read_records,
+    run_identity,
+    unique,
+)
 from .scaling import (
     global_vs_local,
     group_scores,
@@ -76,6 +87,25 @@ def overlay_run(finished: list[dict]) -> dict:
     return min(full, key=lambda r: r["fitness"])
 
 
+#: ``OUT/summary.json`` of a board, by JSON type: checked before it is written, so the
+#: published JSON Schema (``ema-bench schema leaderboard-summary``) and the file agree
+#: (``targets``: boards written before issue 45 lack it).
+SUMMARY_SCHEMA = {"command": req("str"), "runs": req("int"), "suite": req("str"),
+                  "model_version": req("str"), "errors": req("list"), "targets": opt("str"),
+                  "files": req("list"), "anytime": req("list"), "scores": req("list"),
+                  "figure5_valley_rise": opt("dict"), "global_vs_local": opt("list"),
+                  "saturation": opt("dict")}
+
+
+def _has_f_star(record: dict) -> bool:
+    """Whether a run is scored on fitness targets: its instance has a best-known ``f*``
+    (looked up as the scores' re-derivation does, :mod:`.derive`)."""
+    inst = find(str(record["case"]))
+    return inst is not None and inst.best_known(
+        str(record["track"]), int(record["seed"]), int(record.get("root_seed") or 0),
+        model_version(record)) is not None
+
+
 def write_outputs(records: list[dict], out: Path, command: str, plots: bool = True,
                   landscape_n: int = 40, expected: int | None = None) -> dict[str, object]:
     """Tables and plots of ``records`` under ``out``; returns a summary."""
@@ -86,14 +116,19 @@ def write_outputs(records: list[dict], out: Path, command: str, plots: bool = Tr
     errors = (f" {len(failed)} runs failed with an error (counted as unsuccessful at their "
               "budget; summary.json lists them)." if failed else "")
     suites = ", ".join(sorted({str(r.get("suite", DEFAULT.id)) for r in records}))
+    ranked = [r for r in records if r["case"] not in SANITY_CASES]
+    targets = targets_note(sorted({int(r.get("root_seed") or 0) for r in ranked}),
+                           sum(_has_f_star(r) for r in ranked), len(ranked))
+    # the models the records were made with (a compatible earlier version's show as such)
+    versions = ", ".join(sorted({model_version(r) for r in records})) or MODEL_VERSION
     header = (f"Produced by `{command}`: {len(records)} runs, suite {suites}, model "
-              f"version {MODEL_VERSION}.{partial}{errors}")
+              f"version {versions}. {targets}{partial}{errors}")
     # scores and the ECDF count failed runs as unsuccessful; what needs a fit, finished runs
     finished = [r for r in records if not is_error(r)]
     scores = score_records(records)
     written = write_leaderboards(records, out, header)
     written.append(write_paper_tables(finished, scores, out, header, load_paper_results()))
-    summary: dict[str, object] = {"errors": failed}
+    summary: dict[str, object] = {"errors": failed, "targets": targets}
     images: list[Path] = []
 
     def draw(name: str, plot: Callable[..., None], *data: object) -> None:
@@ -131,11 +166,13 @@ def write_outputs(records: list[dict], out: Path, command: str, plots: bool = Tr
     written += images
     written.append(write_page(records, out / "leaderboard.html", header, images))
     summary["files"] = [str(p) for p in written]
-    (out / "summary.json").write_text(jsonio.dumps(
-        {"command": command, "runs": len(records), "suite": suites,
-         "model_version": MODEL_VERSION, **summary,
-         "anytime": [s.row() for s in anytime_scores(records)],
-         "scores": [s.row() for s in scores]}, indent=1, default=str))
+    doc = {"command": command, "runs": len(records), "suite": suites,
+           "model_version": MODEL_VERSION, **summary,
+           "anytime": [s.row() for s in anytime_scores(records)],
+           "scores": [s.row() for s in scores]}
+    text = jsonio.dumps(doc, indent=1, default=str)
+    check(json.loads(text), SUMMARY_SCHEMA, str(out / "summary.json"))   # as read back
+    (out / "summary.json").write_text(text)
     return summary
 
 

@@ -38,7 +38,7 @@ from ..scoring import range_error
 from ..seeding import run_seed
 from ..sweep.executors import Job
 from ..sweep.loop import run_sweep
-from ..sweep.schema import req
+from ..sweep.schema import opt, req
 from ..sweep.store import Store
 from . import DEFAULT, instance, suite_of
 from .problem import make_problem
@@ -81,7 +81,8 @@ def _run_stages(make, stages, truth: np.ndarray, nominal: np.ndarray, seed):
     return best_x, best_f, reached, first
 
 
-def polish(case: str, track: str, seed: int) -> dict[str, object]:
+def polish(case: str, track: str, seed: int,
+           root_seed: int = TARGET_ROOT_SEED) -> dict[str, object]:
     """The best-known entry of one instance: ``f_star``, ``x_star``, ``f_nominal``,
     ``fitness_at_truth``, ``bias_range_error`` and the fitness each stage reached.
 
@@ -91,8 +92,10 @@ def polish(case: str, track: str, seed: int) -> dict[str, object]:
     In a suite whose reference track judges the parameters its clean-data fit keeps
     (:attr:`~ema_bench.suites.base.Suite.clean_fits`), the reference-track entry of seed
     :data:`~ema_bench.suites.v2.CLEAN_SEED` also holds the clean-data fit ``clean_x``
-    (:func:`clean_fit`)."""
-    node = run_seed(TARGET_ROOT_SEED, seed)
+    (:func:`clean_fit`).  ``root_seed``: the seed tree the runs (and so the instance's
+    noise) come from; a board at another root seed ranks on a table of its own
+    (``ema-bench targets --root-seed R``)."""
+    node = run_seed(root_seed, seed)
     inst = instance(case)
     truth = inst.truth
     nominal = np.r_[NOMINAL, np.zeros(truth.size - NOMINAL.size)]   # effects off
@@ -108,6 +111,8 @@ def polish(case: str, track: str, seed: int) -> dict[str, object]:
              "bias_range_error": float(np.max(range_error(best_x[:NOMINAL.size],
                                                           truth[:NOMINAL.size]))),
              "stages": stages}
+    if root_seed != TARGET_ROOT_SEED:
+        entry["root_seed"] = int(root_seed)
     errs = np.abs(best_x - truth) / (first.upper - first.lower)
     entry["x_star"] = dict(zip(first.names, map(float, best_x)))
     entry["bias_range_errors"] = dict(zip(first.names, map(float, errs)))
@@ -156,7 +161,8 @@ def clean_fit(case: str) -> dict[str, object]:
 #: The fields of a best-known entry, by JSON type.
 ENTRY_SCHEMA = {"key": req("str"), "f_star": req("number"), "x_star": req("dict"),
                 "f_nominal": req("number"), "fitness_at_truth": req("number"),
-                "bias_range_error": req("number"), "stages": req("dict")}
+                "bias_range_error": req("number"), "stages": req("dict"),
+                "root_seed": opt("int")}   # absent: TARGET_ROOT_SEED
 
 
 #: Optional fields of an entry in a suite with clean-data fits: the per-parameter biases, the
@@ -169,7 +175,7 @@ COST_FIELDS = ("cpu_s", "wall_s")
 def _polish_key(job: Job) -> dict[str, object]:
     case, track, seed = job.key.split("|")
     t0, c0 = time.perf_counter(), time.process_time()
-    entry = polish(case, track, int(seed))
+    entry = polish(case, track, int(seed), job.data)
     return {**entry, "cpu_s": time.process_time() - c0, "wall_s": time.perf_counter() - t0}
 
 
@@ -187,10 +193,13 @@ def all_keys() -> list[str]:
 
 
 def compute_targets(out: Path, workers: int | None = None, quiet: bool = False,
-                    keys: list[str] | None = None) -> dict:
+                    keys: list[str] | None = None,
+                    root_seed: int = TARGET_ROOT_SEED) -> dict:
     """Polish every instance (resuming from ``<out>.partial.jsonl``) and write ``out``: the
     table of the suite of ``keys`` (default: v1's, :func:`all_keys`; v2's:
-    :func:`~ema_bench.suites.v2.target_keys`); SuiteError for keys of two suites."""
+    :func:`~ema_bench.suites.v2.target_keys`) at ``root_seed`` (the table records it:
+    ``method.root_seed``); SuiteError for keys of two suites, or a partial file of another
+    root seed."""
     out = Path(out)
     partial = out.with_name(out.name + ".partial.jsonl")
     keys = all_keys() if keys is None else keys
@@ -201,12 +210,16 @@ def compute_targets(out: Path, workers: int | None = None, quiet: bool = False,
     check_model_version(suite.id)
     workers = workers or os.cpu_count() or 1
     with Store(partial, identity=_key, schema=ENTRY_SCHEMA) as store:
-        run_sweep([Job(k, k) for k in keys], _polish_key,
+        other = {int(r.get("root_seed", TARGET_ROOT_SEED)) for r in store.records} - {root_seed}
+        if other:
+            raise SuiteError(f"{partial} holds entries of root seed {sorted(other)[0]}, not "
+                             f"{root_seed}: write this table to another --out")
+        run_sweep([Job(k, k, int(root_seed)) for k in keys], _polish_key,
                   [store], executor="serial" if workers == 1 else "processes",
                   workers=workers, label="best-known optima", unit="instance", quiet=quiet)
         done = {r["key"]: r for r in store.records}
     fields = ("f_star", "f_nominal", "x_star", "fitness_at_truth", "bias_range_error")
-    method = {"stages": [list(s) for s in STAGES], "root_seed": TARGET_ROOT_SEED,
+    method = {"stages": [list(s) for s in STAGES], "root_seed": int(root_seed),
               "command": "ema-bench targets"}
     if suite.clean_fits:
         fields += CLEAN_FIELDS + COST_FIELDS

@@ -9,11 +9,16 @@ of every judged parameter's range (:data:`PARAMETER_TARGETS`).
 
 from __future__ import annotations
 
+import functools
 import json
 import math
+import os
+from collections.abc import Sequence
 from importlib import resources
 from importlib.resources.abc import Traversable
+from pathlib import Path
 
+from ..sweep.schema import check, opt, req
 from ..trace_cache import MODEL_VERSION
 
 #: The model version the shipped targets were computed on.
@@ -50,6 +55,14 @@ def package_file(name: str) -> Traversable:
     return resources.files("ema_bench").joinpath(name)
 
 
+#: A best-known table file (``ema-bench targets``' JSON, what ``--targets`` reads), by JSON
+#: type; each entry: :data:`ema_bench.suites.best_known.ENTRY_SCHEMA`'s fields;
+#: ``superseded``: entries of earlier compatible model versions that differ from this one's
+#: (``{version: {key: entry}}``, what records of that version are judged on).
+TABLE_SCHEMA = {"suite": req("str"), "model_version": req("str"), "method": opt("dict"),
+                "entries": req("dict"), "superseded": opt("dict")}
+
+
 def read_targets(path: Traversable, suite: str, missing_ok: bool = True) -> dict:
     """A best-known table of ``suite`` on the installed model version; an empty ``entries``
     when the file is missing and ``missing_ok`` (a checkout before ``ema-bench targets``),
@@ -61,7 +74,7 @@ def read_targets(path: Traversable, suite: str, missing_ok: bool = True) -> dict
             return {"suite": suite, "model_version": SUITE_MODEL_VERSION, "entries": {}}
         raise SuiteError(f"{name}: no best-known table of suite {suite} there; compute it "
                          "with 'ema-bench targets'")
-    data = json.loads(path.read_text())
+    data = check(json.loads(path.read_text()), TABLE_SCHEMA, name)
     if data.get("suite") != suite or data.get("model_version") != SUITE_MODEL_VERSION:
         raise SuiteError(f"{name} is for suite {data.get('suite')!r} on model version "
                          f"{data.get('model_version')!r}, not {suite} on "
@@ -81,3 +94,65 @@ def fitness_targets(f_star: float, f_nominal: float) -> list[float]:
 def precision_key(p: float) -> str:
     """The JSON key of a target level (``1e-3``, ``0.03``)."""
     return f"{p:g}"
+
+
+#: Best-known tables of other root seeds (``ema-bench targets --root-seed R``): their paths,
+#: separated by ``os.pathsep``; the commands' ``--targets FILE`` sets it (worker processes
+#: inherit it).
+TARGETS_ENV = "EMA_BENCH_TARGETS"
+
+
+def table_root_seed(data: dict) -> int:
+    """The root seed a best-known table was computed at (``method.root_seed``; tables
+    written before it was recorded are of :data:`TARGET_ROOT_SEED`)."""
+    return int((data.get("method") or {}).get("root_seed", TARGET_ROOT_SEED))
+
+
+@functools.lru_cache(maxsize=8)
+def _user_tables(paths: str) -> tuple[dict, ...]:
+    tables = []
+    for p in filter(None, paths.split(os.pathsep)):
+        path = Path(p)
+        if not path.is_file():
+            raise SuiteError(f"{TARGETS_ENV}: {p}: no such best-known table (make one with "
+                             "'ema-bench targets --root-seed R --out FILE')")
+        data = check(json.loads(path.read_text()), TABLE_SCHEMA, p)
+        if table_root_seed(data) == TARGET_ROOT_SEED:
+            # the shipped table is the one of root seed 0: a second would rank the same runs
+            # on other targets than everyone else's
+            raise SuiteError(f"{p} is a table of root seed {TARGET_ROOT_SEED}, whose f* the "
+                             "package ships; --targets takes tables of other root seeds")
+        tables.append(read_targets(path, data["suite"]))   # and its model version
+    return tuple(tables)
+
+
+def user_targets() -> tuple[dict, ...]:
+    """The best-known tables named in :data:`TARGETS_ENV` (each checked by
+    :func:`read_targets`: a suite and the installed model version), in order."""
+    return _user_tables(os.environ.get(TARGETS_ENV, ""))
+
+
+def user_entry(suite: str, key: str, root_seed: int) -> dict | None:
+    """The entry ``key`` of ``suite`` at ``root_seed`` in the first user table
+    (:func:`user_targets`) that has it, or None."""
+    for data in user_targets():
+        if data["suite"] == suite and table_root_seed(data) == root_seed:
+            entry = data["entries"].get(key)
+            if entry is not None:
+                return entry
+    return None
+
+
+def targets_note(root_seeds: Sequence[int], with_f_star: int, runs: int) -> str:
+    """Which targets a board or export ranks on, in one sentence: fitness and parameter
+    targets where every run has a best-known ``f*``; else how many lack it and how to
+    compute the table of their root seed."""
+    if runs and with_f_star == runs:
+        return "Targets: fitness (best-known f*) and parameter targets."
+    roots = [r for r in root_seeds if r != TARGET_ROOT_SEED] or list(root_seeds)
+    r = roots[0] if roots else TARGET_ROOT_SEED
+    what = ("parameter targets only" if with_f_star == 0 else
+            f"fitness targets on {with_f_star} of {runs} runs, parameter targets on all")
+    return (f"Targets: {what}: no best-known f* for {runs - with_f_star} runs (root seed "
+            f"{', '.join(map(str, root_seeds))}); compute it with 'ema-bench targets "
+            f"--root-seed {r} --out T.json' and pass --targets T.json.")

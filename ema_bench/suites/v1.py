@@ -35,6 +35,7 @@ from .targets import (
     package_file,
     read_targets,
     target_key,
+    user_entry,
 )
 
 SUITE_ID = "emafdi-v1"
@@ -110,12 +111,14 @@ def shipped_targets() -> dict:
 
 
 def best_known(case: str, track: str, seed: int, root_seed: int = 0) -> dict | None:
-    """``{"f_star", "f_nominal", "x_star"}`` of an instance, or None where the suite has no
-    fixed target (a root seed other than :data:`TARGET_ROOT_SEED`, a seed beyond
-    :data:`TARGET_SEEDS`, the sanity case, a custom case)."""
+    """``{"f_star", "f_nominal", "x_star"}`` of an instance, or None where no fixed target
+    is known: at :data:`TARGET_ROOT_SEED` the shipped table's (none for a seed beyond
+    :data:`TARGET_SEEDS`, the sanity case, a custom case), at another root seed a user
+    table's (:func:`user_entry`; none without one)."""
+    key = target_key(case, track, seed)
     if root_seed != TARGET_ROOT_SEED:
-        return None
-    return shipped_targets()["entries"].get(target_key(case, track, seed))
+        return user_entry(SUITE_ID, key, root_seed)
+    return shipped_targets()["entries"].get(key)
 
 
 def describe() -> dict[str, object]:

@@ -37,7 +37,14 @@ from ..seeding import child
 from ..trace_cache import MODEL_VERSION
 from . import v1
 from .base import Instance, Suite
-from .targets import TARGET_ROOT_SEED, SuiteError, package_file, read_targets, target_key
+from .targets import (
+    TARGET_ROOT_SEED,
+    SuiteError,
+    package_file,
+    read_targets,
+    target_key,
+    user_entry,
+)
 
 SUITE_ID = "emafdi-v2"
 #: Root of the draw of the higher tiers' instances (never changes within the suite version).
@@ -321,7 +328,7 @@ def target_keys(seeds: int = TARGET_SEEDS, tracks: Sequence[str] = ("reference",
                 tiers: Sequence[int] | None = None, conditions: Sequence[str] | None = None,
                 per_tier: int | None = None) -> list[str]:
     """The ``case|track|seed`` keys whose best-known optimum v2 must ship (for
-    :func:`ema_bench.best_known.compute_targets`'s ``keys``): one per instance and
+    :func:`ema_bench.suites.best_known.compute_targets`'s ``keys``): one per instance and
     objective (``prior`` stands for ``no-prior``, whose data and fitness are the same; each
     condition with less information for itself), none for tier 4 with full information
     (v1's entries hold) nor for the sanity case.  ``tiers``, ``conditions`` (any: each maps
@@ -353,15 +360,16 @@ def _v1_entries(inst: Instance) -> bool:
 def _best_known(inst: Instance, track: str, seed: int, root_seed: int,
                 model_version: str | None = None) -> dict | None:
     """v1's entry (:func:`_v1_entries`), else the entry of :func:`target_case` in
-    ``suite_targets_v2.json`` (None while it is absent or lacks the key, or for a root
-    seed other than 0).  A record of an earlier compatible model version is judged on the
-    entry it was made against where the table keeps one (``superseded``: tier 12's entries
-    of model version 2, whose trigonometry version 3 replaced)."""
+    ``suite_targets_v2.json`` (None while it is absent or lacks the key), at a root seed
+    other than 0 a user table's (:func:`~ema_bench.suites.targets.user_entry`).  A record
+    of an earlier compatible model version is judged on the entry it was made against where
+    the table keeps one (``superseded``: tier 12's entries of model version 2, whose
+    trigonometry version 3 replaced)."""
     if _v1_entries(inst):
         return v1.best_known(inst.name, track, seed, root_seed)
-    if root_seed != TARGET_ROOT_SEED:
-        return None
     key = target_key(target_case(inst), track, seed)
+    if root_seed != TARGET_ROOT_SEED:   # a user table of that root seed, if one is named
+        return user_entry(SUITE_ID, key, root_seed)
     table = shipped_targets()
     old = table.get("superseded", {}).get(str(model_version), {})
     return old[key] if model_version != MODEL_VERSION and key in old else \

@@ -73,3 +73,31 @@ def check(record: object, schema: SchemaLike, where: str) -> dict:
             raise SchemaError(f"{where}: field {name!r} must be {spec.types.replace('|', ' or ')}"
                               f", got {shown}")
     return record
+
+
+#: our type names -> JSON Schema's
+JSON_SCHEMA_TYPES = {"bool": "boolean", "int": "integer", "number": "number", "str": "string",
+                     "list": "array", "dict": "object", "null": "null"}
+JSON_SCHEMA_DIALECT = "https://json-schema.org/draft/2020-12/schema"
+
+
+def json_schema(fields: Schema) -> dict:
+    """``fields`` as a JSON Schema object (draft 2020-12): each field's types, the required
+    ones listed, other fields allowed (records carry free-form extras), as :func:`check`
+    reads them.  (One difference is JSON Schema's: it counts ``1.0`` as an integer, which
+    ``json.loads`` reads as a float and :func:`check` refuses.)"""
+    props = {}
+    for name, spec in fields.items():
+        types = [JSON_SCHEMA_TYPES[t] for t in spec.types.split("|")]
+        props[name] = {"type": types[0] if len(types) == 1 else types}
+    return {"type": "object", "required": [n for n, s in fields.items() if s.required],
+            "properties": props}
+
+
+def json_schema_document(title: str, description: str, *alternatives: Schema) -> dict:
+    """A JSON Schema file for one kind of line or file: ``title``, ``description`` and the
+    object schema of each alternative (one: that schema; several, e.g. a step line or its
+    error line: ``anyOf``)."""
+    objs = [json_schema(a) for a in alternatives]
+    body = objs[0] if len(objs) == 1 else {"anyOf": objs}
+    return {"$schema": JSON_SCHEMA_DIALECT, "title": title, "description": description, **body}
