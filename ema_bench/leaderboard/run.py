@@ -9,6 +9,7 @@ from dataclasses import asdict
 from pathlib import Path
 
 from .. import jsonio
+from ..escape import code_span
 from ..faults import CASES
 from ..suite import SANITY_CASES, SUITE_ID
 from ..sweep.executors import Runner
@@ -86,7 +87,7 @@ def write_outputs(records: list[dict], out: Path, command: str, plots: bool = Tr
     errors = (f" {len(failed)} runs failed with an error (counted as unsuccessful at their "
               "budget; summary.json lists them)." if failed else "")
     suites = ", ".join(sorted({str(r.get("suite", SUITE_ID)) for r in records}))
-    header = (f"Produced by `{command}`: {len(records)} runs, suite {suites}, model "
+    header = (f"Produced by {code_span(command)}: {len(records)} runs, suite {suites}, model "
               f"version {MODEL_VERSION}.{partial}{errors}")
     # scores and the ECDF count failed runs as unsuccessful; what needs a fit, finished runs
     finished = [r for r in records if not is_error(r)]
