@@ -6,8 +6,10 @@ root seed, budget, f* and f_nominal are run attributes; one root seed per export
 --value precision the values are (f - f*) / (f_nominal - f*), so IOH's fixed targets are the
 board's fitness targets (1e-1 .. 1e-4; needs the suite's f*: root seed 0).  The sanity case
 (nominal) is left out unless --include-sanity (then marked).  Runs that failed with an error
-are skipped and counted.  Records of several files are merged; a run found in two files is
-exported once.
+are skipped and counted.  Records of several files are merged.  Only records that
+``ema-bench validate`` accepts are exported (re-evaluated; a partial board is fine): a
+refused record, two records of one run, or a legacy (schema-1) record without --legacy stop
+the export with one line (exit 2).
 
 Examples::
 
@@ -43,23 +45,29 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="raw fitness (default) or precision (f - f*) / (f_nominal - f*)")
     p.add_argument("--include-sanity", action="store_true",
                    help="export the sanity case (nominal) too, marked; left out by default")
+    p.add_argument("--legacy", action="store_true",
+                   help="export schema-1 (legacy) records too (refused without it: their "
+                        "hits cannot be proven)")
     add_json(p, "a summary")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     from ..leaderboard.ioh import function_name, split_runs
-    from ..leaderboard.store import is_error, unique
+    from ..leaderboard.judge import JudgeError, admitted, read_runs
+    from ..leaderboard.store import is_error
     from ..suite import SANITY_CASES
-    from . import print_result
-    from .args import check_output, read_run_files
+    from . import CLIError, print_result
+    from .args import check_output
 
     out = check_output(args.out, "--out", folder=True)
-    records = unique(read_run_files(args.runs))
+    try:   # what validate refuses is not exported (a partial board is: no completeness)
+        records = admitted(read_runs(args.runs), "export", complete=False,
+                           legacy=args.legacy)
+    except JudgeError as exc:
+        raise CLIError(str(exc)) from None
     runs, skipped = split_runs(records)
     if not runs:
-        from . import CLIError
-
         why = (f"all {len(records)} records are of runs that failed or made no evaluation"
                if records else "they hold no run records")
         raise CLIError(f"nothing to export from {', '.join(args.runs)}: {why}")

@@ -114,6 +114,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--report-only", action="store_true",
                    help="run nothing: rebuild tables and plots from the records already in "
                         "OUT (e.g. after merging shards or to publish a partial sweep)")
+    p.add_argument("--legacy", action="store_true",
+                   help="score schema-1 (legacy) records too, in a view labelled legacy "
+                        "(refused without it: their hits cannot be proven)")
     add_json(p, "a summary")
     add_quiet(p)
     p.set_defaults(func=run)
@@ -154,7 +157,10 @@ def run(args: argparse.Namespace) -> int:
         # mix with (and be resumed from) the published runs
         raise CLIError("--out DIR is required: the folder for runs.jsonl, tables and plots "
                        "(rerun with the same DIR to resume)")
-    solvers = args.solvers or list(available_solvers())
+    # --report-only scores what is on disk: its solvers come from the records, so no
+    # plugin is imported (a plugin's import code must not run where scores are computed)
+    solvers = args.solvers or (_recorded_solvers(args.out) if args.report_only
+                               else list(available_solvers()))
     # before any work: a sweep must not fail at its first write, hours in
     out = check_output(args.out or tempfile.mkdtemp(prefix="ema-lb-"), "--out", folder=True)
     summary = leaderboard(solvers, cases, args.tracks, seeds, budget, out,
@@ -162,7 +168,7 @@ def run(args: argparse.Namespace) -> int:
                           scheduler=args.scheduler, shard=args.shard,
                           root_seed=args.root_seed, plots=not args.no_plots,
                           quiet=args.quiet,   # the header's command: from sys.argv
-                          run=not args.report_only)
+                          run=not args.report_only, legacy=args.legacy)
     lines: list[str] = []   # the text output (--json: the summary)
     if args.check:
         tasks = make_tasks(solvers, cases, args.tracks, seeds, budget, args.root_seed,
@@ -227,3 +233,14 @@ def _shown(budget, args: argparse.Namespace) -> str:
 
     return f"{args.budget_per_dim or BUDGET_PER_DIM} x tier"
 
+
+
+def _recorded_solvers(out: str | None) -> list[str]:
+    """The solvers of the records in ``out/runs.jsonl`` (``--report-only`` without
+    ``--solvers``), read without importing any plugin."""
+    from ..leaderboard.judge import read_runs
+    from ..leaderboard.store import RUNS_FILE
+
+    path = Path(out or ".") / RUNS_FILE
+    return list(dict.fromkeys(str(r["solver"]) for r in read_runs([path]))) \
+        if path.is_file() else []

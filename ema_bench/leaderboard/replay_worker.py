@@ -67,7 +67,7 @@ def replay_job(job: Any) -> dict:
     solver, problem, budget, node = job.data
     t0 = time.perf_counter()
     made = count_kernels()
-    from ..registry import run_solver   # the plugin loader: imported here, in the worker
+    from ..registry import run_solver  # the plugin loader: imported here, in the worker
 
     res = run_solver(solver, problem, budget, seed=node)
     h = problem.history()
@@ -75,3 +75,17 @@ def replay_job(job: Any) -> dict:
             "x_hist": np.asarray(h["x"]).tolist(), "x": np.asarray(res.x).tolist(),
             "evaluations": int(problem.evaluations), "model_evaluations": made[0],
             "wall_s": time.perf_counter() - t0}
+
+
+def scopes_job(job: Any) -> dict:
+    """The declared scope of each solver named in ``job.data`` (``unclassified`` when not
+    registered): the plugins are imported here, in a worker, never by the report."""
+    from ..registry import SolverError, get_solver
+
+    out = {}
+    for name in job.data:
+        try:
+            out[name] = get_solver(name).scope
+        except SolverError:
+            out[name] = "unclassified"
+    return out

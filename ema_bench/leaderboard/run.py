@@ -11,6 +11,7 @@ from pathlib import Path
 from .. import jsonio
 from ..escape import code_span
 from ..faults import CASES
+from ..records import schema
 from ..suite import SANITY_CASES, SUITE_ID
 from ..sweep.executors import Runner
 from ..sweep.loop import run_sweep
@@ -26,6 +27,7 @@ from .figures import (
     overlay_plot,
     valley_rise,
 )
+from .judge import admitted, read_runs
 from .page import write_page
 from .report import load_paper_results, paper_case, write_leaderboards, write_paper_tables
 from .scaling import (
@@ -36,7 +38,7 @@ from .scaling import (
     scaling_points,
 )
 from .scores import score_records
-from .store import RUNS_FILE, RunStore, is_error, read_records, run_identity, unique
+from .store import RUNS_FILE, RunStore, is_error, run_identity, unique
 from .tasks import Task, failure_record, make_tasks, run_task
 
 
@@ -87,8 +89,11 @@ def write_outputs(records: list[dict], out: Path, command: str, plots: bool = Tr
     errors = (f" {len(failed)} runs failed with an error (counted as unsuccessful at their "
               "budget; summary.json lists them)." if failed else "")
     suites = ", ".join(sorted({str(r.get("suite", SUITE_ID)) for r in records}))
+    legacy = sum(1 for r in records if not is_error(r) and schema(r) < 2)
     header = (f"Produced by {code_span(command)}: {len(records)} runs, suite {suites}, model "
-              f"version {MODEL_VERSION}.{partial}{errors}")
+              f"version {MODEL_VERSION}.{partial}{errors}"
+              + (f" LEGACY VIEW: {legacy} schema-1 records (hits bounded, not proven)."
+                 if legacy else ""))
     # scores and the ECDF count failed runs as unsuccessful; what needs a fit, finished runs
     finished = [r for r in records if not is_error(r)]
     scores = score_records(records)
@@ -143,16 +148,23 @@ def leaderboard(solvers, cases, tracks, seeds: int, budget: int, out: Path,
                 scheduler: str | None = None, shard: tuple[int, int] = (0, 1),
                 root_seed: int = 0, plots: bool = True, quiet: bool = False,
                 command: str | None = None, landscape_n: int = 40,
-                run: bool = True, runner: Runner = run_task) -> dict[str, object]:
+                run: bool = True, runner: Runner = run_task, legacy: bool = False
+                ) -> dict[str, object]:
     """Run (or resume) a leaderboard and write its outputs.  See ``ema-bench leaderboard``.
 
     With ``run=False`` nothing runs: the outputs are rebuilt from the records on disk, and
-    the header says how many of the sweep's runs they cover."""
+    the header says how many of the sweep's runs they cover.  Either way the records are
+    admitted by :func:`~.judge.admitted` (what ``validate`` refuses stops the report;
+    ``legacy``: schema-1 records are admitted, and the header says so)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     tasks = make_tasks(solvers, cases, tracks, seeds, budget, root_seed, shard)
     ran = run_tasks(tasks, out, executor, workers, scheduler, quiet, runner) if run else 0
-    records = select(read_records(out / RUNS_FILE), tasks)
+    # nothing is scored that validate refuses (a record edited or appended in the folder)
+    wanted = {t.identity for t in tasks}
+    lines = read_runs([out / RUNS_FILE]) if (out / RUNS_FILE).is_file() else []
+    records = select(admitted([r for r in lines if run_identity(r) in wanted], "leaderboard",
+                              complete=False, legacy=legacy), tasks)
     if not records:
         raise ValueError(f"no records of this sweep in {out / RUNS_FILE}")
     command = command or "ema-bench " + " ".join(shlex.quote(a) for a in sys.argv[1:])
