@@ -312,8 +312,9 @@ def _replayed(args: argparse.Namespace) -> bool:
     for run in args.runs:
         r = replay_track(run, k=args.replay, units=args.replay_unit)
         print(f"replay: {run}: {r.tracker}, {len(r.units)} of {r.tracked} units re-tracked "
-              f"({', '.join(r.units)}): " + ("every line agrees" if r.ok else
-                                              f"{len(r.findings)} difference(s)")
+              f"({', '.join(r.units)}"
+              + (f"; sample seed {r.seed}" if r.seed is not None else "") + "): "
+              + ("every line agrees" if r.ok else f"{len(r.findings)} difference(s)")
               + (f"; a single forged unit escapes a sample this size with probability "
                  f"{r.escape_chance:.2f}" if r.ok and args.replay_unit is None else ""),
               file=sys.stderr)
