@@ -45,6 +45,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="raw fitness (default) or precision (f - f*) / (f_nominal - f*)")
     p.add_argument("--include-sanity", action="store_true",
                    help="export the sanity case (nominal) too, marked; left out by default")
+    p.add_argument("--no-reevaluate", action="store_true",
+                   help="admit without re-evaluating the vectors (fast, weaker: as "
+                        "'validate --no-reevaluate'; every other check stays)")
     p.add_argument("--legacy", action="store_true",
                    help="export schema-1 (legacy) records too (refused without it: their "
                         "hits cannot be proven)")
@@ -63,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
     out = check_output(args.out, "--out", folder=True)
     try:   # what validate refuses is not exported (a partial board is: no completeness)
         records = admitted(read_runs(args.runs), "export", complete=False,
-                           legacy=args.legacy)
+                           legacy=args.legacy, reevaluate=not args.no_reevaluate)
     except JudgeError as exc:
         raise CLIError(str(exc)) from None
     runs, skipped = split_runs(records)
