@@ -23,7 +23,8 @@ noise streams (a ``seeded`` case's truth) from it.  A one-way derivation is open
 (issue 48); replay does not catch a solver that does this.
 
 ``ema-bench solve --root-seed R --seed k`` builds the same node as the leaderboard's row
-``k`` of root seed ``R``, so it replays that row bit for bit; the Gymnasium environment's ``reset(seed=k)`` (``root_seed=R``) plays the same problem.  Case ``k`` of
+``k`` of root seed ``R``, so it replays that row bit for bit; the Gymnasium environment's
+``reset(seed=k)`` (``root_seed=R``) plays the same problem.  Case ``k`` of
 ``ema-bench blind --seed R`` is run ``k`` of root ``R``: its traces are those of
 ``ema-bench simulate --root-seed R --seed k`` (a reference-model case; an acquisition decoy
 is then applied with the draws of its ``acquisition`` stream) and its diagnosis that of

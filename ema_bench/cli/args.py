@@ -155,7 +155,7 @@ def add_quiet(p: argparse.ArgumentParser) -> None:
 
 def add_test_names(p: argparse.ArgumentParser, files: str) -> None:
     """``--test NAME[,NAME...]`` (repeatable): one test name per file of ``files``."""
-    p.add_argument("--test", action="extend", type=comma_list, default=None,
+    p.add_argument("--test", action="extend", type=option_list, default=None,
                    metavar="NAME[,NAME...]",
                    help=f"one test name per {files} file, in order (step, sine or sine2): the "
                         "name of the single test of a file without a 'test' column, or the "
@@ -165,6 +165,16 @@ def add_test_names(p: argparse.ArgumentParser, files: str) -> None:
 def comma_list(text: str) -> list[str]:
     """``"a, b,,c"`` -> ``["a", "b", "c"]``: the items of a comma-separated option."""
     return [s.strip() for s in text.split(",") if s.strip()]
+
+
+def option_list(text: str) -> list[str]:
+    """:func:`comma_list` as an option's type: an empty list (``--tiers ""``, ``--solvers=``)
+    is a usage error, never "the whole grid"."""
+    items = comma_list(text)
+    if not items:
+        raise argparse.ArgumentTypeError(f"an empty list ({text!r}): name at least one item, "
+                                         "or leave the option out")
+    return items
 
 
 def load_measured_files(paths: Sequence[str], tests: Sequence[str] | None) -> Traces:

@@ -22,9 +22,9 @@ from .args import (
     add_json,
     add_quiet,
     check_output,
-    comma_list,
     count,
     finite,
+    option_list,
     seed_number,
     worker_count,
 )
@@ -202,7 +202,7 @@ def _register_score(actions: argparse._SubParsersAction) -> None:
                         "inspection and field) if any line differs: the steps are the "
                         "submitter's, the tracker is deterministic (needs the campaign's "
                         "traces; ema_bench/prognostics/replay.py)")
-    p.add_argument("--replay-unit", metavar="UNITS", type=comma_list, default=None,
+    p.add_argument("--replay-unit", metavar="UNITS", type=option_list, default=None,
                    help="comma-separated units to replay instead of a sample")
     p.add_argument("--plots", metavar="DIR", help="write PNG plots here")
     p.add_argument("--markdown", metavar="FILE", help="write the table as Markdown here")

@@ -34,9 +34,9 @@ from .args import (
     add_json,
     add_quiet,
     check_output,
-    comma_list,
     count,
     finite,
+    option_list,
     seed_number,
     worker_count,
 )
@@ -55,7 +55,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="seeded instances 0..N-1 (default 100)")
     p.add_argument("--level", type=finite, default=0.95,
                    help="interval level in (0, 1) (default 0.95)")
-    p.add_argument("--method", type=comma_list, default=["laplace"],
+    p.add_argument("--method", type=option_list, default=["laplace"],
                    metavar="METHOD[,METHOD...]",
                    help=f"interval method(s), of {', '.join(METHODS)} (default laplace); "
                         "several share each instance's fit")

@@ -52,8 +52,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         MAX_BUDGET,
         add_json,
         add_quiet,
-        comma_list,
         count,
+        option_list,
         seed_number,
         worker_count,
     )
@@ -62,25 +62,25 @@ def register(sub: argparse._SubParsersAction) -> None:
                        help="compare solvers on the suite's instances x tracks x seeds",
                        description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--solvers", type=comma_list, default=None,
+    p.add_argument("--solvers", type=option_list, default=None,
                    help="comma-separated solver names (default: every registered solver)")
-    p.add_argument("--cases", type=comma_list, default=None,
+    p.add_argument("--cases", type=option_list, default=None,
                    help="comma-separated instances or groups: all (the suite, default), "
                         "paper (nominal,small,full,random), lhs (s00..s19), quick (paper "
                         "and s00..s03, the --quick default)")
     p.add_argument("--suite", choices=("emafdi-v1", "emafdi-v2"), default="emafdi-v1",
                    help="emafdi-v1 (default: the four faults, --cases) or emafdi-v2 (tiers "
                         "x conditions, docs/suite-v2.md)")
-    p.add_argument("--tiers", type=comma_list, default=None,
+    p.add_argument("--tiers", type=option_list, default=None,
                    help="emafdi-v2: comma-separated tiers (default 4,7,12)")
-    p.add_argument("--conditions", type=comma_list, default=None,
+    p.add_argument("--conditions", type=option_list, default=None,
                    help="emafdi-v2: comma-separated conditions (default prior,no-prior,"
                         "step-only)")
     p.add_argument("--per-tier", type=count(1, 1000), default=None,
                    help="emafdi-v2: the first N instances of each tier (default all)")
     p.add_argument("--budget-per-dim", type=count(1, 10**6), default=None,
                    help="emafdi-v2: evaluations per searched dimension (default 1250)")
-    p.add_argument("--tracks", type=comma_list, default=["reference", "twin"],
+    p.add_argument("--tracks", type=option_list, default=["reference", "twin"],
                    help="comma-separated tracks (default reference,twin)")
     p.add_argument("--seeds", type=count(1, 1000), default=None,
                    help=f"seeds per (solver, case, track) (default {DEFAULT['seeds']}, "

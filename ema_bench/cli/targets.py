@@ -26,7 +26,7 @@ import argparse
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from .args import add_json, add_quiet, comma_list, count, worker_count
+    from .args import add_json, add_quiet, count, option_list, worker_count
 
     p = sub.add_parser("targets", help="compute or show the suite's best-known optima f*",
                        description=__doc__,
@@ -35,17 +35,17 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="where to write the table (required unless --show)")
     p.add_argument("--suite", choices=("emafdi-v1", "emafdi-v2"), default="emafdi-v1",
                    help="the suite whose table to compute or show (default emafdi-v1)")
-    p.add_argument("--cases", type=comma_list, default=None,
+    p.add_argument("--cases", type=option_list, default=None,
                    help="emafdi-v1: instances or groups (all, paper, lhs, quick; default all)")
-    p.add_argument("--tiers", type=comma_list, default=None,
+    p.add_argument("--tiers", type=option_list, default=None,
                    help="emafdi-v2: comma-separated tiers (default all)")
-    p.add_argument("--conditions", type=comma_list, default=None,
+    p.add_argument("--conditions", type=option_list, default=None,
                    help="emafdi-v2: conditions (default all; no-prior shares prior's entries)")
     p.add_argument("--per-tier", type=count(1, 1000), default=None,
                    help="emafdi-v2: the first N instances of each tier (default all)")
     p.add_argument("--seeds", type=count(1, 1000), default=None,
                    help="noise seeds 0..N-1 (default: the suite's, v1 10, v2 5)")
-    p.add_argument("--tracks", type=comma_list, default=None,
+    p.add_argument("--tracks", type=option_list, default=None,
                    help="comma-separated tracks (default reference,twin)")
     p.add_argument("--workers", type=worker_count, default=None, help="processes (default: cores)")
     p.add_argument("--show", action="store_true", help="summarise the shipped table")
