@@ -13,9 +13,10 @@ it refuses an installed package.
 from __future__ import annotations
 
 import json
+import math
 import os
 import sys
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -76,7 +77,9 @@ def using(table: Table, path: str | os.PathLike[str] | None) -> Iterator[None]:
     old = os.environ.get(table.env)
     os.environ[table.env] = str(Path(path).resolve())
     try:
-        active(table)     # a missing file fails here, in one line, before any work
+        # a missing file, or one that is no table (a NaN or negative score), fails here, in
+        # one line, before any work
+        _reader(table.name)(active(table)[0])
         yield
     finally:
         if old is None:
@@ -101,6 +104,20 @@ def checkout_root(package: Path = PACKAGE) -> Path | None:
     return None
 
 
+def check_scores(values: Iterable[object], where: str) -> None:
+    """Calibration scores are finite, non-negative numbers (an error over a half-width);
+    ValueError (one line) naming the first that is not: a NaN score gave ``[nan, nan]``
+    intervals, a negative one inverted intervals."""
+    if not isinstance(values, list | tuple):
+        raise ValueError(f"{where}: calibration scores must be a list, got "
+                         f"{type(values).__name__}")
+    for v in values:
+        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) \
+                or v < 0:
+            raise ValueError(f"{where}: calibration score {v!r} is not a finite, non-negative "
+                             "number")
+
+
 def ship(source: str | os.PathLike[str], package: Path = PACKAGE) -> Path:
     """Replace the shipped table named like ``source`` (a file ``--calibrate`` wrote) with it.
 
@@ -121,9 +138,19 @@ def ship(source: str | os.PathLike[str], package: Path = PACKAGE) -> Path:
         raise ValueError(f"{source}: not a readable calibration table ({exc})") from None
     if not isinstance(data, dict) or not data.get("scores"):
         raise ValueError(f"{source}: holds no calibration scores")
+    _reader(table.name)(source)   # the values too (the table's own reader checks them)
     target = package / table.shipped.relative_to(PACKAGE)
     write_atomic(target, text)
     return target
+
+
+def _reader(name: str):
+    """The reader of the table ``name`` (imported here: the readers import this module)."""
+    if name == "calibration.json":
+        from .uncertainty.calibration import read
+    else:
+        from .diagnosis.interval_table import read
+    return lambda path: read.__wrapped__(Path(path))
 
 
 def main(argv: list[str] | None = None) -> int:

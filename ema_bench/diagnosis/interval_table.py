@@ -14,7 +14,7 @@ import json
 from functools import lru_cache
 from pathlib import Path
 
-from ..calibration_files import TABLES, active, describe
+from ..calibration_files import TABLES, active, check_scores, describe
 from ..uncertainty.calibration import conformal_quantile
 
 TABLE = TABLES["interval_calibration.json"]
@@ -33,6 +33,7 @@ def read(path: Path) -> dict:
         scores = tuple(float(r["score"]) for r in data["scores"])
     except (UnicodeDecodeError, json.JSONDecodeError, TypeError, KeyError, ValueError) as exc:
         raise ValueError(f"{path}: not an interval calibration table ({exc!r})") from None
+    check_scores([r["score"] for r in data["scores"]], f"{path}: scores")
     return {**data, "scores": scores}
 
 
