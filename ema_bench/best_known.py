@@ -170,8 +170,9 @@ def _v2_problem(case: str, track: str, node, budget: int, start: np.ndarray):
 
 
 #: The fields of a best-known entry, by JSON type.
-ENTRY_SCHEMA = {"key": req("str"), "f_star": req("number"), "x_star": req("dict"),
-                "f_nominal": req("number"), "fitness_at_truth": req("number"),
+ENTRY_SCHEMA = {"key": req("str"), "f_star": req("number"),
+                "x_star": req("dict", values="number"), "f_nominal": req("number"),
+                "fitness_at_truth": req("number"),
                 "bias_range_error": req("number"), "stages": req("dict")}
 
 

@@ -88,6 +88,28 @@ def test_a_wrong_type_in_any_field_is_refused_naming_file_line_and_field(
             read(path)
 
 
+NESTED = [(name, schema, make, read, field) for name, schema, make, read in CASES
+          for field, spec in schema.items() if spec.values]
+
+
+@pytest.mark.parametrize("name,schema,make,read,field", NESTED,
+                         ids=[f"{p[0]}-{p[4]}" for p in NESTED])
+def test_a_wrong_type_inside_a_nested_field_is_refused_naming_it(tmp_path, name, schema, make,
+                                                                   read, field):
+    """``"estimate": {"Na": "abc"}`` gave a traceback later (a step), or was written into the
+    targets table (an entry's ``x_star``): refused on reading, naming ``field.member``."""
+    good = make()
+    member = next(iter(good[field]))
+    bad = {**good, field: {**good[field], member: "abc"}}
+    path = tmp_path / "records.jsonl"
+    path.write_text(json.dumps(good) + "\n" + json.dumps(bad) + "\n")
+    with pytest.raises(SchemaError) as info:
+        read(path)
+    want = schema[field].values.replace("|", " or ")
+    assert f"line 2: field '{field}.{member}' must be {want}" in str(info.value)
+    assert "got 'abc'" in str(info.value)
+
+
 def test_booleans_are_not_counts_and_counts_are_not_booleans(tmp_path):
     step = first_line(BOARDS / "campaign" / "twin" / "kalman" / "track.jsonl")
     path = tmp_path / "track.jsonl"
