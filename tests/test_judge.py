@@ -213,3 +213,19 @@ def test_no_judging_module_imports_the_plugin_loader(module):
     imported = {a.name for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)
                 for a in node.names}
     assert not imported & LOADER, f"{module} imports {imported & LOADER}"
+
+
+def test_an_adapter_run_validates_and_replay_says_it_cannot_be_replayed():
+    from ema_bench.adapters.run import AdapterRun
+    from ema_bench.adapters.scipy import minimize, simplex
+    from ema_bench.leaderboard.validate import check_record
+
+    run = AdapterRun("scipy-nelder-mead", case="small", track="twin", budget=30,
+                     library="scipy")
+    res = minimize(run.problem, method="Nelder-Mead",
+                   options={"initial_simplex": simplex(run.problem)})
+    record = run.record(res.stop_reason)
+    assert check_record(record) == []
+    (r,) = replay([record], None, 0)
+    assert r.finding.startswith("not replayable: solver 'scipy-nelder-mead' is not an "
+                                "installed plugin (an adapter's run")

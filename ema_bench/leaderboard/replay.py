@@ -119,6 +119,12 @@ def replay(records: list[dict], k: int | None, seed: int, keys: set[str] | None 
     found: dict[int, ReplayResult] = {}
     jobs = []
     for i, r in enumerate(picked):
+        if not _installed(str(r["solver"])):
+            found[i] = ReplayResult(_name(r), f"not replayable: solver {_name(r['solver'])!r} "
+                                    "is not an installed plugin (an adapter's run, e.g. SciPy "
+                                    "through ema_bench.adapters, has no registered solver to "
+                                    "re-run): install its package, or do not --replay it", 0.0)
+            continue
         try:
             jobs.append(_job(i, r))
         except Exception as exc:   # a record whose instance cannot be built is a finding
@@ -141,5 +147,14 @@ def replay(records: list[dict], k: int | None, seed: int, keys: set[str] | None 
     return [found[i] for i in sorted(found)]
 
 
-def _name(r: dict) -> str:
-    return terminal(r.get("key", "?"))
+def _name(r: object) -> str:
+    return terminal(r.get("key", "?") if isinstance(r, dict) else r)
+
+
+def _installed(solver: str) -> bool:
+    """Whether an entry point names ``solver`` (read from the metadata: nothing imported)."""
+    import importlib.metadata
+
+    from ..registry import ENTRY_POINT_GROUP
+
+    return bool(importlib.metadata.entry_points(group=ENTRY_POINT_GROUP, name=solver))
