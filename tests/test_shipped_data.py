@@ -204,3 +204,19 @@ def test_a_calibration_table_with_a_score_that_is_no_score_is_refused(tmp_path, 
                                    "effect_cases": 2}))
     with pytest.raises(ValueError):
         interval_table.read.__wrapped__(effects)
+
+
+@pytest.mark.parametrize("installed", [True, False])
+def test_targets_never_writes_into_an_installed_package_nor_shrinks_the_shipped_table(
+        installed, monkeypatch, capsys):
+    """``targets --out`` inside the package: refused when installed; in a checkout, refused
+    for a selection (a 460-entry table once became 1 entry)."""
+    if installed:
+        monkeypatch.setattr(cf, "checkout_root", lambda package=cf.PACKAGE: None)
+    before = package_digest()
+    assert main(["targets", "--cases", "small", "--seeds", "1", "--tracks", "twin", "--out",
+                 str(PACKAGE / "suite_targets.json")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1
+    assert ("installed package" if installed else "select part of the suite") in err
+    assert package_digest() == before

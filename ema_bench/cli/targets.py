@@ -102,6 +102,7 @@ def run(args: argparse.Namespace) -> int:
         from ..best_known import compute_targets
 
         keys = _keys(args)
+        _check_not_shipped(args)
         out = check_output(args.out, "--out", folder=False, suffixes=(".json",))
         data = compute_targets(out, workers=args.workers, quiet=args.quiet, keys=keys)
     entries = data["entries"]
@@ -157,3 +158,22 @@ def _cost_by_tier(entries: dict) -> dict[str, dict[str, float]]:
             by.setdefault(parse_case(k.split("|")[0])[0].tier, []).append(e["cpu_s"])
     return {str(d): {"entries": len(v), "cpu_s_median": statistics.median(v),
                      "cpu_s_total": sum(v)} for d, v in sorted(by.items())}
+
+
+def _check_not_shipped(args: argparse.Namespace) -> None:
+    """``--out`` inside the package: refused in an installed copy (shipped data is
+    read-only), and in a checkout for a selection (it would replace the shipped table with a
+    part of it: 460 entries became 1, and validate then refused genuine records)."""
+    from ..calibration_files import checkout_root, inside_package
+    from . import CLIError
+
+    if not inside_package(args.out):
+        return
+    if checkout_root() is None:
+        raise CLIError(f"--out {args.out}: inside the installed package, whose data is "
+                       "read-only; write the table elsewhere")
+    chosen = [f"--{n.replace('_', '-')}" for n in ("cases", "tiers", "conditions", "per_tier",
+                                                    "seeds", "tracks") if getattr(args, n, None)]
+    if chosen:
+        raise CLIError(f"--out {args.out}: {', '.join(chosen)} select part of the suite, which "
+                       "would replace the shipped table; write the selection elsewhere")
