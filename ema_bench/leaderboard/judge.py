@@ -136,6 +136,16 @@ def judge(records: list[dict], *, reevaluate: bool = True, complete: bool = True
     return Verdict(recs, found, n_legacy)
 
 
+def is_suite_case(case: object) -> bool:
+    """Whether ``case`` is an instance of a suite (v1's or emafdi-v2's), which the judge can
+    re-derive; a sweep may also run other cases (``seeded``: an instance drawn from the run
+    node), the user's own experiment, which no suite ranks."""
+    from ..suite import is_instance
+    from ..suite_v2 import is_v2_case
+
+    return isinstance(case, str) and (is_instance(case) or is_v2_case(case))
+
+
 def admitted(records: list[dict], what: str, **options: object) -> list[dict]:
     """The records ``what`` (a command) may score or export: those of :func:`judge` when it
     finds nothing, else :class:`JudgeError` with the count and the first finding."""

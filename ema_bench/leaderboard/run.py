@@ -27,7 +27,7 @@ from .figures import (
     overlay_plot,
     valley_rise,
 )
-from .judge import admitted, read_runs
+from .judge import admitted, is_suite_case, read_runs
 from .page import write_page
 from .report import load_paper_results, paper_case, write_leaderboards, write_paper_tables
 from .scaling import (
@@ -90,10 +90,14 @@ def write_outputs(records: list[dict], out: Path, command: str, plots: bool = Tr
               "budget; summary.json lists them)." if failed else "")
     suites = ", ".join(sorted({str(r.get("suite", SUITE_ID)) for r in records}))
     legacy = sum(1 for r in records if not is_error(r) and schema(r) < 2)
+    off = [r for r in records if not is_suite_case(r["case"])]
     header = (f"Produced by {code_span(command)}: {len(records)} runs, suite {suites}, model "
               f"version {MODEL_VERSION}.{partial}{errors}"
               + (f" LEGACY VIEW: {legacy} schema-1 records (hits bounded, not proven)."
-                 if legacy else ""))
+                 if legacy else "")
+              + (f" OFF-SUITE: {len(off)} runs of cases outside every suite "
+                 f"({', '.join(sorted({str(r['case']) for r in off}))}): not judged, not a "
+                 "ranking." if off else ""))
     # scores and the ECDF count failed runs as unsuccessful; what needs a fit, finished runs
     finished = [r for r in records if not is_error(r)]
     scores = score_records(records)
@@ -163,8 +167,12 @@ def leaderboard(solvers, cases, tracks, seeds: int, budget: int, out: Path,
     # nothing is scored that validate refuses (a record edited or appended in the folder)
     wanted = {t.identity for t in tasks}
     lines = read_runs([out / RUNS_FILE]) if (out / RUNS_FILE).is_file() else []
-    records = select(admitted([r for r in lines if run_identity(r) in wanted], "leaderboard",
-                              complete=False, legacy=legacy), tasks)
+    mine = [r for r in lines if run_identity(r) in wanted]
+    # cases outside every suite (``--cases seeded``) are the user's own experiment: no suite
+    # ranks them and the judge cannot re-derive them; the header says so
+    records = select(admitted([r for r in mine if is_suite_case(r["case"])], "leaderboard",
+                              complete=False, legacy=legacy)
+                     + [r for r in mine if not is_suite_case(r["case"])], tasks)
     if not records:
         raise ValueError(f"no records of this sweep in {out / RUNS_FILE}")
     command = command or "ema-bench " + " ".join(shlex.quote(a) for a in sys.argv[1:])
