@@ -234,28 +234,3 @@ def check_output(path: str | os.PathLike[str] | None, option: str, *, folder: bo
                        f"{exc.strerror or exc}") from None
     return path
 
-
-def read_run_files(paths: Sequence[str]) -> list[dict]:
-    """The run records of ``runs.jsonl`` files, in order (not deduplicated); CLIError (one
-    line) when a file is missing, not a file, or not a file of run records."""
-    from ..leaderboard.store import read_records
-    from ..sweep.schema import SchemaError
-
-    out: list[dict] = []
-    for path in paths:
-        p = Path(path)
-        if not p.exists():
-            raise CLIError(f"{path}: no such file")
-        if not p.is_file():
-            raise CLIError(f"{path}: not a file (give the runs.jsonl inside a leaderboard "
-                           "folder)")
-        try:
-            out += read_records(p)
-        except SchemaError as exc:   # names the line and the field
-            raise CLIError(f"{exc} (not a file of run records: one JSON object per line, as "
-                           "'ema-bench leaderboard' writes)") from None
-        except (TypeError, KeyError, AttributeError):
-            # JSON lines that are not records (a list, a number, an object without identity)
-            raise CLIError(f"{path}: not a file of run records (one JSON object per line, as "
-                           "'ema-bench leaderboard' writes)") from None
-    return out
