@@ -158,3 +158,24 @@ def test_a_hand_edited_replace_no_is_refused_by_campaign_score(tmp_path):
     assert res.returncode == 2, res.stderr
     err = res.stderr.strip().splitlines()
     assert len(err) == 1 and "track.jsonl, line 5: field 'replace' must be bool" in err[0]
+
+
+def test_a_mistyped_member_of_a_truth_file_is_refused_in_one_line(tmp_path, capsys):
+    """Nested fields of a campaign's truth are typed too: ``faults.0: "abc"`` gave a
+    traceback in scoring; now ``campaign score`` names the unit and field, exit 2."""
+    from ema_bench.cli import main
+    from ema_bench.prognostics.campaign import read_truth
+
+    src = BOARDS / "campaign" / "twin" / "campaign" / "truth.json"
+    doc = json.loads(src.read_text())
+    unit = next(iter(doc["units"]))
+    doc["units"][unit]["faults"]["0"] = "abc"
+    bad = tmp_path / "truth.json"
+    bad.write_text(json.dumps(doc))
+    with pytest.raises(SchemaError, match=rf"unit {unit}: field 'faults.0' must be list"):
+        read_truth(bad)
+    assert read_truth(src)["units"][unit]["faults"]["0"] != "abc"    # the committed one reads
+    run = BOARDS / "campaign" / "twin" / "kalman"
+    assert main(["campaign", "score", str(run), "--truth", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "field 'faults.0' must be list, got 'abc'" in err
