@@ -77,9 +77,7 @@ def using(table: Table, path: str | os.PathLike[str] | None) -> Iterator[None]:
     old = os.environ.get(table.env)
     os.environ[table.env] = str(Path(path).resolve())
     try:
-        # a missing file, or one that is no table (a NaN or negative score), fails here, in
-        # one line, before any work
-        _reader(table.name)(active(table)[0])
+        active(table)     # a missing file fails here, in one line, before any work
         yield
     finally:
         if old is None:
@@ -118,6 +116,25 @@ def check_scores(values: Iterable[object], where: str) -> None:
                              "number")
 
 
+def check_table(name: str, data: object, where: str) -> None:
+    """Every score of the table ``name`` (a key of :data:`TABLES`) holding ``data``, by
+    :func:`check_scores`: per key and fault (``calibration.json``), or per effect case
+    (``interval_calibration.json``).  Its readers and :func:`ship` call it."""
+    scores = data.get("scores") if isinstance(data, dict) else None
+    if name == "interval_calibration.json":
+        if not isinstance(scores, list) or not all(isinstance(r, dict) for r in scores):
+            raise ValueError(f"{where}: 'scores' is not a list of scored cases")
+        check_scores([r.get("score") for r in scores], f"{where}: scores")
+        return
+    if not isinstance(scores, dict):
+        raise ValueError(f"{where}: 'scores' is not an object")
+    for key, per in scores.items():
+        if not isinstance(per, dict):
+            raise ValueError(f"{where}: scores[{key!r}] is not an object of per-fault scores")
+        for fault, values in per.items():
+            check_scores(values, f"{where}: scores[{key!r}][{fault!r}]")
+
+
 def ship(source: str | os.PathLike[str], package: Path = PACKAGE) -> Path:
     """Replace the shipped table named like ``source`` (a file ``--calibrate`` wrote) with it.
 
@@ -138,19 +155,10 @@ def ship(source: str | os.PathLike[str], package: Path = PACKAGE) -> Path:
         raise ValueError(f"{source}: not a readable calibration table ({exc})") from None
     if not isinstance(data, dict) or not data.get("scores"):
         raise ValueError(f"{source}: holds no calibration scores")
-    _reader(table.name)(source)   # the values too (the table's own reader checks them)
+    check_table(table.name, data, str(source))   # the values too
     target = package / table.shipped.relative_to(PACKAGE)
     write_atomic(target, text)
     return target
-
-
-def _reader(name: str):
-    """The reader of the table ``name`` (imported here: the readers import this module)."""
-    if name == "calibration.json":
-        from .uncertainty.calibration import read
-    else:
-        from .diagnosis.interval_table import read
-    return lambda path: read.__wrapped__(Path(path))
 
 
 def main(argv: list[str] | None = None) -> int:

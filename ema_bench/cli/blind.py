@@ -88,9 +88,10 @@ def run(args: argparse.Namespace) -> int:
     if args.calibrate:
         return _calibrate(args)
     from ..calibration_files import using
-    from ..diagnosis.interval_table import TABLE
+    from ..diagnosis.interval_table import TABLE, active_table
 
     with using(TABLE, args.calibration):
+        active_table()   # a table that is no table fails here, in one line, before any work
         return _run(args, only)
 
 

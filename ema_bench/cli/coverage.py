@@ -111,6 +111,7 @@ def run(args: argparse.Namespace) -> int:
         raise CLIError(f"--out {args.out}: inside the package, whose data is read-only")
     out = check_output(args.out, "--out", folder=True)
     with using(cal.TABLE, args.calibration):
+        cal.active_table()   # a table that is no table fails here, in one line, before work
         return _run(args, root, out)
 
 

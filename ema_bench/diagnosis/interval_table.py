@@ -14,7 +14,7 @@ import json
 from functools import lru_cache
 from pathlib import Path
 
-from ..calibration_files import TABLES, active, check_scores, describe
+from ..calibration_files import TABLES, active, check_table, describe
 from ..uncertainty.calibration import conformal_quantile
 
 TABLE = TABLES["interval_calibration.json"]
@@ -33,7 +33,7 @@ def read(path: Path) -> dict:
         scores = tuple(float(r["score"]) for r in data["scores"])
     except (UnicodeDecodeError, json.JSONDecodeError, TypeError, KeyError, ValueError) as exc:
         raise ValueError(f"{path}: not an interval calibration table ({exc!r})") from None
-    check_scores([r["score"] for r in data["scores"]], f"{path}: scores")
+    check_table(TABLE.name, data, str(path))   # every score finite and non-negative
     return {**data, "scores": scores}
 
 

@@ -31,7 +31,7 @@ from ..escape import terminal
 from ..records import schema
 from ..suite_v2 import suite_of
 from ..sweep.schema import SchemaError
-from ..sweep.store import _parse
+from ..sweep.store import read_lines
 from .store import _schema, is_error, run_identity
 from .validate import Finding, check_complete, check_record
 
@@ -63,15 +63,14 @@ def read_runs(paths: Sequence[str | os.PathLike]) -> list[dict]:
         if not p.is_file():
             raise JudgeError(f"{terminal(path)}: " + ("not a file (give the runs.jsonl inside "
                              "a leaderboard folder)" if p.exists() else "no such file"))
-        data = p.read_bytes()
         try:
-            recs, end, line = _parse(data, terminal(path), schema=_schema)
+            recs, intact, line = read_lines(p, schema=_schema)
         except SchemaError as exc:
             raise JudgeError(f"{exc} (not a file of run records: one JSON object per line, "
                              "as 'ema-bench leaderboard' writes)") from None
         except (ValueError, TypeError, KeyError, AttributeError) as exc:
             raise JudgeError(f"{terminal(path)}: not a file of run records ({exc})") from None
-        if end != len(data):
+        if not intact:
             raise JudgeError(f"{terminal(path)}, line {line}: incomplete last line (no newline "
                              "at its end: a torn write or an edit); complete or remove it")
         out += recs

@@ -40,17 +40,17 @@ import numpy as np
 
 from ..faults import FAULT_NAMES, LOWER, UPPER
 from ..seeding import as_seed_sequence, run_seed, stream
-from ..sweep.schema import check, req
+from ..sweep.schema import check, opt
 from ..traces import Traces, load_traces
 from .laws import THRESHOLDS, FleetLaws, UnitHistory, unit_history
 
 FORMAT = "ema-bench-campaign"
 TRUTH_FORMAT = "ema-bench-campaign-truth"
 #: A unit's truth, by JSON type, members too (``faults.0: "abc"``: refused in one line)
-TRUTH_SCHEMA = {"eol": req("int|null"), "failing_fault": req("str|null"),
-                "true_rul": req("int|null"), "life_fraction": req("number|null"),
-                "kind": req("list", "str"), "faults": req("dict", "list"),
-                "faults_after": req("dict", "list"), "params": req("dict", "number")}
+TRUTH_SCHEMA = {"eol": opt("int|null"), "failing_fault": opt("str|null"),
+                "true_rul": opt("int|null"), "life_fraction": opt("number|null"),
+                "kind": opt("list", "str"), "faults": opt("dict", "list"),
+                "faults_after": opt("dict", "list"), "params": opt("dict", "number")}
 VERSION = 2
 #: The cut rule's name in the manifest (:func:`cut_likelihood`).
 CUT_RULE = "nearest-inspection-to-uniform-share"

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..calibration_files import TABLES, active, check_scores
+from ..calibration_files import TABLES, active, check_table
 from ..faults import FAULT_NAMES
 
 #: The root seed of the calibration runs (coverage is reported at root seed 0).
@@ -60,11 +60,7 @@ def read(path: Path) -> dict[str, object]:
         raise ValueError(f"{path}: not a calibration table (no 'scores' object)")
     if data.get("faults") != list(FAULT_NAMES):
         raise ValueError(f"{path} is for faults {data.get('faults')}, not {list(FAULT_NAMES)}")
-    for key, per in data["scores"].items():
-        if not isinstance(per, dict):
-            raise ValueError(f"{path}: scores[{key!r}] is not an object of per-fault scores")
-        for fault, values in per.items():
-            check_scores(values, f"{path}: scores[{key!r}][{fault!r}]")
+    check_table(TABLE.name, data, str(path))   # every score finite and non-negative
     return data
 
 
