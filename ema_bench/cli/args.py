@@ -146,6 +146,14 @@ def add_json(p: argparse.ArgumentParser, what: str = "the result") -> None:
     p.add_argument("--json", action="store_true", help=f"print {what} as JSON")
 
 
+def add_legacy(p: argparse.ArgumentParser, verb: str) -> None:
+    """``--legacy``: admit schema-1 records into a view labelled legacy (the judge,
+    :mod:`ema_bench.leaderboard.judge`, refuses them for ranking otherwise)."""
+    p.add_argument("--legacy", action="store_true",
+                   help=f"{verb} schema-1 (legacy) records too, in a view labelled legacy "
+                        "(refused without it: their hits cannot be proven)")
+
+
 def add_quiet(p: argparse.ArgumentParser) -> None:
     """``--quiet``: no progress bar and no progress lines (errors are still printed)."""
     p.add_argument("--quiet", "-q", action="store_true",

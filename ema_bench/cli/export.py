@@ -31,7 +31,7 @@ FORMATS: dict[str, Callable[..., list[Path]]] = {"ioh": export_ioh}
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from .args import add_json
+    from .args import add_json, add_legacy
 
     p = sub.add_parser("export", help="convert run records for other tools (IOHprofiler)",
                        description=__doc__,
@@ -48,9 +48,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-reevaluate", action="store_true",
                    help="admit without re-evaluating the vectors (fast, weaker: as "
                         "'validate --no-reevaluate'; every other check stays)")
-    p.add_argument("--legacy", action="store_true",
-                   help="export schema-1 (legacy) records too (refused without it: their "
-                        "hits cannot be proven)")
+    add_legacy(p, "export")
     add_json(p, "a summary")
     p.set_defaults(func=run)
 

@@ -51,6 +51,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     from .args import (
         MAX_BUDGET,
         add_json,
+        add_legacy,
         add_quiet,
         count,
         option_list,
@@ -114,9 +115,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--report-only", action="store_true",
                    help="run nothing: rebuild tables and plots from the records already in "
                         "OUT (e.g. after merging shards or to publish a partial sweep)")
-    p.add_argument("--legacy", action="store_true",
-                   help="score schema-1 (legacy) records too, in a view labelled legacy "
-                        "(refused without it: their hits cannot be proven)")
+    add_legacy(p, "score")
     add_json(p, "a summary")
     add_quiet(p)
     p.set_defaults(func=run)

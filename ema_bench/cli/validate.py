@@ -22,7 +22,7 @@ import argparse
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from .args import add_json, count, seed_number
+    from .args import add_json, add_legacy, count, seed_number
 
     p = sub.add_parser("validate", help="check third-party run records (suite, manifest, "
                                         "budget, re-evaluated fitness)",
@@ -46,9 +46,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="seed of the replay sample (default: fresh entropy, printed; give "
                         "the printed one to repeat a check, or one committed before the "
                         "submission)")
-    p.add_argument("--legacy", action="store_true",
-                   help="admit schema-1 (legacy) records into a labelled legacy view; "
-                        "without it they are refused (their hits cannot be proven)")
+    add_legacy(p, "admit")
     p.add_argument("--replay-key", action="append", default=None, metavar="KEY",
                    help="replay the record with this key (solver|case|track|seed; "
                         "repeatable) instead of a sample")
