@@ -72,7 +72,8 @@ def read_runs(paths: Sequence[str | os.PathLike]) -> list[dict]:
             raise JudgeError(f"{terminal(path)}: not a file of run records ({exc})") from None
         if not intact:
             raise JudgeError(f"{terminal(path)}, line {line}: incomplete last line (no newline "
-                             "at its end: a torn write or an edit); complete or remove it")
+                             "at its end, or not JSON: a torn write or an edit); complete or "
+                             "remove it")
         out += recs
     return out
 
