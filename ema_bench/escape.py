@@ -38,6 +38,22 @@ def markdown(text: object) -> str:
     return _MARKDOWN_SPECIAL.sub(r"\\\1", s)
 
 
+def terminal(text: object) -> str:
+    """``text`` safe to print on a terminal line: control and format characters (escape
+    sequences, new lines, bidi overrides) as spaces."""
+    return _printable(str(text))
+
+
+def code_span(text: object) -> str:
+    """``text`` as one inert Markdown code span: fenced by one backtick more than its
+    longest run of backticks (CommonMark), so a backtick inside cannot end it."""
+    s = _printable(str(text))
+    runs = re.findall(r"`+", s)
+    fence = "`" * (max(map(len, runs), default=0) + 1)
+    pad = " " if s.startswith("`") or s.endswith("`") else ""
+    return f"{fence}{pad}{s}{pad}{fence}"
+
+
 def csv_value(value: object) -> object:
     """A CSV cell: numbers as plain decimal text, text with no control character and no
     formula start; None stays empty."""

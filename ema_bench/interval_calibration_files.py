@@ -14,9 +14,10 @@ it refuses an installed package.
 from __future__ import annotations
 
 import json
+import math
 import os
 import sys
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -102,6 +103,39 @@ def checkout_root(package: Path = PACKAGE) -> Path | None:
     return None
 
 
+def check_scores(values: Iterable[object], where: str) -> None:
+    """Calibration scores are finite, non-negative numbers (an error over a half-width);
+    ValueError (one line) naming the first that is not: a NaN score gave ``[nan, nan]``
+    intervals, a negative one inverted intervals."""
+    if not isinstance(values, list | tuple):
+        raise ValueError(f"{where}: calibration scores must be a list, got "
+                         f"{type(values).__name__}")
+    for v in values:
+        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) \
+                or v < 0:
+            raise ValueError(f"{where}: calibration score {v!r} is not a finite, non-negative "
+                             "number")
+
+
+def check_table(name: str, data: object, where: str) -> None:
+    """Every score of the table ``name`` (a key of :data:`TABLES`) holding ``data``, by
+    :func:`check_scores`: per key and fault (``calibration.json``), or per effect case
+    (``interval_calibration.json``).  Its readers and :func:`ship` call it."""
+    scores = data.get("scores") if isinstance(data, dict) else None
+    if name == "interval_calibration.json":
+        if not isinstance(scores, list) or not all(isinstance(r, dict) for r in scores):
+            raise ValueError(f"{where}: 'scores' is not a list of scored cases")
+        check_scores([r.get("score") for r in scores], f"{where}: scores")
+        return
+    if not isinstance(scores, dict):
+        raise ValueError(f"{where}: 'scores' is not an object")
+    for key, per in scores.items():
+        if not isinstance(per, dict):
+            raise ValueError(f"{where}: scores[{key!r}] is not an object of per-fault scores")
+        for fault, values in per.items():
+            check_scores(values, f"{where}: scores[{key!r}][{fault!r}]")
+
+
 def ship(source: str | os.PathLike[str], package: Path = PACKAGE) -> Path:
     """Replace the shipped table named like ``source`` (a file ``--calibrate`` wrote) with it.
 
@@ -122,6 +156,7 @@ def ship(source: str | os.PathLike[str], package: Path = PACKAGE) -> Path:
         raise ValueError(f"{source}: not a readable calibration table ({exc})") from None
     if not isinstance(data, dict) or not data.get("scores"):
         raise ValueError(f"{source}: holds no calibration scores")
+    check_table(table.name, data, str(source))   # the values too
     target = package / table.shipped.relative_to(PACKAGE)
     write_atomic(target, text)
     return target

@@ -16,10 +16,15 @@ The tree (the README has it as a table)::
                              effects and magnitudes)
 
 ``make_problem(seed=node)`` draws the instance and the noise, ``run_solver(..., seed=node)``
-gives the solver ``stream(node, "solver")``: a solver cannot replay the problem's streams
-whatever it spawns.  ``ema-bench solve --root-seed R --seed k`` builds the same node as the
-leaderboard's row ``k`` of root seed ``R``, so it replays that row bit for bit; the Gymnasium
-environment's ``reset(seed=k)`` (``root_seed=R``) plays the same problem.  Case ``k`` of
+gives the solver ``stream(node, "solver")``: disjoint from the problem's streams, but not
+secret from the solver: a ``SeedSequence`` child carries its parent's entropy (the root seed)
+and spawn key (the run number), so a solver can rebuild the node and draw the instance and
+noise streams (a ``seeded`` case's truth) from it.  A one-way derivation is open work
+(issue 48); replay does not catch a solver that does this.
+
+``ema-bench solve --root-seed R --seed k`` builds the same node as the leaderboard's row
+``k`` of root seed ``R``, so it replays that row bit for bit; the Gymnasium environment's
+``reset(seed=k)`` (``root_seed=R``) plays the same problem.  Case ``k`` of
 ``ema-bench blind --seed R`` is run ``k`` of root ``R``: its traces are those of
 ``ema-bench simulate --root-seed R --seed k`` (a reference-model case; an acquisition decoy
 is then applied with the draws of its ``acquisition`` stream) and its diagnosis that of

@@ -12,6 +12,8 @@ from ioh_files import read_ioh
 
 from ema_bench.cli import main
 from ema_bench.leaderboard.ioh import export_ioh
+from ema_bench.leaderboard.tasks import Task
+from ema_bench.leaderboard.tasks import error_record as task_error_record
 
 REPO = Path(__file__).resolve().parents[1]
 # the suite's shipped optima, read here from the file rather than through the package
@@ -243,7 +245,7 @@ def _committed_runs() -> list[dict]:
 
 def test_cli_exports_the_committed_quick_leaderboard(tmp_path):
     out = tmp_path / "ioh"
-    res = run_cli("export", "--format", "ioh", QUICK_RUNS, "--out", out, "--json")
+    res = run_cli("export", "--format", "ioh", QUICK_RUNS, "--out", out, "--json", "--legacy")
     assert res.returncode == 0, res.stderr
     summary = json.loads(res.stdout)
     recs = _committed_runs()
@@ -273,7 +275,10 @@ def test_cli_exports_the_committed_v2_board_one_function_per_condition_and_track
     dimensions; the summary names the functions written (it once counted every case)."""
     board = REPO / "leaderboards" / "runs.jsonl"
     out = tmp_path / "ioh"
-    res = run_cli("export", "--format", "ioh", board, "--out", out, "--json")
+    # --no-reevaluate: re-evaluating 1920 records costs minutes (test_judge.py checks that
+    # export re-evaluates by default)
+    res = run_cli("export", "--format", "ioh", board, "--out", out, "--json",
+                  "--no-reevaluate")
     assert res.returncode == 0, res.stderr
     summary = json.loads(res.stdout)
     recs = [json.loads(line) for line in board.read_text().splitlines()]
@@ -315,7 +320,9 @@ def test_cli_errors_missing_empty_and_all_failed(tmp_path, capsys):
     assert "no run records" in _fail(capsys, ["export", "--format", "ioh", str(empty),
                                               "--out", out])
     failed = tmp_path / "failed.jsonl"
-    failed.write_text(json.dumps(error_record()) + "\n")
+    # a real error record (a synthetic one lacks suite and model version: the judge refuses it)
+    failed.write_text(json.dumps(task_error_record(Task("random", "s00", "twin", 5, 20),
+                                                   RuntimeError("boom"))) + "\n")
     assert "failed" in _fail(capsys, ["export", "--format", "ioh", str(failed), "--out", out])
     for junk in ("[1, 2]", "42", '{"a": 1}'):
         bad = tmp_path / "junk.jsonl"
@@ -324,38 +331,44 @@ def test_cli_errors_missing_empty_and_all_failed(tmp_path, capsys):
                                                              str(bad), "--out", out])
     blind = tmp_path / "blind.jsonl"
     blind.write_text(json.dumps({"key": "case-3", "model_version": "2"}) + "\n")
-    assert "not a solver run" in _fail(capsys, ["export", "--format", "ioh", str(blind),
-                                                "--out", out])
+    # not a solver run: refused by the judge before any export
+    assert "nothing written" in _fail(capsys, ["export", "--format", "ioh", str(blind),
+                                               "--out", out])
     a_file = tmp_path / "a_file"
     a_file.write_text("x")
     assert "--out" in _fail(capsys, ["export", "--format", "ioh", str(failed), "--out",
                                      str(a_file)])
 
 
-def test_cli_merges_files_and_counts_skipped_runs(tmp_path, capsys):
-    recs = synthetic()
+def test_cli_merges_files_and_refuses_a_run_found_in_two(tmp_path, capsys):
+    lines = [ln + "\n" for ln in QUICK_RUNS.read_text().splitlines()]
     one, two = tmp_path / "one.jsonl", tmp_path / "two.jsonl"
-    one.write_text("".join(json.dumps(r) + "\n" for r in [*recs[:10], error_record()]))
-    two.write_text("".join(json.dumps(r) + "\n" for r in recs[5:]))   # 5 runs in both
-    assert main(["export", "--format", "ioh", str(one), str(two), "--out",
-                 str(tmp_path / "o")]) == 0
-    text = capsys.readouterr().out
-    assert f"{len(recs)} runs of 2 solvers on 4 functions" in text
-    assert "skipped 1 runs: 1 failed with an error" in text
-    assert len(read_ioh(tmp_path / "o")) == len(recs)
+    one.write_text("".join(lines[:10]))
+    two.write_text("".join(lines[10:20]))
+    assert main(["export", "--format", "ioh", str(one), str(two), "--legacy",
+                 "--no-reevaluate", "--out", str(tmp_path / "o"), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    n = sum(1 for ln in lines[:20] if '"nominal"' not in ln and '"status": "error"' not in ln)
+    assert summary["runs"] == n
+    # a run found in both files is a finding (which copy counts is not file order's choice)
+    two.write_text("".join(lines[5:20]))
+    err = _fail(capsys, ["export", "--format", "ioh", str(one), str(two), "--legacy",
+                         "--no-reevaluate", "--out", str(tmp_path / "p")])
+    assert "two records of one run identity" in err
 
 
 def test_cli_precision_values_and_the_sanity_flag(tmp_path, capsys):
     recs = _committed_runs()
     nominal = [r for r in _all_committed() if r["case"] == "nominal"]
-    assert main(["export", "--format", "ioh", str(QUICK_RUNS), "--value", "precision",
+    assert main(["export", "--format", "ioh", str(QUICK_RUNS), "--legacy", "--value",
+                 "precision",
                  "--out", str(tmp_path / "p"), "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["runs"] == len(recs) and summary["sanity_left_out"] == len(nominal) > 0
     runs = read_ioh(tmp_path / "p")
     assert all(0.0 <= y for r in runs for y in r["raw_y"])
     assert max(y for r in runs for y in r["raw_y"]) == pytest.approx(1.0)  # the nominal start
-    assert main(["export", "--format", "ioh", str(QUICK_RUNS), "--include-sanity",
+    assert main(["export", "--format", "ioh", str(QUICK_RUNS), "--legacy", "--include-sanity",
                  "--out", str(tmp_path / "s"), "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["runs"] == len(recs) + len(nominal) and summary["sanity_left_out"] == 0

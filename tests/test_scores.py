@@ -10,12 +10,14 @@ every group here mixes successes and failures with evaluations to success below 
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import evidence
 import pytest
 
 from ema_bench.leaderboard.check import compare
 from ema_bench.leaderboard.derive import derived
+from ema_bench.leaderboard.judge import JudgeError
 from ema_bench.leaderboard.scores import ALL, ert, run_cost, score_records
 from ema_bench.suites.v1 import SUITE_ID
 
@@ -258,12 +260,21 @@ def test_committed_run_files_are_found_and_read(tmp_path):
     (tmp_path / "empty").mkdir()
     files = committed_files(tmp_path)
     assert files == [tmp_path / "runs.jsonl", tmp_path / "quick" / "runs.jsonl"]
-    base, used = load_baseline(tmp_path, 400, 1)
-    assert sorted(r["solver"] for r in base) == ["a", "b"]
-    assert used == {"same_budget": 2, "re_scored": 0, "other_model_version": 0}
-    base, _ = load_baseline(tmp_path, 400, 1, keys={("b", "small", "twin", 0, 1)})
-    assert [r["solver"] for r in base] == ["b"]                # the keys select
     assert committed_files(tmp_path / "empty") == []
+    # the baseline goes through the judge: hand-made records whose fitness their vectors do
+    # not have are refused, not compared
+    with pytest.raises(JudgeError, match=r"^--check baseline: 2 finding"):
+        load_baseline(tmp_path, 400, 1)
+    # real (committed, legacy) records are read, and the keys select
+    quick = Path(__file__).resolve().parents[1] / "leaderboards" / "quick" / "runs.jsonl"
+    lines = [ln for ln in quick.read_text().splitlines() if '"case": "s00"' in ln][:4]
+    write(tmp_path / "real" / "runs.jsonl", [json.loads(ln) for ln in lines])
+    base, used = load_baseline(tmp_path / "real", 400, 1)
+    first = json.loads(lines[0])
+    assert len(base) == sum(json.loads(ln)["seed"] < 1 for ln in lines) == used["same_budget"]
+    key = (first["solver"], "s00", first["track"], first["seed"], first["root_seed"])
+    base, _ = load_baseline(tmp_path / "real", 400, 1, keys={key})
+    assert [(r["solver"], r["track"]) for r in base] == [(first["solver"], first["track"])]
 
 
 def test_a_failed_run_is_unsuccessful_at_its_budget_and_left_out_of_medians():

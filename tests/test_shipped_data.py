@@ -17,6 +17,7 @@ import ema_bench
 from ema_bench import interval_calibration_files as cf
 from ema_bench.cli import main
 from ema_bench.diagnosis import interval_table
+from ema_bench.faults import FAULT_NAMES
 from ema_bench.uncertainty import conformal
 
 PACKAGE = Path(ema_bench.__file__).resolve().parent
@@ -139,7 +140,8 @@ def _checkout(root: Path, git: bool) -> Path:
 def test_shipping_a_table_is_for_a_checkout_only(tmp_path):
     made = tmp_path / "run" / "calibration.json"
     made.parent.mkdir()
-    made.write_text(json.dumps({"faults": ["Na"], "scores": {"twin|laplace|none": {}}}) + "\n")
+    made.write_text(json.dumps({"faults": list(FAULT_NAMES),
+                                "scores": {"twin|laplace|none": {"Na": [0.5, 1.5]}}}) + "\n")
     installed = _checkout(tmp_path / "site", git=False)
     before = (installed / "uncertainty" / "calibration.json").read_bytes()
     with pytest.raises(ValueError, match="installed package, not a checkout"):
@@ -180,4 +182,41 @@ def test_the_model_form_biases_are_written_only_where_named(tmp_path, monkeypatc
     before = package_digest()
     with pytest.raises(ValueError, match="inside the installed package, not a checkout"):
         model_form.calibrate(model_form.PATH, ["small"])
+    assert package_digest() == before
+
+
+@pytest.mark.parametrize("bad", [float("nan"), -0.5, "0.5", None])
+def test_a_calibration_table_with_a_score_that_is_no_score_is_refused(tmp_path, capsys, bad):
+    """A NaN score gave [nan, nan] intervals and a negative one inverted intervals, with exit
+    0: a user table (and a table to ship) is checked value by value, in one line."""
+    table = tmp_path / "calibration.json"
+    table.write_text(json.dumps({"faults": list(FAULT_NAMES),
+                                 "scores": {"twin|laplace|none": {"Na": [0.5, bad]}}}))
+    with pytest.raises(ValueError, match=r"calibration score .* is not a finite, non-negative"):
+        conformal.read.__wrapped__(table)
+    with pytest.raises(ValueError, match="is not a finite, non-negative"):
+        cf.ship(table, _checkout(tmp_path / "src", git=True))
+    assert main(["coverage", "--instances", "1", "--calibration", str(table)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "is not a finite, non-negative number" in err
+    effects = tmp_path / "interval_calibration.json"
+    effects.write_text(json.dumps({"scores": [{"score": 1.0}, {"score": bad}],
+                                   "effect_cases": 2}))
+    with pytest.raises(ValueError):
+        interval_table.read.__wrapped__(effects)
+
+
+@pytest.mark.parametrize("installed", [True, False])
+def test_targets_never_writes_into_an_installed_package_nor_shrinks_the_shipped_table(
+        installed, monkeypatch, capsys):
+    """``targets --out`` inside the package: refused when installed; in a checkout, refused
+    for a selection (a 460-entry table once became 1 entry)."""
+    if installed:
+        monkeypatch.setattr(cf, "checkout_root", lambda package=cf.PACKAGE: None)
+    before = package_digest()
+    assert main(["targets", "--cases", "small", "--seeds", "1", "--tracks", "twin", "--out",
+                 str(PACKAGE / "suite_targets.json")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1
+    assert ("installed package" if installed else "select part of the suite") in err
     assert package_digest() == before

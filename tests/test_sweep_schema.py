@@ -88,6 +88,28 @@ def test_a_wrong_type_in_any_field_is_refused_naming_file_line_and_field(
             read(path)
 
 
+NESTED = [(name, schema, make, read, field) for name, schema, make, read in CASES
+          for field, spec in schema.items() if spec.values]
+
+
+@pytest.mark.parametrize("name,schema,make,read,field", NESTED,
+                         ids=[f"{p[0]}-{p[4]}" for p in NESTED])
+def test_a_wrong_type_inside_a_nested_field_is_refused_naming_it(tmp_path, name, schema, make,
+                                                                   read, field):
+    """``"estimate": {"Na": "abc"}`` gave a traceback later (a step), or was written into the
+    targets table (an entry's ``x_star``): refused on reading, naming ``field.member``."""
+    good = make()
+    member = next(iter(good[field]))
+    bad = {**good, field: {**good[field], member: "abc"}}
+    path = tmp_path / "records.jsonl"
+    path.write_text(json.dumps(good) + "\n" + json.dumps(bad) + "\n")
+    with pytest.raises(SchemaError) as info:
+        read(path)
+    want = schema[field].values.replace("|", " or ")
+    assert f"line 2: field '{field}.{member}' must be {want}" in str(info.value)
+    assert "got 'abc'" in str(info.value)
+
+
 def test_booleans_are_not_counts_and_counts_are_not_booleans(tmp_path):
     step = first_line(BOARDS / "campaign" / "twin" / "kalman" / "track.jsonl")
     path = tmp_path / "track.jsonl"
@@ -136,3 +158,24 @@ def test_a_hand_edited_replace_no_is_refused_by_campaign_score(tmp_path):
     assert res.returncode == 2, res.stderr
     err = res.stderr.strip().splitlines()
     assert len(err) == 1 and "track.jsonl, line 5: field 'replace' must be bool" in err[0]
+
+
+def test_a_mistyped_member_of_a_truth_file_is_refused_in_one_line(tmp_path, capsys):
+    """Nested fields of a campaign's truth are typed too: ``faults.0: "abc"`` gave a
+    traceback in scoring; now ``campaign score`` names the unit and field, exit 2."""
+    from ema_bench.cli import main
+    from ema_bench.prognostics.campaign import read_truth
+
+    src = BOARDS / "campaign" / "twin" / "campaign" / "truth.json"
+    doc = json.loads(src.read_text())
+    unit = next(iter(doc["units"]))
+    doc["units"][unit]["faults"]["0"] = "abc"
+    bad = tmp_path / "truth.json"
+    bad.write_text(json.dumps(doc))
+    with pytest.raises(SchemaError, match=rf"unit {unit}: field 'faults.0' must be list"):
+        read_truth(bad)
+    assert read_truth(src)["units"][unit]["faults"]["0"] != "abc"    # the committed one reads
+    run = BOARDS / "campaign" / "twin" / "kalman"
+    assert main(["campaign", "score", str(run), "--truth", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "field 'faults.0' must be list, got 'abc'" in err

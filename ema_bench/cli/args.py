@@ -156,6 +156,14 @@ def add_targets(p: argparse.ArgumentParser) -> None:
                         "seed fitness targets (repeatable)")
 
 
+def add_legacy(p: argparse.ArgumentParser, verb: str) -> None:
+    """``--legacy``: admit schema-1 records into a view labelled legacy (the judge,
+    :mod:`ema_bench.leaderboard.judge`, refuses them for ranking otherwise)."""
+    p.add_argument("--legacy", action="store_true",
+                   help=f"{verb} schema-1 (legacy) records too, in a view labelled legacy "
+                        "(refused without it: their hits cannot be proven)")
+
+
 def add_quiet(p: argparse.ArgumentParser) -> None:
     """``--quiet``: no progress bar and no progress lines (errors are still printed)."""
     p.add_argument("--quiet", "-q", action="store_true",
@@ -165,7 +173,7 @@ def add_quiet(p: argparse.ArgumentParser) -> None:
 
 def add_test_names(p: argparse.ArgumentParser, files: str) -> None:
     """``--test NAME[,NAME...]`` (repeatable): one test name per file of ``files``."""
-    p.add_argument("--test", action="extend", type=comma_list, default=None,
+    p.add_argument("--test", action="extend", type=option_list, default=None,
                    metavar="NAME[,NAME...]",
                    help=f"one test name per {files} file, in order (step, sine or sine2): the "
                         "name of the single test of a file without a 'test' column, or the "
@@ -175,6 +183,16 @@ def add_test_names(p: argparse.ArgumentParser, files: str) -> None:
 def comma_list(text: str) -> list[str]:
     """``"a, b,,c"`` -> ``["a", "b", "c"]``: the items of a comma-separated option."""
     return [s.strip() for s in text.split(",") if s.strip()]
+
+
+def option_list(text: str) -> list[str]:
+    """:func:`comma_list` as an option's type: an empty list (``--tiers ""``, ``--solvers=``)
+    is a usage error, never "the whole grid"."""
+    items = comma_list(text)
+    if not items:
+        raise argparse.ArgumentTypeError(f"an empty list ({text!r}): name at least one item, "
+                                         "or leave the option out")
+    return items
 
 
 def load_measured_files(paths: Sequence[str], tests: Sequence[str] | None) -> Traces:
@@ -234,28 +252,3 @@ def check_output(path: str | os.PathLike[str] | None, option: str, *, folder: bo
                        f"{exc.strerror or exc}") from None
     return path
 
-
-def read_run_files(paths: Sequence[str]) -> list[dict]:
-    """The run records of ``runs.jsonl`` files, in order (not deduplicated); CLIError (one
-    line) when a file is missing, not a file, or not a file of run records."""
-    from ..leaderboard.run_store import read_records
-    from ..sweep.schema import SchemaError
-
-    out: list[dict] = []
-    for path in paths:
-        p = Path(path)
-        if not p.exists():
-            raise CLIError(f"{path}: no such file")
-        if not p.is_file():
-            raise CLIError(f"{path}: not a file (give the runs.jsonl inside a leaderboard "
-                           "folder)")
-        try:
-            out += read_records(p)
-        except SchemaError as exc:   # names the line and the field
-            raise CLIError(f"{exc} (not a file of run records: one JSON object per line, as "
-                           "'ema-bench leaderboard' writes)") from None
-        except (TypeError, KeyError, AttributeError):
-            # JSON lines that are not records (a list, a number, an object without identity)
-            raise CLIError(f"{path}: not a file of run records (one JSON object per line, as "
-                           "'ema-bench leaderboard' writes)") from None
-    return out

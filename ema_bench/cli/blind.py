@@ -87,10 +87,11 @@ def run(args: argparse.Namespace) -> int:
             raise CLIError(f"--only: unknown categories {unknown}; known: {', '.join(KINDS)}")
     if args.calibrate:
         return _calibrate(args)
-    from ..diagnosis.interval_table import TABLE
+    from ..diagnosis.interval_table import TABLE, active_table
     from ..interval_calibration_files import using
 
     with using(TABLE, args.calibration):
+        active_table()   # a table that is no table fails here, in one line, before any work
         return _run(args, only)
 
 

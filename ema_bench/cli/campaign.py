@@ -22,9 +22,9 @@ from .args import (
     add_json,
     add_quiet,
     check_output,
-    comma_list,
     count,
     finite,
+    option_list,
     seed_number,
     worker_count,
 )
@@ -202,7 +202,7 @@ def _register_score(actions: argparse._SubParsersAction) -> None:
                         "inspection and field) if any line differs: the steps are the "
                         "submitter's, the tracker is deterministic (needs the campaign's "
                         "traces; ema_bench/prognostics/replay.py)")
-    p.add_argument("--replay-unit", metavar="UNITS", type=comma_list, default=None,
+    p.add_argument("--replay-unit", metavar="UNITS", type=option_list, default=None,
                    help="comma-separated units to replay instead of a sample")
     p.add_argument("--plots", metavar="DIR", help="write PNG plots here")
     p.add_argument("--markdown", metavar="FILE", help="write the table as Markdown here")
@@ -312,8 +312,9 @@ def _replayed(args: argparse.Namespace) -> bool:
     for run in args.runs:
         r = replay_track(run, k=args.replay, units=args.replay_unit)
         print(f"replay: {run}: {r.tracker}, {len(r.units)} of {r.tracked} units re-tracked "
-              f"({', '.join(r.units)}): " + ("every line agrees" if r.ok else
-                                              f"{len(r.findings)} difference(s)")
+              f"({', '.join(r.units)}"
+              + (f"; sample seed {r.seed}" if r.seed is not None else "") + "): "
+              + ("every line agrees" if r.ok else f"{len(r.findings)} difference(s)")
               + (f"; a single forged unit escapes a sample this size with probability "
                  f"{r.escape_chance:.2f}" if r.ok and args.replay_unit is None else ""),
               file=sys.stderr)

@@ -35,9 +35,9 @@ from .args import (
     add_json,
     add_quiet,
     check_output,
-    comma_list,
     count,
     finite,
+    option_list,
     seed_number,
     worker_count,
 )
@@ -56,7 +56,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="seeded instances 0..N-1 (default 100)")
     p.add_argument("--level", type=finite, default=0.95,
                    help="interval level in (0, 1) (default 0.95)")
-    p.add_argument("--method", type=comma_list, default=["laplace"],
+    p.add_argument("--method", type=option_list, default=["laplace"],
                    metavar="METHOD[,METHOD...]",
                    help=f"interval method(s), of {', '.join(METHODS)} (default laplace); "
                         "several share each instance's fit")
@@ -112,6 +112,7 @@ def run(args: argparse.Namespace) -> int:
         raise CLIError(f"--out {args.out}: inside the package, whose data is read-only")
     out = check_output(args.out, "--out", folder=True)
     with using(cal.TABLE, args.calibration):
+        cal.active_table()   # a table that is no table fails here, in one line, before work
         return _run(args, root, out)
 
 

@@ -6,8 +6,10 @@ root seed, budget, f* and f_nominal are run attributes; one root seed per export
 --value precision the values are (f - f*) / (f_nominal - f*), so IOH's fixed targets are the
 board's fitness targets (1e-1 .. 1e-4; needs the suite's f*: root seed 0).  The sanity case
 (nominal) is left out unless --include-sanity (then marked).  Runs that failed with an error
-are skipped and counted.  Records of several files are merged; a run found in two files is
-exported once.
+are skipped and counted.  Records of several files are merged.  Only records that
+``ema-bench validate`` accepts are exported (re-evaluated; a partial board is fine): a
+refused record, two records of one run, or a legacy (schema-1) record without --legacy stop
+the export with one line (exit 2).
 
 Examples::
 
@@ -29,7 +31,7 @@ FORMATS: dict[str, Callable[..., list[Path]]] = {"ioh": export_ioh}
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from .args import add_json, add_targets
+    from .args import add_json, add_legacy, add_targets
 
     p = sub.add_parser("export", help="convert run records for other tools (IOHprofiler)",
                        description=__doc__,
@@ -44,23 +46,30 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--include-sanity", action="store_true",
                    help="export the sanity case (nominal) too, marked; left out by default")
     add_targets(p)
+    p.add_argument("--no-reevaluate", action="store_true",
+                   help="admit without re-evaluating the vectors (fast, weaker: as "
+                        "'validate --no-reevaluate'; every other check stays)")
+    add_legacy(p, "export")
     add_json(p, "a summary")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     from ..leaderboard.ioh import function_name, optimum, split_runs
-    from ..leaderboard.run_store import is_error, unique
+    from ..leaderboard.judge import JudgeError, admitted, read_runs
+    from ..leaderboard.run_store import is_error
     from ..suites.v1 import SANITY_CASES
-    from . import print_result
-    from .args import check_output, read_run_files
+    from . import CLIError, print_result
+    from .args import check_output
 
     out = check_output(args.out, "--out", folder=True)
-    records = unique(read_run_files(args.runs))
+    try:   # what validate refuses is not exported (a partial board is: no completeness)
+        records = admitted(read_runs(args.runs), "export", complete=False,
+                           legacy=args.legacy, reevaluate=not args.no_reevaluate)
+    except JudgeError as exc:
+        raise CLIError(str(exc)) from None
     runs, skipped = split_runs(records)
     if not runs:
-        from . import CLIError
-
         why = (f"all {len(records)} records are of runs that failed or made no evaluation"
                if records else "they hold no run records")
         raise CLIError(f"nothing to export from {', '.join(args.runs)}: {why}")

@@ -51,10 +51,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     from .args import (
         MAX_BUDGET,
         add_json,
+        add_legacy,
         add_quiet,
         add_targets,
-        comma_list,
         count,
+        option_list,
         seed_number,
         worker_count,
     )
@@ -63,25 +64,25 @@ def register(sub: argparse._SubParsersAction) -> None:
                        help="compare solvers on the suite's instances x tracks x seeds",
                        description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--solvers", type=comma_list, default=None,
+    p.add_argument("--solvers", type=option_list, default=None,
                    help="comma-separated solver names (default: every registered solver)")
-    p.add_argument("--cases", type=comma_list, default=None,
+    p.add_argument("--cases", type=option_list, default=None,
                    help="comma-separated instances or groups: all (the suite, default), "
                         "paper (nominal,small,full,random), lhs (s00..s19), quick (paper "
                         "and s00..s03, the --quick default)")
     p.add_argument("--suite", choices=("emafdi-v1", "emafdi-v2"), default="emafdi-v1",
                    help="emafdi-v1 (default: the four faults, --cases) or emafdi-v2 (tiers "
                         "x conditions, docs/suite-v2.md)")
-    p.add_argument("--tiers", type=comma_list, default=None,
+    p.add_argument("--tiers", type=option_list, default=None,
                    help="emafdi-v2: comma-separated tiers (default 4,7,12)")
-    p.add_argument("--conditions", type=comma_list, default=None,
+    p.add_argument("--conditions", type=option_list, default=None,
                    help="emafdi-v2: comma-separated conditions (default prior,no-prior,"
                         "step-only)")
     p.add_argument("--per-tier", type=count(1, 1000), default=None,
                    help="emafdi-v2: the first N instances of each tier (default all)")
     p.add_argument("--budget-per-dim", type=count(1, 10**6), default=None,
                    help="emafdi-v2: evaluations per searched dimension (default 1250)")
-    p.add_argument("--tracks", type=comma_list, default=["reference", "twin"],
+    p.add_argument("--tracks", type=option_list, default=["reference", "twin"],
                    help="comma-separated tracks (default reference,twin)")
     p.add_argument("--seeds", type=count(1, 1000), default=None,
                    help=f"seeds per (solver, case, track) (default {DEFAULT['seeds']}, "
@@ -116,6 +117,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="run nothing: rebuild tables and plots from the records already in "
                         "OUT (e.g. after merging shards or to publish a partial sweep)")
     add_targets(p)
+    add_legacy(p, "score")
     add_json(p, "a summary")
     add_quiet(p)
     p.set_defaults(func=run)
@@ -156,7 +158,10 @@ def run(args: argparse.Namespace) -> int:
         # mix with (and be resumed from) the published runs
         raise CLIError("--out DIR is required: the folder for runs.jsonl, tables and plots "
                        "(rerun with the same DIR to resume)")
-    solvers = args.solvers or list(available_solvers())
+    # --report-only scores what is on disk: its solvers come from the records, so no
+    # plugin is imported (a plugin's import code must not run where scores are computed)
+    solvers = args.solvers or (_recorded_solvers(args.out) if args.report_only
+                               else list(available_solvers()))
     # before any work: a sweep must not fail at its first write, hours in
     out = check_output(args.out or tempfile.mkdtemp(prefix="ema-lb-"), "--out", folder=True)
     summary = leaderboard(solvers, cases, args.tracks, seeds, budget, out,
@@ -164,7 +169,7 @@ def run(args: argparse.Namespace) -> int:
                           scheduler=args.scheduler, shard=args.shard,
                           root_seed=args.root_seed, plots=not args.no_plots,
                           quiet=args.quiet,   # the header's command: from sys.argv
-                          run=not args.report_only)
+                          run=not args.report_only, legacy=args.legacy)
     lines: list[str] = []   # the text output (--json: the summary)
     if args.check:
         tasks = make_tasks(solvers, cases, args.tracks, seeds, budget, args.root_seed,
@@ -230,3 +235,14 @@ def _shown(budget, args: argparse.Namespace) -> str:
 
     return f"{args.budget_per_dim or BUDGET_PER_DIM} x tier"
 
+
+
+def _recorded_solvers(out: str | None) -> list[str]:
+    """The solvers of the records in ``out/runs.jsonl`` (``--report-only`` without
+    ``--solvers``), read without importing any plugin."""
+    from ..leaderboard.judge import read_runs
+    from ..leaderboard.run_store import RUNS_FILE
+
+    path = Path(out or ".") / RUNS_FILE
+    return list(dict.fromkeys(str(r["solver"]) for r in read_runs([path]))) \
+        if path.is_file() else []

@@ -31,7 +31,7 @@ import argparse
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from .args import add_json, add_quiet, comma_list, count, seed_number, worker_count
+    from .args import add_json, add_quiet, count, option_list, seed_number, worker_count
 
     p = sub.add_parser("targets", help="compute or show the suite's best-known optima f*",
                        description=__doc__,
@@ -40,17 +40,17 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="where to write the table (required unless --show)")
     p.add_argument("--suite", choices=("emafdi-v1", "emafdi-v2"), default="emafdi-v1",
                    help="the suite whose table to compute or show (default emafdi-v1)")
-    p.add_argument("--cases", type=comma_list, default=None,
+    p.add_argument("--cases", type=option_list, default=None,
                    help="emafdi-v1: instances or groups (all, paper, lhs, quick; default all)")
-    p.add_argument("--tiers", type=comma_list, default=None,
+    p.add_argument("--tiers", type=option_list, default=None,
                    help="emafdi-v2: comma-separated tiers (default all)")
-    p.add_argument("--conditions", type=comma_list, default=None,
+    p.add_argument("--conditions", type=option_list, default=None,
                    help="emafdi-v2: conditions (default all; no-prior shares prior's entries)")
     p.add_argument("--per-tier", type=count(1, 1000), default=None,
                    help="emafdi-v2: the first N instances of each tier (default all)")
     p.add_argument("--seeds", type=count(1, 1000), default=None,
                    help="noise seeds 0..N-1 (default: the suite's, v1 10, v2 5)")
-    p.add_argument("--tracks", type=comma_list, default=None,
+    p.add_argument("--tracks", type=option_list, default=None,
                    help="comma-separated tracks (default reference,twin)")
     p.add_argument("--root-seed", type=seed_number, default=0,
                    help="the root seed of the board whose instances to polish (default 0, "
@@ -114,6 +114,7 @@ def run(args: argparse.Namespace) -> int:
         from ..suites.best_known import compute_targets
 
         keys = _keys(args)
+        _check_not_shipped(args)
         out = check_output(args.out, "--out", folder=False, suffixes=(".json",))
         data = compute_targets(out, workers=args.workers, quiet=args.quiet, keys=keys,
                                root_seed=args.root_seed)
@@ -172,3 +173,22 @@ def _cost_by_tier(entries: dict) -> dict[str, dict[str, float]]:
             by.setdefault(instance(k.split("|")[0]).dim, []).append(e["cpu_s"])
     return {str(d): {"entries": len(v), "cpu_s_median": statistics.median(v),
                      "cpu_s_total": sum(v)} for d, v in sorted(by.items())}
+
+
+def _check_not_shipped(args: argparse.Namespace) -> None:
+    """``--out`` inside the package: refused in an installed copy (shipped data is
+    read-only), and in a checkout for a selection (it would replace the shipped table with a
+    part of it: 460 entries became 1, and validate then refused genuine records)."""
+    from ..interval_calibration_files import checkout_root, inside_package
+    from . import CLIError
+
+    if not inside_package(args.out):
+        return
+    if checkout_root() is None:
+        raise CLIError(f"--out {args.out}: inside the installed package, whose data is "
+                       "read-only; write the table elsewhere")
+    chosen = [f"--{n.replace('_', '-')}" for n in ("cases", "tiers", "conditions", "per_tier",
+                                                    "seeds", "tracks") if getattr(args, n, None)]
+    if chosen:
+        raise CLIError(f"--out {args.out}: {', '.join(chosen)} select part of the suite, which "
+                       "would replace the shipped table; write the selection elsewhere")

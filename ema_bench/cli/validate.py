@@ -12,7 +12,7 @@ Examples::
 
     ema-bench validate my-solver/runs.jsonl
     ema-bench validate shard0/runs.jsonl shard1/runs.jsonl --json
-    ema-bench validate leaderboards/quick/runs.jsonl --partial
+    ema-bench validate leaderboards/quick/runs.jsonl --partial --legacy
     ema-bench validate leaderboards/runs.jsonl --per-tier 8 --replay 12
 """
 
@@ -22,7 +22,7 @@ import argparse
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from .args import add_json, add_targets, count, seed_number
+    from .args import add_json, add_legacy, add_targets, count, seed_number
 
     p = sub.add_parser("validate", help="check third-party run records (suite, manifest, "
                                         "budget, re-evaluated fitness)",
@@ -37,12 +37,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-reevaluate", action="store_true",
                    help="skip re-evaluating each reported vector (fast, weaker)")
     p.add_argument("--replay", metavar="K", default=None,
-                   help="also re-run K records (a seeded sample; 'all': every one) with the "
+                   help="also re-run K records (a sample from fresh entropy; 'all': every one), "
+                        "each in its own process, with the "
                         "registered solver at the record's identity and compare the trace, "
                         "best_at, final vector and trajectory (catches a solver that reads "
                         "what it was not given, and hits moved earlier)")
     p.add_argument("--replay-seed", type=seed_number, default=None, metavar="S",
-                   help="seed of the replay sample (default 29)")
+                   help="seed of the replay sample (default: fresh entropy, printed; give "
+                        "the printed one to repeat a check, or one committed before the "
+                        "submission)")
+    add_legacy(p, "admit")
     p.add_argument("--replay-key", action="append", default=None, metavar="KEY",
                    help="replay the record with this key (solver|case|track|seed; "
                         "repeatable) instead of a sample")
@@ -52,34 +56,51 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..leaderboard.run_store import is_error, unique
-    from ..leaderboard.validate import LEGACY_UNVERIFIABLE, Finding, validate
-    from ..records import schema
+    from ..escape import terminal
+    from ..leaderboard.judge import JudgeError, judge, read_runs
+    from ..leaderboard.validate import LEGACY_UNVERIFIABLE, Finding
+    from ..sampling import escape_chance, sample_seed
     from ..suites import suite_of
     from . import CLIError, print_result
-    from .args import read_run_files
 
-    records = unique(read_run_files(args.runs))
-    if not records:
-        raise CLIError(f"no run records in {', '.join(args.runs)}")
-    found = validate(records, reevaluate=not args.no_reevaluate, complete=not args.partial,
-                     per_tier=args.per_tier)
+    try:
+        lines = read_runs(args.runs)
+    except JudgeError as exc:
+        raise CLIError(str(exc)) from None
+    if not lines:
+        raise CLIError(f"no run records in {', '.join(map(terminal, args.runs))}")
+    verdict = judge(lines, reevaluate=not args.no_reevaluate, complete=not args.partial,
+                    per_tier=args.per_tier, legacy=args.legacy)
+    records, found = verdict.records, verdict.findings
     SUITE_ID = ", ".join(sorted({suite_of(r.get("case")).id for r in records}))  # noqa: N806
-    legacy = sum(schema(r) < 2 and not is_error(r) for r in records)
-    replayed = _replay(records, "all" if args.replay_key and not args.replay else args.replay,
-                       args.replay_seed, set(args.replay_key or ()) or None)
+    keys = set(args.replay_key or ()) or None
+    if keys:
+        unknown = sorted(keys - {r.get("key") for r in records})
+        if unknown:
+            raise CLIError(f"--replay-key {terminal(unknown[0])!r}: no record of that key in "
+                           f"{', '.join(map(terminal, args.runs))}")
+    k = "all" if keys and not args.replay else args.replay
+    seed = sample_seed(args.replay_seed) if k is not None else None
+    replayed = _replay(records, k, seed, keys)
     found += [Finding(r.key, f"replay: {r.finding}") for r in replayed if r.finding]
     ok = sum(r.finding is None for r in replayed)
+    pool = sum(1 for r in records if r.get("status") != "error")
+    chance = escape_chance(pool, len(replayed)) if replayed and not keys else None
     print_result(args, {"suite": SUITE_ID, "records": len(records), "accepted": not found,
                         "per_tier": args.per_tier,
-                        "legacy_records": legacy, "replayed": len(replayed), "reproduced": ok,
+                        "legacy_records": verdict.legacy, "replayed": len(replayed),
+                        "reproduced": ok, "replay_seed": seed, "escape_chance": chance,
                         "replay_wall_s": sum(r.wall_s for r in replayed),
                         "findings": [{"key": f.key, "problem": f.problem} for f in found]}, [
-        *([f"{legacy} legacy record(s) (schema 1, no trajectory vectors): their "
-           f"{'; '.join(LEGACY_UNVERIFIABLE)} are checked against bounds only and verified "
-           "by --replay"] if legacy else []),
-        *([f"replay: {ok}/{len(replayed)} records reproduced "
-           f"({sum(r.wall_s for r in replayed):.0f} s)"] if replayed else []),
+        *([f"{verdict.legacy} legacy record(s) (schema 1, no trajectory vectors), admitted "
+           f"to a legacy view (--legacy): their {'; '.join(LEGACY_UNVERIFIABLE)} are checked "
+           "against bounds only and verified by --replay"] if verdict.legacy and args.legacy
+          else []),
+        *([f"replay: {ok}/{len(replayed)} records reproduced, each in its own process "
+           f"({sum(r.wall_s for r in replayed):.0f} s; sample seed {seed}, --replay-seed "
+           f"{seed} repeats it)"] if replayed else []),
+        *([f"replay: a run with one forged record escapes a sample this size with "
+           f"probability {chance:.3f}"] if chance is not None else []),
         *([f"REFUSED: {len(found)} finding(s) in {len(records)} records (suite {SUITE_ID}):",
            *(f"  {f}" for f in found)] if found else
           [f"accepted: {len(records)} records of suite {SUITE_ID}"
@@ -90,12 +111,11 @@ def run(args: argparse.Namespace) -> int:
 
 def _replay(records: list[dict], k: str | None, seed: int | None,
             keys: set[str] | None) -> list:
-    from ..leaderboard.replay import REPLAY_SEED, replay
+    from ..leaderboard.replay import replay
     from . import CLIError
 
     if k is None:
         return []
     if k != "all" and not (k.isdigit() and int(k) > 0):
         raise CLIError(f"--replay takes a positive number of records or 'all', got {k!r}")
-    return replay(records, None if k == "all" else int(k),
-                  REPLAY_SEED if seed is None else seed, keys)
+    return replay(records, None if k == "all" else int(k), seed, keys)

@@ -15,7 +15,7 @@ import json
 from functools import lru_cache
 from pathlib import Path
 
-from ..interval_calibration_files import TABLES, active, describe
+from ..interval_calibration_files import TABLES, active, check_table, describe
 from ..uncertainty.conformal import conformal_quantile
 
 TABLE = TABLES["interval_calibration.json"]
@@ -34,6 +34,7 @@ def read(path: Path) -> dict:
         scores = tuple(float(r["score"]) for r in data["scores"])
     except (UnicodeDecodeError, json.JSONDecodeError, TypeError, KeyError, ValueError) as exc:
         raise ValueError(f"{path}: not an interval calibration table ({exc!r})") from None
+    check_table(TABLE.name, data, str(path))   # every score finite and non-negative
     return {**data, "scores": scores}
 
 

@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import jsonio
+from ..escape import markdown
 from ..plots import plt, save_figure
 from ..traces import SIGNALS, UNITS, Traces
 from .features import ORDERS, whiten
@@ -82,7 +83,7 @@ def write_report(d: Diagnosis, measured: Traces, out: str | Path, source: str = 
     (out / "diagnosis.json").write_text(jsonio.dumps(d.as_dict(), indent=1, default=float))
     n0, n1 = nrmse(base, measured), nrmse(final, measured)
     g = d.gap
-    lines = [f"# Missing-physics diagnosis{': ' + source if source else ''}", "",
+    lines = [f"# Missing-physics diagnosis{': ' + markdown(source) if source else ''}", "",
              f"**Verdict: {d.verdict}.** {d.message}", "",
              f"Training tests: {', '.join(TRAIN)}; held-out test: {', '.join(HOLDOUT)} (never "
              f"fitted)."]

@@ -28,7 +28,7 @@ from scipy import stats
 from ..suites import DEFAULT, suite_of
 from ..suites.v1 import SANITY_CASES
 from .anytime import run_area
-from .run_store import RUNS_FILE, is_current, read_records, run_identity
+from .run_store import RUNS_FILE, is_current, run_identity
 from .scores import ALL
 
 #: Family-wise false-alarm level of one check (all solvers and tracks together).
@@ -193,6 +193,14 @@ def require_baseline(folder: str | Path) -> Path:
 
 def load_baseline(folder: str | Path, budget: int | Callable[[str], int], seeds: int,
                   keys: set[tuple] | None = None) -> tuple[list[dict], dict]:
-    """:func:`baseline` over every committed run file under ``folder``."""
-    records = [r for p in committed_files(folder) for r in read_records(p)]
-    return baseline(records, budget, seeds, keys)
+    """:func:`baseline` over every committed run file under ``folder``, of the records the
+    judge admits (:func:`~.judge.admitted`; the committed quick baseline is legacy, schema
+    1: admitted as a labelled legacy view, it compares the zoo with itself)."""
+    from .judge import admitted, read_runs
+
+    lines = read_runs(committed_files(folder))
+    mine = [r for r in lines if is_current(r) and r["seed"] < seeds
+            and (keys is None or run_id(r) in keys)]
+    base, used = baseline(admitted(mine, "--check baseline", complete=False, legacy=True),
+                          budget, seeds, keys)
+    return base, {**used, "other_model_version": sum(not is_current(r) for r in lines)}

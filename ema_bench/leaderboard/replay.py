@@ -17,28 +17,36 @@ CPU (SkylakeX kernels with AVX-512, Haswell ones without), and the finite-differ
 (lbfgsb, least-squares) amplify the last-bit differences into another path.  The manifest
 records the kernel (``blas``); replay under another one names both in its finding, and
 ``OPENBLAS_CORETYPE=Haswell`` (or ``Zen``, ``SkylakeX``) replays under the record's.
+
+The solver never runs in this process: each sampled record's run goes to a fresh worker
+process (:mod:`.replay_worker`, the sweep engine's ``isolated`` executor), which gets the
+truthless instance, the budget and the run node, never the record, and sends back the
+problem's log and its count of model evaluations; the comparison happens here.  The sample
+is drawn from fresh entropy unless a seed is given (:mod:`ema_bench.sampling`), so nobody
+can tell beforehand which records will be replayed.
 """
 
 from __future__ import annotations
 
 import math
-import time
+import os
 from dataclasses import dataclass
 
 import numpy as np
 
+from ..escape import terminal
 from ..faults import FAULT_NAMES
 from ..manifest import blas_kernel
-from ..registry import run_solver
+from ..sampling import sample_indices
 from ..suites.problem import make_problem
+from ..sweep.executors import Job, execute
+from .replay_worker import replay_job
 from .run_store import is_error
 from .tasks import Task
 
 #: Relative agreement of a replayed fitness or vector with the record's (the runs are
 #: deterministic; this leaves room for another CPU's floating-point rounding only).
 REPLAY_RTOL = 1e-6
-#: The seed of the default sample of records to replay.
-REPLAY_SEED = 29
 
 
 @dataclass(frozen=True)
@@ -48,16 +56,13 @@ class ReplayResult:
     wall_s: float
 
 
-def sample(records: list[dict], k: int | None, seed: int = REPLAY_SEED,
+def sample(records: list[dict], k: int | None, seed: int,
            keys: set[str] | None = None) -> list[dict]:
     """``k`` records drawn without replacement with ``seed`` (all of them for None), in
     file order, or (``keys``) the records so named; error records are left out (there is
     nothing to reproduce)."""
     pool = [r for r in records if not is_error(r) and (keys is None or r.get("key") in keys)]
-    if k is None or k >= len(pool):
-        return pool
-    pick = np.random.default_rng(seed).choice(len(pool), size=k, replace=False)
-    return [pool[i] for i in sorted(pick)]
+    return [pool[i] for i in sample_indices(len(pool), k, seed)]
 
 
 def compare(record: dict, history: dict[str, np.ndarray], x: np.ndarray) -> str | None:
@@ -84,27 +89,72 @@ def compare(record: dict, history: dict[str, np.ndarray], x: np.ndarray) -> str 
     return None
 
 
-def replay(records: list[dict], k: int | None = None, seed: int = REPLAY_SEED,
-           keys: set[str] | None = None) -> list[ReplayResult]:
-    """Replay ``k`` sampled records (all for None; only those named ``keys``); one result
-    each."""
-    out = []
-    for r in sample(records, k, seed, keys):
-        t0 = time.perf_counter()
-        task = Task(r["solver"], r["case"], r["track"], int(r["seed"]), int(r["budget"]),
-                    int(r.get("root_seed", 0)))
+def _job(i: int, r: dict) -> Job:
+    """The worker's task: what a solver may see of the record's run, never the record."""
+    task = Task(r["solver"], r["case"], r["track"], int(r["seed"]), int(r["budget"]),
+                int(r.get("root_seed", 0)))
+    # the truthful problem is dropped here: the worker receives the truthless one only
+    problem = make_problem(task.case, track=task.track, seed=task.node(),
+                           budget=task.budget).without_truth()
+    return Job(str(i), i, (task.solver, problem, task.budget, task.node()))
+
+
+def _finding(r: dict, out: dict) -> str | None:
+    hist = {"fitness": np.asarray(out["fitness"]), "best": np.asarray(out["best"]),
+            "x": np.asarray(out["x_hist"])}
+    finding = compare(r, hist, np.asarray(out["x"]))
+    if finding is None and out["model_evaluations"] > out["evaluations"]:
+        finding = (f"the replayed run made {out['model_evaluations']} model evaluations, "
+                   f"{out['evaluations']} of them counted: a solver that evaluates the model "
+                   "outside its budget")
+    return finding
+
+
+def replay(records: list[dict], k: int | None, seed: int, keys: set[str] | None = None,
+           workers: int | None = None) -> list[ReplayResult]:
+    """Replay ``k`` records sampled with ``seed`` (all for None; only those named ``keys``),
+    each in a fresh worker process (at most ``workers`` at a time); one result each, in
+    sample order."""
+    picked = sample(records, k, seed, keys)
+    found: dict[int, ReplayResult] = {}
+    jobs = []
+    for i, r in enumerate(picked):
+        if not _installed(str(r["solver"])):
+            found[i] = ReplayResult(_name(r), f"not replayable: solver {_name(r['solver'])!r} "
+                                    "is not an installed plugin (an adapter's run, e.g. SciPy "
+                                    "through ema_bench.adapters, has no registered solver to "
+                                    "re-run): install its package, or do not --replay it", 0.0)
+            continue
         try:
-            # the truthful problem is freed at once: while the solver runs, no truth of a
-            # non-public instance is in memory to be read
-            problem = make_problem(task.case, track=task.track, seed=task.node(),
-                                   budget=task.budget).without_truth()
-            res = run_solver(task.solver, problem, task.budget, seed=task.node())
-            finding = compare(r, problem.history(), res.x)
-        except Exception as exc:   # a solver that cannot be replayed is a finding, not a crash
-            finding = f"replay failed: {type(exc).__name__}: {exc}"
+            jobs.append(_job(i, r))
+        except Exception as exc:   # a record whose instance cannot be built is a finding
+            found[i] = ReplayResult(_name(r), f"replay failed: {type(exc).__name__}: {exc}",
+                                    0.0)
+    workers = workers or max(1, min(len(jobs), os.cpu_count() or 1))
+    for o in execute(jobs, replay_job, "isolated", workers):
+        i = o.task.identity
+        r = picked[i]
+        if o.failure is not None:
+            # a solver that cannot be replayed is a finding, not a crash
+            finding, wall = f"replay failed: {o.failure.line()}", o.failure.wall_s
+        else:
+            finding, wall = _finding(r, o.records[0]), o.records[0]["wall_s"]
         made = (r.get("manifest") or {}).get("blas")
         if finding and made != blas_kernel():
             finding += (f" (made under BLAS kernel {made or 'unrecorded'}, replayed under "
                         f"{blas_kernel()}: OPENBLAS_CORETYPE picks the kernel)")
-        out.append(ReplayResult(r.get("key", "?"), finding, time.perf_counter() - t0))
-    return out
+        found[i] = ReplayResult(_name(r), finding, wall)
+    return [found[i] for i in sorted(found)]
+
+
+def _name(r: object) -> str:
+    return terminal(r.get("key", "?") if isinstance(r, dict) else r)
+
+
+def _installed(solver: str) -> bool:
+    """Whether an entry point names ``solver`` (read from the metadata: nothing imported)."""
+    import importlib.metadata
+
+    from ..registry import ENTRY_POINT_GROUP
+
+    return bool(importlib.metadata.entry_points(group=ENTRY_POINT_GROUP, name=solver))

@@ -10,7 +10,9 @@ from dataclasses import asdict
 from pathlib import Path
 
 from .. import jsonio
+from ..escape import code_span
 from ..faults import CASES
+from ..records import schema
 from ..suites import DEFAULT, board_suite, find
 from ..suites.targets import targets_note
 from ..suites.v1 import SANITY_CASES
@@ -29,6 +31,7 @@ from .figures import (
     overlay_plot,
     valley_rise,
 )
+from .judge import admitted, is_suite_case, read_runs
 from .page import write_page
 from .report import load_paper_results, paper_case, write_leaderboards, write_paper_tables
 from .run_store import (
@@ -36,7 +39,6 @@ from .run_store import (
     RunStore,
     is_error,
     model_version,
-    read_records,
     run_identity,
     unique,
 )
@@ -121,8 +123,15 @@ def write_outputs(records: list[dict], out: Path, command: str, plots: bool = Tr
                            sum(_has_f_star(r) for r in ranked), len(ranked))
     # the models the records were made with (a compatible earlier version's show as such)
     versions = ", ".join(sorted({model_version(r) for r in records})) or MODEL_VERSION
-    header = (f"Produced by `{command}`: {len(records)} runs, suite {suites}, model "
-              f"version {versions}. {targets}{partial}{errors}")
+    legacy = sum(1 for r in records if not is_error(r) and schema(r) < 2)
+    off = [r for r in records if not is_suite_case(r["case"])]
+    header = (f"Produced by {code_span(command)}: {len(records)} runs, suite {suites}, model "
+              f"version {versions}. {targets}{partial}{errors}"
+              + (f" LEGACY VIEW: {legacy} schema-1 records (hits bounded, not proven)."
+                 if legacy else "")
+              + (f" OFF-SUITE: {len(off)} runs of cases outside every suite "
+                 f"({', '.join(sorted({str(r['case']) for r in off}))}): not judged, not a "
+                 "ranking." if off else ""))
     # scores and the ECDF count failed runs as unsuccessful; what needs a fit, finished runs
     finished = [r for r in records if not is_error(r)]
     scores = score_records(records)
@@ -181,16 +190,27 @@ def leaderboard(solvers, cases, tracks, seeds: int, budget: int, out: Path,
                 scheduler: str | None = None, shard: tuple[int, int] = (0, 1),
                 root_seed: int = 0, plots: bool = True, quiet: bool = False,
                 command: str | None = None, landscape_n: int = 40,
-                run: bool = True, runner: Runner = run_task) -> dict[str, object]:
+                run: bool = True, runner: Runner = run_task, legacy: bool = False
+                ) -> dict[str, object]:
     """Run (or resume) a leaderboard and write its outputs.  See ``ema-bench leaderboard``.
 
     With ``run=False`` nothing runs: the outputs are rebuilt from the records on disk, and
-    the header says how many of the sweep's runs they cover."""
+    the header says how many of the sweep's runs they cover.  Either way the records are
+    admitted by :func:`~.judge.admitted` (what ``validate`` refuses stops the report;
+    ``legacy``: schema-1 records are admitted, and the header says so)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     tasks = make_tasks(solvers, cases, tracks, seeds, budget, root_seed, shard)
     ran = run_tasks(tasks, out, executor, workers, scheduler, quiet, runner) if run else 0
-    records = select(read_records(out / RUNS_FILE), tasks)
+    # nothing is scored that validate refuses (a record edited or appended in the folder)
+    wanted = {t.identity for t in tasks}
+    lines = read_runs([out / RUNS_FILE]) if (out / RUNS_FILE).is_file() else []
+    mine = [r for r in lines if run_identity(r) in wanted]
+    # cases outside every suite (``--cases seeded``) are the user's own experiment: no suite
+    # ranks them and the judge cannot re-derive them; the header says so
+    records = select(admitted([r for r in mine if is_suite_case(r["case"])], "leaderboard",
+                              complete=False, legacy=legacy)
+                     + [r for r in mine if not is_suite_case(r["case"])], tasks)
     if not records:
         raise ValueError(f"no records of this sweep in {out / RUNS_FILE}")
     command = command or "ema-bench " + " ".join(shlex.quote(a) for a in sys.argv[1:])

@@ -104,16 +104,16 @@ def scaling_points(scores: list[AnytimeScore]) -> list[ScalingPoint]:
 
 # --- global vs local without a prior ---------------------------------------------------------
 def registered_scopes(solvers: list[str]) -> dict[str, str]:
-    """Each solver's declared scope (``unclassified`` for one that is not registered here)."""
-    from ..registry import SolverError, get_solver
+    """Each solver's declared scope (``unclassified`` for one that is not registered here),
+    read in a worker process of its own: the plugins' import code never runs where the
+    scores are computed, and what comes back is only a known scope name."""
+    from ..registry import SCOPES
+    from ..sweep.executors import Job, execute
+    from .replay_worker import scopes_job
 
-    out = {}
-    for s in solvers:
-        try:
-            out[s] = get_solver(s).scope
-        except SolverError:
-            out[s] = "unclassified"
-    return out
+    (o,) = execute([Job("scopes", "scopes", list(solvers))], scopes_job, "isolated", 1)
+    got = o.records[0] if o.failure is None else {}
+    return {s: got.get(s) if got.get(s) in SCOPES else "unclassified" for s in solvers}
 
 
 @dataclass(frozen=True)

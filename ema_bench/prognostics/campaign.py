@@ -22,8 +22,7 @@ The cut rule (published in the manifest as ``cut_rule``): a test unit's last ins
 Seeds: one root seed ``S``; unit ``u`` is run ``u`` of it (``run_seed(S, u)``, as a
 leaderboard row): its laws come from that node's ``instance`` stream, its stopping point from
 its ``plan`` stream and inspection ``i``'s sensor noise from ``stream(node, "noise", i)``.
-Which units drift in gain only is the root's ``plan`` stream.  Same seed, same files, byte
-for byte.
+Which units drift in gain only is the root's ``plan`` stream.  Same seed, same files.
 """
 
 from __future__ import annotations
@@ -41,11 +40,17 @@ import numpy as np
 
 from ..faults import FAULT_NAMES, LOWER, UPPER
 from ..seeding import as_seed_sequence, run_seed, stream
+from ..sweep.schema import check, opt
 from ..traces import Traces, load_traces
 from .laws import THRESHOLDS, FleetLaws, UnitHistory, unit_history
 
 FORMAT = "ema-bench-campaign"
 TRUTH_FORMAT = "ema-bench-campaign-truth"
+#: A unit's truth, by JSON type, members too (``faults.0: "abc"``: refused in one line)
+TRUTH_SCHEMA = {"eol": opt("int|null"), "failing_fault": opt("str|null"),
+                "true_rul": opt("int|null"), "life_fraction": opt("number|null"),
+                "kind": opt("list", "str"), "faults": opt("dict", "list"),
+                "faults_after": opt("dict", "list"), "params": opt("dict", "number")}
 VERSION = 2
 #: The cut rule's name in the manifest (:func:`cut_likelihood`).
 CUT_RULE = "nearest-inspection-to-uniform-share"
@@ -331,8 +336,7 @@ def _inspection_flights(h: UnitHistory, every: int, split: str, stop: tuple[floa
     inside = [f for f in before if lo * h.horizon <= f <= hi * h.horizon]
     if not inside:  # a life shorter than the spacing allows: the first at or after lo
         inside = [f for f in before if f >= lo * h.horizon] or before[-1:]
-    # the inspection nearest to the drawn share u (ties: the earlier one)
-    last = min(inside, key=lambda f: (abs(f - u * h.horizon), f))
+    last = min(inside, key=lambda f: (abs(f - u * h.horizon), f))   # nearest u (ties: earlier)
     return before[:before.index(last) + 1]
 
 
@@ -570,7 +574,8 @@ def read_truth(path: Path | str, campaign: Campaign | None = None) -> dict:
         raise CampaignError(f"{file}: no such truth file (the campaign's truth is given "
                             "explicitly: 'campaign score --truth FILE')")
     doc = _read_json(file, TRUTH_FORMAT, "truth file")
-    _need(doc, "units", dict, str(file))
+    for name, unit in _need(doc, "units", dict, str(file)).items():
+        check(unit, TRUTH_SCHEMA, f"{file}, unit {name}")
     if campaign is not None:
         ours = {"manifest_digest": campaign.digest, "name": campaign.name,
                 "seed": campaign.seed, "track": campaign.track, "split": campaign.split}

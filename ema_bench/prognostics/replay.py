@@ -7,7 +7,8 @@ it cannot be handed a figure; but the steps themselves are the submitter's.  A
 submitted, and one kept below the oracle looks plausible.  A tracker is deterministic given
 its unit's seed (:func:`~ema_bench.prognostics.tracking.unit_seed`), so re-tracking a unit
 from the campaign's traces gives its lines again: replay picks ``K`` of the tracked units
-(a seeded sample, or the ones named), tracks each from its first inspection through
+(a sample drawn from fresh entropy, its seed reported, or the ones named), tracks each from
+its first inspection through
 :func:`~ema_bench.prognostics.tracking.track_unit`, exactly as ``campaign track`` did, and
 compares every field of every line (numbers to :data:`REPLAY_RTOL`, the rest exactly).  A
 forged line in a sampled unit is found; forging few units leaves them unsampled with a
@@ -21,8 +22,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from types import SimpleNamespace
 
-import numpy as np
-
+from ..sampling import escape_chance, sample_indices, sample_seed
 from .campaign import load_campaign
 from .tracking import (
     TrackerError,
@@ -38,8 +38,6 @@ from .tracking import (
 #: deterministic; this leaves room for another CPU's floating-point rounding only, as the
 #: solver replay of ``ema-bench validate`` does).
 REPLAY_RTOL = 1e-6
-#: The seed of the default sample of units.
-SAMPLE_SEED = 0
 
 
 @dataclass
@@ -51,6 +49,7 @@ class TrackReplay:
     units: list[str]
     tracked: int
     findings: list[str] = field(default_factory=list)
+    seed: int | None = None   # of the sample (None: the units were named)
 
     @property
     def ok(self) -> bool:
@@ -58,8 +57,9 @@ class TrackReplay:
 
     @property
     def escape_chance(self) -> float:
-        """Chance that a run with one forged unit passes a sample of this size."""
-        return 1.0 - len(self.units) / self.tracked if self.tracked else 1.0
+        """Chance that a run with one forged unit passes a sample of this size (drawn from
+        fresh entropy: nobody knew beforehand which units it would hold)."""
+        return escape_chance(self.tracked, len(self.units))
 
 
 def _differences(got: object, want: object, where: str) -> list[str]:
@@ -79,7 +79,7 @@ def _differences(got: object, want: object, where: str) -> list[str]:
 
 
 def replay_track(run: Path | str, k: int = 2, units: list[str] | None = None,
-                 seed: int = SAMPLE_SEED) -> TrackReplay:
+                 seed: int | None = None) -> TrackReplay:
     """Re-track ``k`` sampled units (or ``units``) of the tracking run in ``run`` and compare.
 
     Parameters
@@ -91,8 +91,9 @@ def replay_track(run: Path | str, k: int = 2, units: list[str] | None = None,
         Units sampled (without replacement, from the units the run tracked) with ``seed``.
     units : list of str, optional
         Replay these units instead of a sample.
-    seed : int
-        Seed of the sample.
+    seed : int, optional
+        Seed of the sample (default: fresh entropy, :func:`~ema_bench.sampling.sample_seed`;
+        the report holds it, to repeat the check).
 
     Returns
     -------
@@ -106,14 +107,15 @@ def replay_track(run: Path | str, k: int = 2, units: list[str] | None = None,
     order = list(camp.units)
     tracked = [u for u in order if u in log.steps or u in log.failed]
     if units is None:
-        rng = np.random.default_rng(seed)
-        pick = rng.choice(len(tracked), size=min(int(k), len(tracked)), replace=False)
-        units = [tracked[i] for i in sorted(pick)]
+        seed = sample_seed(seed)
+        units = [tracked[i] for i in sample_indices(len(tracked), int(k), seed)]
+    else:
+        seed = None
     unknown = [u for u in units if u not in tracked]
     if unknown:
         raise TrackerError(f"{run}: no tracked unit {unknown[0]!r}; tracked: "
                            f"{', '.join(tracked[:5])}{', ...' if len(tracked) > 5 else ''}")
-    report = TrackReplay(str(run), info.name, list(units), len(tracked))
+    report = TrackReplay(str(run), info.name, list(units), len(tracked), seed=seed)
     if dict(info.config) != m.get("config", {}):
         report.findings.append(f"the run's tracker config {m.get('config')} is not the "
                                f"registered {info.name!r}'s {dict(info.config)}")

@@ -266,9 +266,11 @@ def _restore(record: dict) -> dict:
 #: The fields of a step line, by JSON type (a hand-edited ``"replace": "no"`` is refused,
 #: not read as true).
 STEP_SCHEMA = {"key": req("str"), "unit": req("str"), "index": req("int"),
-               "flight": req("int"), "estimate": req("dict"), "low": req("dict"),
-               "high": req("dict"), "rul": req("number|null"), "rul_low": req("number|null"),
-               "rul_high": req("number|null"), "failing_fault": req("str|null"),
+               "flight": req("int"), "estimate": req("dict", values="number|null"),
+               "low": req("dict", values="number|null"),
+               "high": req("dict", values="number|null"), "rul": req("number|null"),
+               "rul_low": req("number|null"), "rul_high": req("number|null"),
+               "failing_fault": req("str|null"),
                "replace": req("bool"), "evaluations": req("int"), "extra": opt("dict")}
 #: The fields of the error line of a unit whose tracker failed.
 ERROR_SCHEMA = {"key": req("str"), "unit": req("str"), "index": req("int"),

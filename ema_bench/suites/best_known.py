@@ -159,8 +159,9 @@ def clean_fit(case: str) -> dict[str, object]:
 
 
 #: The fields of a best-known entry, by JSON type.
-ENTRY_SCHEMA = {"key": req("str"), "f_star": req("number"), "x_star": req("dict"),
-                "f_nominal": req("number"), "fitness_at_truth": req("number"),
+ENTRY_SCHEMA = {"key": req("str"), "f_star": req("number"),
+                "x_star": req("dict", values="number"), "f_nominal": req("number"),
+                "fitness_at_truth": req("number"),
                 "bias_range_error": req("number"), "stages": req("dict"),
                 "root_seed": opt("int")}   # absent: TARGET_ROOT_SEED
 

@@ -148,15 +148,16 @@ def _serial(tasks: Iterator[Task], workers: int, scheduler: str | None, runner: 
         yield run_guarded(runner, t)
 
 
-def _processes(tasks: Iterator[Task], workers: int, scheduler: str | None, runner: Runner
-               ) -> Iterator[Outcome]:
+def _processes(tasks: Iterator[Task], workers: int, scheduler: str | None, runner: Runner,
+               fresh: bool = False) -> Iterator[Outcome]:
     """A process pool that survives a worker's death: the pool is started again, the tasks
     that were in flight run again one at a time, and the one whose worker dies alone comes
     back as an infrastructure failure (so a task that kills its worker does not take its
-    neighbours with it)."""
+    neighbours with it).  ``fresh``: every task in a new process (no memory crosses tasks:
+    the ``isolated`` executor of replay, which runs submitted code)."""
     from concurrent.futures import FIRST_COMPLETED, wait
 
-    pool = _Pool(workers)
+    pool = _Pool(workers, fresh)
     suspects: deque[Task] = deque()   # in flight when a worker died: rerun one at a time
     waiting: deque[Task] = deque()    # taken from ``tasks`` but not started (pool broke)
     running: dict = {}
@@ -202,8 +203,8 @@ def _processes(tasks: Iterator[Task], workers: int, scheduler: str | None, runne
 class _Pool:
     """A process pool started again after a worker's death (which breaks it for good)."""
 
-    def __init__(self, workers: int) -> None:
-        self.workers = workers
+    def __init__(self, workers: int, fresh: bool = False) -> None:
+        self.workers, self.fresh = workers, fresh
         self.pool = self._start()
 
     def _start(self):
@@ -212,7 +213,8 @@ class _Pool:
 
         # "spawn": numba's threading layers and fork do not mix well
         return ProcessPoolExecutor(max_workers=self.workers, mp_context=mp.get_context("spawn"),
-                                   initializer=worker_init, initargs=(os.getpid(),))
+                                   initializer=worker_init, initargs=(os.getpid(),),
+                                   max_tasks_per_child=1 if self.fresh else None)
 
     def submit(self, runner: Runner, task: Task):
         """The future of ``task``, or ``None`` when the pool is broken."""
@@ -295,6 +297,9 @@ def _dask_submit(client, futures, running: dict, runner: Runner, t: Task) -> Non
 _RUNNERS: dict[str, Callable[[Iterator[Task], int, str | None, Runner],
                               Iterator[Outcome]]] = {
     "serial": _serial, "processes": _processes, "dask": _dask,
+    # one task per fresh process, for code that must not share memory across tasks (replay);
+    # not a sweep's choice (EXECUTORS)
+    "isolated": functools.partial(_processes, fresh=True),
 }
 
 

@@ -5,7 +5,10 @@ A schema maps a field to its :class:`Field`: the JSON types it may hold and whet
 there.  Types are strict: ``true`` is not a number, ``1`` is not a boolean and ``"no"`` is
 not ``false`` (a hand-edited ``"replace": "no"`` read as true would change a score), so one
 wrong field stops the reading with one line naming the file, the line and the field.
-Fields a schema does not name are not checked (records carry free-form extras).
+Fields a schema does not name are not checked (records carry free-form extras).  A field
+may also type its members (``req("dict", values="number|null")``: every value of the object,
+or item of the list): a hand-edited ``"estimate": {"Na": "abc"}`` is refused as
+``field 'estimate.Na'``, not met later as a traceback.
 """
 
 from __future__ import annotations
@@ -30,14 +33,27 @@ class Field:
 
     types: str
     required: bool = True
+    values: str | None = None   # JSON types of every member (dict values, list items)
 
     def accepts(self, value: object) -> bool:
-        for name in self.types.split("|"):
-            if name in ("int", "number") and isinstance(value, bool):
-                continue   # a boolean is an int to Python, not a count to us
-            if isinstance(value, _TYPES[name]):
-                return True
-        return False
+        return _is(value, self.types)
+
+    def bad_member(self, value: object) -> tuple[object, object] | None:
+        """The first member (its key or index, and itself) not of :attr:`values`."""
+        if self.values is None or not isinstance(value, dict | list):
+            return None
+        items = value.items() if isinstance(value, dict) else enumerate(value)
+        return next(((k, v) for k, v in items if not _is(v, self.values)), None)
+
+
+def _is(value: object, types: str) -> bool:
+    """Whether ``value`` is of one of the JSON ``types`` (``"int|null"``)."""
+    for name in types.split("|"):
+        if name in ("int", "number") and isinstance(value, bool):
+            continue   # a boolean is an int to Python, not a count to us
+        if isinstance(value, _TYPES[name]):
+            return True
+    return False
 
 
 Schema = Mapping[str, Field]
@@ -45,14 +61,14 @@ Schema = Mapping[str, Field]
 SchemaLike = Schema | Callable[[dict], Schema]
 
 
-def req(types: str) -> Field:
-    """A required field of these JSON types."""
-    return Field(types, True)
+def req(types: str, values: str | None = None) -> Field:
+    """A required field of these JSON types (``values``: of its members)."""
+    return Field(types, True, values)
 
 
-def opt(types: str) -> Field:
-    """An optional field of these JSON types."""
-    return Field(types, False)
+def opt(types: str, values: str | None = None) -> Field:
+    """An optional field of these JSON types (``values``: of its members)."""
+    return Field(types, False, values)
 
 
 def check(record: object, schema: SchemaLike, where: str) -> dict:
@@ -72,6 +88,12 @@ def check(record: object, schema: SchemaLike, where: str) -> dict:
             shown = shown if len(shown) <= 40 else shown[:37] + "..."
             raise SchemaError(f"{where}: field {name!r} must be {spec.types.replace('|', ' or ')}"
                               f", got {shown}")
+        member = spec.bad_member(value)
+        if member is not None:
+            shown = repr(member[1])
+            shown = shown if len(shown) <= 40 else shown[:37] + "..."
+            raise SchemaError(f"{where}: field '{name}.{member[0]}' must be "
+                              f"{str(spec.values).replace('|', ' or ')}, got {shown}")
     return record
 
 

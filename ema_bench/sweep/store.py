@@ -115,6 +115,16 @@ def read_records(path: str | os.PathLike, identity: Identity = key_identity,
     return unique(_parse(path.read_bytes(), str(path), schema=schema)[0], identity)
 
 
+def read_lines(path: str | os.PathLike, schema: SchemaLike | None = None
+               ) -> tuple[list[dict], bool, int]:
+    """Every record line of the file, in order (nothing deduplicated, type-checked with
+    ``schema``), whether its last line is complete, and the number of the line after the last
+    intact one: for readers that refuse a torn file rather than read it short."""
+    data = Path(path).read_bytes()
+    records, end, line = _parse(data, str(path), schema=schema)
+    return records, end == len(data), line
+
+
 class Store:
     """Append records whole lines at a time, under an exclusive lock, flushed and synced.
 

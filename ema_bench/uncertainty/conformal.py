@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from ..faults import FAULT_NAMES
-from ..interval_calibration_files import TABLES, active
+from ..interval_calibration_files import TABLES, active, check_table
 
 #: The root seed of the calibration runs (coverage is reported at root seed 0).
 CALIBRATION_ROOT_SEED = 1
@@ -60,6 +60,7 @@ def read(path: Path) -> dict[str, object]:
         raise ValueError(f"{path}: not a calibration table (no 'scores' object)")
     if data.get("faults") != list(FAULT_NAMES):
         raise ValueError(f"{path} is for faults {data.get('faults')}, not {list(FAULT_NAMES)}")
+    check_table(TABLE.name, data, str(path))   # every score finite and non-negative
     return data
 
 

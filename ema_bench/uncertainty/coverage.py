@@ -55,12 +55,14 @@ class Settings:
         return f"{self.track}|{self.method}|{self.root_seed}|{index}"
 
 
-_ENDS = req("dict")
+_ENDS = req("dict", values="number|null")
+_PAIRS = req("dict", values="list|null")   # per fault, an interval [low, high]
 #: The fields of a coverage record a reader relies on, by JSON type.
 RECORD_SCHEMA = {
-    "key": req("str"), "index": req("int"), "settings": req("dict"), "truth": req("dict"),
-    "estimate": req("dict"), "low": _ENDS, "high": _ENDS, "uncalibrated": _ENDS,
-    "noise_only": _ENDS, "factor": req("list|null"), "calibration": req("str"),
+    "key": req("str"), "index": req("int"), "settings": req("dict"),
+    "truth": req("dict", values="number|null"), "estimate": req("dict", values="number|null"),
+    "low": _ENDS, "high": _ENDS, "uncalibrated": _PAIRS,
+    "noise_only": _PAIRS, "factor": req("list|null"), "calibration": req("str"),
     "model_form": req("str"), "noise_ratio": req("dict"), "fitness": req("number"),
     "interval_evaluations": req("int"), "non_identifiable": req("list"),
     "fit_fitness": opt("number"), "fit_evaluations": opt("int"), "error": opt("str"),

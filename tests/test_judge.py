@@ -1,0 +1,231 @@
+"""Red team, second pass (issue 48): forged files and submitted code against the judge.
+
+Every record that reaches a number goes through :mod:`ema_bench.leaderboard.judge`, which
+refuses what ``validate`` refuses and more (legacy records, duplicates, torn files,
+incomplete suites); replay runs each solver in a process of its own and counts the model's
+evaluations there; samples come from fresh entropy.  Real records (the committed boards, real
+runs of the zoo), real files and real command lines.
+"""
+
+from __future__ import annotations
+
+import ast
+import copy
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from ema_bench.cli import main
+from ema_bench.escape import code_span, terminal
+from ema_bench.leaderboard.judge import JudgeError, admitted, judge, read_runs
+from ema_bench.leaderboard.replay import replay
+from ema_bench.leaderboard.tasks import Task, error_record, run_task
+from ema_bench.sampling import escape_chance, sample_indices, sample_seed
+
+ROOT = Path(__file__).resolve().parents[1]
+PLUGIN = Path(__file__).resolve().parent / "redteam"
+
+
+def _lines(path: Path, needle: str) -> list[dict]:
+    with open(path) as fh:
+        return [json.loads(line) for line in fh if needle in line]
+
+
+@pytest.fixture(scope="module")
+def legacy() -> list[dict]:
+    """The committed quick board's records of s00 (suite v1, schema 1)."""
+    return _lines(ROOT / "leaderboards" / "quick" / "runs.jsonl", '"case": "s00"')
+
+
+@pytest.fixture(scope="module")
+def fresh() -> dict:
+    """A real schema-2 record (random search, 40 evaluations)."""
+    return run_task(Task("random", "s00", "twin", 0, 40))
+
+
+@pytest.fixture
+def redteam(monkeypatch):
+    """The red-team plugin installed (its folder on sys.path: worker processes inherit it)."""
+    monkeypatch.syspath_prepend(str(PLUGIN))
+
+
+def _write(path: Path, records: list[dict], newline: bool = True) -> Path:
+    path.write_text("\n".join(json.dumps(r) for r in records) + ("\n" if newline else ""))
+    return path
+
+
+# --- attack 1: legacy records scored -----------------------------------------------------------
+def test_a_legacy_record_is_refused_for_ranking_and_admitted_only_to_a_labelled_view(legacy):
+    r = copy.deepcopy(legacy[0])
+    v = judge([r], reevaluate=False, complete=False)
+    assert [f.problem.split(" (")[0] for f in v.findings] == ["legacy record"]
+    assert judge([r], reevaluate=False, complete=False, legacy=True).findings == []
+
+
+def test_export_and_report_only_refuse_legacy_records_in_one_line(legacy, tmp_path, capsys):
+    runs = _write(tmp_path / "runs.jsonl", legacy[:2])
+    rc = main(["export", "--format", "ioh", str(runs), "--out", str(tmp_path / "ioh")])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and len(err.splitlines()) == 1
+    assert "export: 2 finding(s) in 2 records, nothing written" in err and "legacy" in err
+    assert not (tmp_path / "ioh").exists() or not any((tmp_path / "ioh").iterdir())
+
+
+# --- attack 3: one suite's record switched another's completeness off --------------------------
+def test_completeness_is_checked_per_suite(legacy):
+    v2 = _lines(ROOT / "leaderboards" / "runs.jsonl", '"solver": "random"')[:1]
+    v1 = [r for r in legacy if r["solver"] == "random"][:1]
+    v1[0] = {**v1[0], "track": v2[0]["track"]}   # same solver and track as the v2 record
+    found = judge(v1 + v2, reevaluate=False, legacy=True, per_tier=8).findings
+    lacking = [f.problem for f in found if "lacks" in f.problem]
+    # v1's instances are required of the v1 run (and v2's of the v2 run): both suites checked
+    assert any("s01/" in p for p in lacking), lacking
+    assert any("@prior/" in p for p in lacking), lacking
+
+
+# --- attack 4: duplicates chosen by file order --------------------------------------------------
+def test_two_finished_records_of_one_run_are_a_finding_not_a_choice(fresh):
+    forged = {**copy.deepcopy(fresh), "solver": "random"}
+    found = judge([forged, fresh], reevaluate=False, complete=False).findings
+    assert [f.problem.split(" (")[0] for f in found] == ["two records of one run identity"]
+    err = error_record(Task("random", "s00", "twin", 0, 40), RuntimeError("boom"))
+    # an error record then its retry's record is a resume, not a duplicate
+    assert judge([err, fresh], reevaluate=False, complete=False).records == [fresh]
+
+
+# --- attack 5: writers that re-evaluated nothing ----------------------------------------------
+def test_export_refuses_a_record_validate_refuses(fresh, tmp_path, capsys):
+    r = copy.deepcopy(fresh)
+    r["trajectory"][-1][1] *= 0.5            # a fitness its vector does not have
+    r["trace"][-1][1] = r["fitness"] = r["trajectory"][-1][1]
+    with pytest.raises(JudgeError, match=r"^export: \d+ finding"):
+        admitted([r], "export", complete=False)
+    runs = _write(tmp_path / "runs.jsonl", [r])
+    assert main(["export", "--format", "ioh", str(runs), "--out", str(tmp_path / "o")]) == 2
+    assert "nothing written" in capsys.readouterr().err
+
+
+# --- door: a last line without its newline -----------------------------------------------------
+@pytest.mark.parametrize("command", [["validate", "--partial"],
+                                     ["export", "--format", "ioh", "--out", "OUT"]])
+def test_a_last_line_without_a_newline_is_refused_not_dropped(fresh, tmp_path, capsys,
+                                                                 command):
+    runs = _write(tmp_path / "runs.jsonl", [fresh, {**fresh, "seed": 1}], newline=False)
+    with pytest.raises(JudgeError, match="line 2: incomplete last line"):
+        read_runs([runs])
+    argv = [str(tmp_path / "o") if a == "OUT" else a for a in command] + [str(runs)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "incomplete last line" in err
+
+
+def test_a_replay_key_that_matches_nothing_is_an_error(fresh, tmp_path, capsys):
+    runs = _write(tmp_path / "runs.jsonl", [fresh])
+    assert main(["validate", "--partial", "--replay-key", "nope|x|y|0", str(runs)]) == 2
+    assert "--replay-key 'nope|x|y|0': no record of that key" in capsys.readouterr().err
+
+
+def test_record_keys_with_control_characters_reach_the_terminal_inert(fresh):
+    r = {**copy.deepcopy(fresh), "key": "a\x1b[2Jb\nc", "success": True}
+    (f,) = judge([r], reevaluate=False, complete=False).findings
+    assert f.key == "a [2Jb c" and "\x1b" not in str(f)
+    assert terminal("x\u202ey") == "x y"
+
+
+def test_a_backtick_cannot_end_the_command_code_span():
+    assert code_span("ema-bench `rm -rf` x") == "``ema-bench `rm -rf` x``"
+    assert code_span("`a") == "`` `a ``"
+    assert code_span("plain") == "`plain`"
+
+
+# --- attack 2: predictable samples --------------------------------------------------------------
+def test_samples_come_from_fresh_entropy_and_repeat_from_the_printed_seed():
+    seeds = {sample_seed() for _ in range(8)}
+    assert len(seeds) == 8 and all(0 <= s < 2**63 for s in seeds)
+    s = seeds.pop()
+    assert sample_indices(100, 12, s) == sample_indices(100, 12, s)
+    assert len(set(sample_indices(100, 12, s))) == 12
+    assert sample_indices(5, 12, s) == [0, 1, 2, 3, 4]
+
+
+def test_the_escape_chance_is_the_hypergeometric_one():
+    assert escape_chance(10, 3) == pytest.approx(7 / 10)
+    assert escape_chance(10, 3, forged=2) == pytest.approx(56 / 120)   # C(8,3)/C(10,3)
+    assert escape_chance(1920, 12) == pytest.approx(1 - 12 / 1920)
+    assert escape_chance(4, 4) == 0.0
+    assert math.isclose(escape_chance(50, 10, 5), math.comb(45, 10) / math.comb(50, 10))
+
+
+# --- attacks 6 and 8: submitted code in the verdict's process; a private objective --------------
+def test_replay_runs_the_solver_in_its_own_process_and_catches_a_memory_reader(redteam):
+    rec = run_task(Task("rt-truth-peeker", "seeded", "twin", 3, 5))
+    assert rec["success"] and rec["evaluations"] == 1     # it cheated, and its vector is real
+    (res,) = replay([rec], None, 0)
+    assert res.finding is not None and res.finding.startswith("trace at evaluation 1: ")
+
+
+def test_replay_counts_a_private_copy_of_the_objective(redteam):
+    rec = run_task(Task("rt-private-objective", "s00", "twin", 0, 5))
+    assert rec["evaluations"] == 1
+    (res,) = replay([rec], None, 0)
+    assert res.finding == ("the replayed run made 7 model evaluations, 1 of them counted: a "
+                           "solver that evaluates the model outside its budget")
+
+
+def test_an_honest_run_replays_with_as_many_model_evaluations_as_it_declares(fresh):
+    (res,) = replay([fresh], None, 0)
+    assert res.finding is None
+
+
+def test_validate_and_export_import_no_plugin(fresh, tmp_path):
+    """The verdict's process runs no submitted code: after validate and export, no module of
+    a solver plugin is loaded (the zoo's are plugins too)."""
+    runs = _write(tmp_path / "runs.jsonl", [fresh])
+    code = (
+        "import sys\nfrom ema_bench.cli import main\n"
+        f"rc = main(['validate', '--partial', {str(runs)!r}])\n"
+        f"rc += main(['export', '--format', 'ioh', {str(runs)!r}, '--out', "
+        f"{str(tmp_path / 'ioh')!r}])\n"
+        "bad = [m for m in sys.modules if m.startswith(('ema_bench_solvers', "
+        "'ema_bench_trackers', 'ema_bench_redteam'))]\n"
+        "print(rc, bad)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, env={"PYTHONPATH": str(PLUGIN), "PATH": "/usr/bin"})
+    assert out.stdout.strip().splitlines()[-1] == "0 []"
+
+
+#: Modules that compute a verdict, a score or an export.
+JUDGES = ("leaderboard/judge.py", "leaderboard/validate.py", "leaderboard/derive.py",
+          "leaderboard/replay.py", "leaderboard/scores.py", "leaderboard/anytime.py",
+          "leaderboard/report.py", "leaderboard/ioh.py", "leaderboard/check.py",
+          "leaderboard/page.py", "sampling.py", "cli/validate.py", "cli/export.py")
+LOADER = {"get_solver", "run_solver", "available_solvers", "get_tracker", "PluginRegistry",
+          "available_trackers"}
+
+
+@pytest.mark.parametrize("module", JUDGES)
+def test_no_judging_module_imports_the_plugin_loader(module):
+    tree = ast.parse((ROOT / "ema_bench" / module).read_text())
+    imported = {a.name for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)
+                for a in node.names}
+    assert not imported & LOADER, f"{module} imports {imported & LOADER}"
+
+
+def test_an_adapter_run_validates_and_replay_says_it_cannot_be_replayed():
+    from ema_bench.adapters.run import AdapterRun
+    from ema_bench.adapters.scipy import minimize, simplex
+    from ema_bench.leaderboard.validate import check_record
+
+    run = AdapterRun("scipy-nelder-mead", case="small", track="twin", budget=30,
+                     library="scipy")
+    res = minimize(run.problem, method="Nelder-Mead",
+                   options={"initial_simplex": simplex(run.problem)})
+    record = run.record(res.stop_reason)
+    assert check_record(record) == []
+    (r,) = replay([record], None, 0)
+    assert r.finding.startswith("not replayable: solver 'scipy-nelder-mead' is not an "
+                                "installed plugin (an adapter's run")
