@@ -101,7 +101,7 @@ DOCSTRING_REPLACE = {
     "ema_bench/__init__.py": [('track="reference"', 'track="twin"'),
                               ("budget=2000", "budget=300")],
     "ema_bench/env.py": [('track="reference"', 'track="twin"')],
-    "ema_bench/adapters/ioh.py": [("budget=500", "budget=100")],
+    "ema_bench/adapters/ioh_problem.py": [("budget=500", "budget=100")],
     "ema_bench/adapters/pymoo.py": [("budget=500", "budget=100")],
 }
 DOCSTRING_BLOCK = re.compile(r"::\n\n((?:    .*\n|[ \t]*\n)+)")
@@ -133,7 +133,7 @@ def test_the_pages_have_examples_and_every_directive_parses():
     assert len(ALL) >= 13
     assert {ex.page.name for ex in ALL} >= {"README.md", "adapters.md", "uncertainty.md",
                                            "writing-a-solver.md", "submitting-results.md",
-                                           "ioh.py", "scipy.py", "env.py"}
+                                           "ioh_problem.py", "scipy.py", "env.py"}
 
 
 @pytest.fixture
