@@ -63,3 +63,18 @@ def test_only_the_current_and_the_compatible_versions_compare():
     assert is_comparable("3") and is_comparable("2")
     assert not is_comparable("1") and not is_comparable("4") and not is_comparable("")
     assert is_current({"model_version": "2"}) and not is_current({})   # no field: version 1
+
+
+def test_a_compatible_versions_record_is_the_same_run():
+    """A record of version 2 completes the same task as one of version 3 (a sweep resumes
+    past it; beside a version-3 copy it is a duplicate), one of version 1 does not."""
+    from ema_bench.leaderboard.run_store import run_identity
+    from ema_bench.leaderboard.tasks import Task
+
+    task = Task("cmaes", "small@prior", "twin", 0, 5000, 0)
+    rec = {"solver": "cmaes", "case": "small@prior", "track": "twin", "seed": 0,
+           "budget": 5000, "root_seed": 0}
+    assert run_identity({**rec, "model_version": "3"}) == task.identity
+    assert run_identity({**rec, "model_version": "2"}) == task.identity
+    assert run_identity({**rec, "model_version": "1"}) != task.identity
+    assert run_identity({"key": "case3", "model_version": "2"}) == ("case3", MODEL_VERSION)

@@ -12,7 +12,7 @@ import os
 from collections.abc import Iterable
 
 from ..sweep.schema import opt, req
-from ..sweep.store import Store, is_current, is_error, model_version
+from ..sweep.store import Store, identity_version, is_current, is_error, model_version
 from ..sweep.store import read_records as _read
 from ..sweep.store import unique as _unique
 
@@ -42,12 +42,13 @@ def _schema(record: dict) -> dict:
 
 def run_identity(record: dict) -> tuple:
     """The one identity of a run record: solver, case, track, seed, budget, root seed and
-    model version (records without a solver, e.g. blind-suite cases: key and model version).
-    """
+    model version (records without a solver, e.g. blind-suite cases: key and model version;
+    a compatible earlier version counts as this one:
+    :func:`~ema_bench.sweep.store.identity_version`)."""
     if "solver" not in record:
-        return record["key"], model_version(record)
+        return record["key"], identity_version(record)
     return (*(record.get(f, 0) if f == "root_seed" else record[f] for f in IDENTITY_FIELDS),
-            model_version(record))
+            identity_version(record))
 
 
 def unique(records: Iterable[dict]) -> list[dict]:

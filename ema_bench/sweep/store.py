@@ -55,9 +55,20 @@ def is_error(record: dict) -> bool:
     return record.get("status") == "error"
 
 
+def identity_version(record: dict) -> str:
+    """The model version in a record's identity: this installation's for a record of a
+    compatible version (:data:`~ema_bench.trace_cache.COMPATIBLE_VERSIONS`: the same run,
+    reused on resume, a duplicate beside a current one), else the record's own."""
+    from ..trace_cache import MODEL_VERSION, is_comparable
+
+    version = model_version(record)
+    return MODEL_VERSION if is_comparable(version) else version
+
+
 def key_identity(record: dict) -> tuple:
-    """The identity of a record named by its ``key``: key and model version."""
-    return record["key"], model_version(record)
+    """The identity of a record named by its ``key``: key and model version
+    (:func:`identity_version`)."""
+    return record["key"], identity_version(record)
 
 
 def _keep(kept: dict[Hashable, dict], ident: Hashable, record: dict) -> None:

@@ -8,9 +8,8 @@ import gc
 
 import numpy as np
 
-from ema_bench import register_solver
+from ema_bench import make_problem, register_solver
 from ema_bench.faults import FAULT_NAMES
-from ema_bench.instances import make_problem
 from ema_bench.problem import Problem
 from ema_bench.registry import SolveResult
 
