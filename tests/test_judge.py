@@ -229,3 +229,24 @@ def test_an_adapter_run_validates_and_replay_says_it_cannot_be_replayed():
     (r,) = replay([record], None, 0)
     assert r.finding.startswith("not replayable: solver 'scipy-nelder-mead' is not an "
                                 "installed plugin (an adapter's run")
+
+
+def test_no_counted_entry_point_is_called_inside_compiled_code():
+    """The replay worker wraps the model's entry points in Python; one called inside a
+    compiled function (as ``_candidate`` is by ``monitor_batch_parallel``) would stop its
+    caller compiling in a fresh process (6 of 12 committed records were refused so)."""
+    import importlib
+
+    import ema_bench.monitor  # noqa: F401  (loads the kernels' modules)
+    from ema_bench.leaderboard.replay_worker import _ENTRY_POINTS
+
+    wrapped = {n for entries in _ENTRY_POINTS.values() for n in entries}
+    for mod_name in _ENTRY_POINTS:
+        importlib.import_module(mod_name)
+    compiled = [(name, obj) for name, mod in list(sys.modules.items())
+                if name.startswith("ema_bench") for obj in vars(mod).values()
+                if hasattr(obj, "py_func")]
+    assert len(compiled) > 10
+    calls = {(n, f) for n, obj in compiled for f in obj.py_func.__code__.co_names
+             if f in wrapped}
+    assert calls == set()

@@ -80,7 +80,7 @@ def run(args: argparse.Namespace) -> int:
             raise CLIError(f"--replay-key {terminal(unknown[0])!r}: no record of that key in "
                            f"{', '.join(map(terminal, args.runs))}")
     k = "all" if keys and not args.replay else args.replay
-    seed = sample_seed(args.replay_seed) if k is not None else None
+    seed = sample_seed(args.replay_seed) if k is not None and not keys else 0
     replayed = _replay(records, k, seed, keys)
     found += [Finding(r.key, f"replay: {r.finding}") for r in replayed if r.finding]
     ok = sum(r.finding is None for r in replayed)
@@ -89,7 +89,8 @@ def run(args: argparse.Namespace) -> int:
     print_result(args, {"suite": SUITE_ID, "records": len(records), "accepted": not found,
                         "per_tier": args.per_tier,
                         "legacy_records": verdict.legacy, "replayed": len(replayed),
-                        "reproduced": ok, "replay_seed": seed, "escape_chance": chance,
+                        "reproduced": ok, "replay_seed": None if keys else seed,
+                        "escape_chance": chance,
                         "replay_wall_s": sum(r.wall_s for r in replayed),
                         "findings": [{"key": f.key, "problem": f.problem} for f in found]}, [
         *([f"{verdict.legacy} legacy record(s) (schema 1, no trajectory vectors), admitted "
@@ -97,8 +98,9 @@ def run(args: argparse.Namespace) -> int:
            "against bounds only and verified by --replay"] if verdict.legacy and args.legacy
           else []),
         *([f"replay: {ok}/{len(replayed)} records reproduced, each in its own process "
-           f"({sum(r.wall_s for r in replayed):.0f} s; sample seed {seed}, --replay-seed "
-           f"{seed} repeats it)"] if replayed else []),
+           f"({sum(r.wall_s for r in replayed):.0f} s"
+           + (f"; sample seed {seed}, --replay-seed {seed} repeats it)" if not keys else ")")]
+          if replayed else []),
         *([f"replay: a run with one forged record escapes a sample this size with "
            f"probability {chance:.3f}"] if chance is not None else []),
         *([f"REFUSED: {len(found)} finding(s) in {len(records)} records (suite {SUITE_ID}):",
