@@ -39,7 +39,7 @@ def test_the_published_schemas_are_the_readers_tables(cli, tmp_path):
         assert json.loads((PUBLISHED / f"{name}.schema.json").read_text()) == document(name), \
             f"docs/schemas/{name}.schema.json is stale: ema-bench schema --out docs/schemas"
     res = cli("schema", "--out", tmp_path, check=True)
-    assert "7 schemas" in res.stdout
+    assert f"{len(SCHEMAS)} schemas" in res.stdout
     assert (tmp_path / "run-record.schema.json").read_text() == \
         (PUBLISHED / "run-record.schema.json").read_text()
 
@@ -50,6 +50,9 @@ def test_the_published_schemas_are_the_readers_tables(cli, tmp_path):
     ("blind-case", ["blind/blind.jsonl"]),
     ("coverage-record", ["coverage/calibration/twin_laplace.jsonl"]),
     ("leaderboard-summary", ["quick/summary.json", "summary.json"]),
+    ("blind-summary", ["blind/summary.json", "blind_r3/summary.json"]),
+    ("coverage-summary", [str(p.relative_to(LB)) for p in sorted((LB / "coverage").glob("*_*.json"))
+                          if not p.name.startswith("example")]),
 ])
 def test_the_committed_files_validate_without_ema_bench(name, files):
     v = _validator(name)

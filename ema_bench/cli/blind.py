@@ -27,6 +27,7 @@ OUT/interval_calibration.json', in a checkout (docs/diagnosis.md).
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 
 from . import CLIError, print_result
@@ -98,9 +99,10 @@ def run(args: argparse.Namespace) -> int:
 def _run(args: argparse.Namespace, only: list[str] | None) -> int:
     from pathlib import Path
 
-    from ..diagnosis.blind import run_blind
+    from ..diagnosis.blind import SUMMARY_SCHEMA, run_blind
     from ..diagnosis.interval_table import source
     from ..jsonio import dumps
+    from ..sweep.schema import check
 
     # before any work: the suite takes minutes per case
     out = check_output(args.out or default_out(args.seed, args.cases, args.extra), "--out",
@@ -110,8 +112,11 @@ def _run(args: argparse.Namespace, only: list[str] | None) -> int:
     res = run_blind(args.cases, args.seed, out, quiet=args.quiet, workers=args.workers,
                     extra=args.extra, only=only)
     res["summary"]["interval_calibration"] = source()
-    (Path(out) / "summary.json").write_text(dumps(
-        {"command": "ema-bench " + " ".join(sys.argv[1:]), **res["summary"]}, indent=1))
+    text = dumps({"command": "ema-bench " + " ".join(sys.argv[1:]), **res["summary"]},
+                 indent=1)
+    path = Path(out) / "summary.json"
+    check(json.loads(text), SUMMARY_SCHEMA, str(path))   # as a reader will read it back
+    path.write_text(text)
     return print_result(args, res, summary_lines(res["summary"], args.seed)
                         + [case_line(r) for r in res["records"]])
 

@@ -28,6 +28,7 @@ Examples::
 from __future__ import annotations
 
 import argparse
+import json
 
 from . import CLIError, print_result
 from .args import (
@@ -162,9 +163,13 @@ def _summary(records: list[dict], method: str, stem: str, out, args: argparse.Na
     summary["calibration_table"] = source
     summary["calibration_factor"] = dict(zip(FAULT_NAMES, map(float, factors)))
     if out is not None:
+        from ..sweep.schema import check
+        from ..uncertainty.coverage import SUMMARY_SCHEMA
         from ..uncertainty.plots import plot_coverage
 
-        (out / f"{stem}.json").write_text(dumps(summary, indent=1) + "\n")
+        text = dumps(summary, indent=1) + "\n"
+        check(json.loads(text), SUMMARY_SCHEMA, str(out / f"{stem}.json"))   # as read back
+        (out / f"{stem}.json").write_text(text)
         plot_coverage(records, out / f"{stem}.png")
         summary["files"] = [str(out / f"{stem}{s}") for s in (".jsonl", ".json", ".png")]
     return summary

@@ -2,8 +2,9 @@
 
 Each schema is made from the type table the package's own reader checks that file with
 (``sweep.schema``: a run record's line of runs.jsonl, a tracking step, a blind case, a
-coverage record, a best-known entry and table, a board's summary.json), so a schema and the
-code cannot drift; docs/schemas/ holds them as published (a test regenerates and compares).
+coverage record, a best-known entry and table, the summaries of a board, a blind suite and a
+coverage run), so a schema and the code cannot drift; docs/schemas/ holds them as published
+(a test regenerates and compares).
 A submitter checks a file without ema-bench, with any JSON Schema validator (draft
 2020-12), e.g. ``check-jsonschema --schemafile run-record.schema.json`` on each line.
 
@@ -65,6 +66,16 @@ SCHEMAS: dict[str, SchemaFile] = {
         "The JSON ema-bench targets writes (the shipped suite_targets.json, a table of "
         "another root seed that --targets reads); entries: best-known-entry's fields.",
         ("ema_bench.suites.targets:TABLE_SCHEMA",)),
+    "blind-summary": SchemaFile(
+        "ema-bench blind-suite summary",
+        "OUT/summary.json of ema-bench blind: naming accuracy, false alarms, decoys, gap "
+        "closed, parameter error and interval coverage, overall and per category.",
+        ("ema_bench.diagnosis.blind:SUMMARY_SCHEMA",)),
+    "coverage-summary": SchemaFile(
+        "ema-bench coverage summary",
+        "OUT/TRACK_METHOD.json of ema-bench coverage: each fault's interval coverage and "
+        "width, the settings, the calibration applied.",
+        ("ema_bench.uncertainty.coverage:SUMMARY_SCHEMA",)),
     "leaderboard-summary": SchemaFile(
         "ema-bench leaderboard summary",
         "OUT/summary.json of ema-bench leaderboard: the command, the runs, which targets "

@@ -477,6 +477,23 @@ _BLOCKS: dict[str, Callable[[list[dict]], dict[str, object]]] = {
 }
 
 
+#: A blind suite's ``OUT/summary.json`` (``ema-bench blind``), by JSON type: checked before it
+#: is written, and the published JSON Schema (``ema-bench schema blind-summary``) is made from
+#: it (``confident_misnames``: suites written before the third round lack it;
+#: ``interval_calibration``: the table the intervals were calibrated with).
+SUMMARY_SCHEMA = {
+    "command": req("str"), "cases": req("int"), "categories": req("dict", values="int"),
+    "effect_cases": req("int"), "naming_accuracy": req("number|null"),
+    "per_effect": req("dict"), "null_cases": req("int"), "false_alarms": req("int"),
+    "decoy_cases": req("int"), "decoys_unexplained_or_partial": req("int"),
+    "decoys_by_outcome": req("dict"), "confident_misnames": opt("int"),
+    "named_partial": req("int"), "median_heldout_gap_closed": req("number|null"),
+    "median_param_error": req("number|null"), "interval_coverage": req("str|number|null"),
+    "per_category": req("dict", values="dict"), "wall_s": req("number"),
+    "interval_calibration": opt("str"),
+}
+
+
 def summarise(records: list[dict]) -> dict[str, object]:
     """The suite's figures: overall (naming accuracy over single and near-threshold cases,
     false alarms over both null kinds, decoys handled, gap closed over the found effect

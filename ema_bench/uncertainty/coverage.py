@@ -222,6 +222,21 @@ def recalibrated(records: Sequence[Mapping], factors: Mapping[str, float]) -> li
     return out
 
 
+#: ``OUT/TRACK_METHOD.json`` of ``ema-bench coverage``, by JSON type: checked before it is
+#: written, and the published JSON Schema (``ema-bench schema coverage-summary``) is made from
+#: it (``calibration_table``: which interval table calibrated the run).
+SUMMARY_SCHEMA = {
+    "coverage": req("dict", values="number|null"), "median_width": req("dict"),
+    "coverage_interval": req("dict"), "coverage_noise_only": req("dict"),
+    "coverage_uncalibrated": req("dict"), "instances": req("int"), "method": req("str"),
+    "track": req("str"), "level": req("number"), "solver": req("str"), "budget": req("int"),
+    "root_seed": req("int"), "noise_scale": req("number"), "model_form": req("str"),
+    "calibration": req("str"), "interval_evaluations": req("dict"), "misfits": req("int"),
+    "errors": req("int"), "calibration_factor": req("dict", values="number"),
+    "calibration_table": opt("str"),
+}
+
+
 def summarise(records: Sequence[Mapping], factors: Mapping[str, float] | None = None
               ) -> dict[str, object]:
     """Coverage per fault, median width (% of range), cost; ``factors`` recalibrates the
