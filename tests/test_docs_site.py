@@ -3,8 +3,8 @@
 The notebook (docs/tutorial.ipynb) runs in a fresh interpreter, its code cells in order in
 one namespace, as a kernel would (without ipykernel, which the test extra does not carry),
 and its results are checked.  The site (mkdocs.yml) builds with warnings as errors where the
-docs extra is installed (``pip install ".[docs]"``, about 120 MB: not in the test extra;
-.github/workflows/pages.yml builds and publishes it)."""
+docs extra is installed (``pip install ".[docs]"``, about 120 MB; the test extra includes it,
+so CI builds the site; .github/workflows/pages.yml builds and publishes it)."""
 
 from __future__ import annotations
 
