@@ -13,7 +13,7 @@ from ema_bench.physics.averaged_drive import kt_eccentric
 from ema_bench.physics.trig import poly_sin, poly_sincos
 
 
-@njit(cache=True)
+@njit   # no cache: numba would write it beside the tests (and into an sdist built from them)
 def _grid(xs):
     s = np.empty_like(xs)
     c = np.empty_like(xs)
