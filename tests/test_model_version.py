@@ -78,3 +78,30 @@ def test_a_compatible_versions_record_is_the_same_run():
     assert run_identity({**rec, "model_version": "2"}) == task.identity
     assert run_identity({**rec, "model_version": "1"}) != task.identity
     assert run_identity({"key": "case3", "model_version": "2"}) == ("case3", MODEL_VERSION)
+
+
+def _committed_record(key: str) -> dict:
+    with (ROOT / "leaderboards" / "runs.jsonl").open() as f:
+        return next(r for r in map(json.loads, f) if r["key"] == key)
+
+
+def test_a_relabelled_model_version_gains_nothing_worth_having():
+    """The cheapest forgery of the version split: label a run ``model_version`` "2" to be
+    judged on version 2's tier-12 entries.  A record's label and its claims are bound (a
+    version-2 record relabelled "3" keeps version 2's f* claim and is refused), and what a
+    relabel can buy is bounded: every fitness target of a superseded entry lies within 1e-5
+    of its f*-to-nominal gap of version 3's, a tenth of the tightest target's band (1e-4)."""
+    from ema_bench.leaderboard.validate import check_record
+    from ema_bench.suites.targets import fitness_targets
+
+    table = json.loads(V2_TABLE.read_text())
+    for key, old in table["superseded"]["2"].items():
+        new = table["entries"][key]
+        gap = new["f_nominal"] - new["f_star"]
+        moved = np.subtract(fitness_targets(old["f_star"], old["f_nominal"]),
+                            fitness_targets(new["f_star"], new["f_nominal"]))
+        assert np.abs(moved).max() <= 1e-5 * gap, key
+    rec = _committed_record("cmaes|t12-s02@surface-current|twin|0")   # a superseded entry
+    assert rec["model_version"] == "2" and check_record(rec, reevaluate=False) == []
+    problems = check_record({**rec, "model_version": "3"}, reevaluate=False)
+    assert any("targets.f_star" in p for p in problems), problems
