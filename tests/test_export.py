@@ -8,10 +8,9 @@ from pathlib import Path
 
 import pytest
 from inprocess import run_cli
-from ioh_files import read_ioh
 
 from ema_bench.cli import main
-from ema_bench.leaderboard.ioh import export_ioh
+from ema_bench.leaderboard.ioh import export_ioh, read_ioh
 from ema_bench.leaderboard.tasks import Task
 from ema_bench.leaderboard.tasks import error_record as task_error_record
 

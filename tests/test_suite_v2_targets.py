@@ -10,10 +10,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from ioh_files import read_ioh
 
 from ema_bench import suites
 from ema_bench.cli import main
+from ema_bench.leaderboard.ioh import read_ioh
 from ema_bench.objective import Objective, ProblemError
 from ema_bench.seeding import run_seed
 from ema_bench.suites import v2
