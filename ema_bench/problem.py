@@ -207,12 +207,18 @@ class _Counted:
         return self._log.evaluate_outputs(X)
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
-        """Weighted residual vector of one candidate: ``sum(r**2) == evaluate(x)``.
+        """Weighted residual vector of one candidate (``x`` (dim,): ``sum(r**2) ==
+        evaluate(x)``), or of a batch (``x`` (n, dim): an (n, n_residuals) array, rows in
+        order, the same bits as one call each).
 
-        Counts one evaluation.  For least-squares methods; layout: test by test, signal by
-        signal, sample by sample (:meth:`~ema_bench.objective.Objective.residuals`)."""
-        f, outputs = self.evaluate_outputs(np.asarray(x, dtype=float)[None, :])
-        return self._log.objective.residuals(outputs, f)[0]
+        Counts one evaluation per candidate.  For least-squares methods; layout: test by
+        test, signal by signal, sample by sample
+        (:meth:`~ema_bench.objective.Objective.residuals`)."""
+        arr = np.asarray(x, dtype=float)
+        single = arr.ndim == 1
+        f, outputs = self.evaluate_outputs(arr[None, :] if single else arr)
+        r = self._log.objective.residuals(outputs, f)
+        return r[0] if single else r
 
     def history(self) -> dict[str, np.ndarray]:
         """Every evaluation so far: ``index``, ``x`` (n, dim), ``fitness``, ``best`` (best

@@ -134,6 +134,7 @@ def run_solver(name: str, problem: Problem, budget: int | None = None,
     never evaluated), and ``evaluations`` is the problem's count.
     """
     from .problem import BudgetExhausted
+    from .threads import blas_single_thread
 
     info = get_solver(name)
     budget = problem.remaining if budget is None else min(int(budget), problem.remaining)
@@ -145,8 +146,9 @@ def run_solver(name: str, problem: Problem, budget: int | None = None,
         # the solver's own stream of the run node: disjoint from the streams that drew the
         # instance and the noise, for every solver, plugins included
         # the solver gets the view (budget, log, space, data), never the problem and its truth
-        res = info.func(problem.view(), budget, stream(as_seed_sequence(seed), "solver"),
-                        **info.config)
+        with blas_single_thread():   # small linear algebra: idle BLAS threads only spin
+            res = info.func(problem.view(), budget, stream(as_seed_sequence(seed), "solver"),
+                            **info.config)
         stop, extra, lib = res.stop_reason, res.extra, res.library
     except BudgetExhausted:
         stop, extra, lib = "budget", {}, library_versions(*info.library.split(","))

@@ -13,7 +13,8 @@ coarse steps in the unit box.
   normalised), ``diff_step=1e-2``: with ``1e-3`` the Jacobian sees the kinks of the
   fitness and starts stop early on ``xtol`` (at budget 5000, seed 0, it missed the full case
   on the reference track by 3 % of the range and the random twin case by 7 %; with ``1e-2``
-  both are within 0.3 %).
+  both are within 0.3 %).  Its Jacobian's ``dim`` points are one batched
+  ``problem.residuals`` call (scipy's ``workers``): scipy's points and order, the same bits.
 * ``nelder-mead``: bounded Nelder-Mead, initial simplex of edge 0.1 pointing into the box.
 * ``lbfgsb``: L-BFGS-B with a forward-difference gradient (step ``1e-3``, backward at the
   upper bound) whose ``dim + 1`` points are one batched ``problem.evaluate`` call.
@@ -22,6 +23,7 @@ coarse steps in the unit box.
 
 from __future__ import annotations
 
+import inspect
 import time
 from collections.abc import Callable
 
@@ -87,17 +89,40 @@ def _capped(fn: Callable, problem, cap: int) -> Callable:
 def solve_least_squares(problem, budget: int, seed: np.random.SeedSequence) -> SolveResult:
     from scipy.optimize import least_squares
 
+    # scipy >= 1.16 maps the finite-difference points through ``workers``; before it, one
+    # call each (the same points and bits, slower)
+    _HAS_WORKERS = "workers" in inspect.signature(least_squares).parameters
     dim = problem.dim
 
-    def residuals(u: np.ndarray) -> np.ndarray:
-        if problem.remaining < 1:
-            raise StopSolver
-        return problem.residuals(problem.from_unit(np.clip(u, 0.0, 1.0)))
-
     def run_one(u0: np.ndarray, cap: int) -> str:
-        res = least_squares(_capped(residuals, problem, cap), u0, bounds=(0.0, 1.0),
-                            method="trf", x_scale=1.0, diff_step=LS_DIFF_STEP,
-                            max_nfev=max(1, cap // (dim + 1)))
+        limit = problem.evaluations + cap
+
+        def allowed() -> int:   # evaluations this start may still make
+            return min(limit - problem.evaluations, problem.remaining)
+
+        def residuals(u: np.ndarray) -> np.ndarray:
+            if allowed() < 1:
+                raise StopSolver
+            return problem.residuals(problem.from_unit(np.clip(u, 0.0, 1.0)))
+
+        def jacobian_points(fun, points) -> list[np.ndarray]:
+            # scipy's finite-difference points (its steps, its order), evaluated in one
+            # batched call instead of ``map(fun, points)``: the same evaluations, counted
+            # and capped alike, the same bits (the batch kernels equal the one-candidate
+            # one), about 2.5x less CPU than one call each on a tier-12 case
+            U = np.clip(np.array(list(points), dtype=float), 0.0, 1.0)
+            k = allowed()
+            if k < 1:
+                raise StopSolver
+            R = problem.residuals(problem.from_unit(U[:k]))
+            if k < len(U):
+                raise StopSolver
+            return list(R)
+
+        batched = {"workers": jacobian_points} if _HAS_WORKERS else {}
+        res = least_squares(residuals, u0, bounds=(0.0, 1.0), method="trf", x_scale=1.0,
+                            diff_step=LS_DIFF_STEP, max_nfev=max(1, cap // (dim + 1)),
+                            **batched)
         return {0: "max_nfev", 1: "gtol", 2: "ftol", 3: "xtol", 4: "ftol+xtol"}.get(
             res.status, str(res.status))
 

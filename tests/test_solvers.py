@@ -124,3 +124,51 @@ def test_cmaes_identifies_twin_cases(case):
     assert res.evaluations <= 5000
     score = problem.score(res.x)
     assert score.success, score.range_error
+
+
+@pytest.mark.parametrize("budget", [60, 97])
+def test_least_squares_batched_jacobian_is_scipys_one_by_one(budget, monkeypatch):
+    # the finite-difference points go through ``workers`` in one batch; scipy's own map (one
+    # call each) must give the same evaluations, in the same order, to the bit, and stop at
+    # the same count when the budget ends inside a Jacobian (97: not a multiple of dim + 1)
+    import scipy.optimize
+
+    def run():
+        problem = make_problem("small", track="twin", seed=0, budget=budget,
+                               augment=("eccentricity",))
+        run_solver("least-squares", problem, seed=3)
+        return problem.history()
+
+    batched = run()
+    original = scipy.optimize.least_squares
+
+    def one_by_one(*args, workers=None, **kwargs):
+        return original(*args, **kwargs)   # scipy's default: map, one call per point
+
+    monkeypatch.setattr(scipy.optimize, "least_squares", one_by_one)
+    plain = run()
+    assert len(batched["fitness"]) == len(plain["fitness"]) == budget
+    assert np.array_equal(batched["x"], plain["x"])
+    assert np.array_equal(batched["fitness"], plain["fitness"])
+
+
+def test_solvers_run_with_blas_on_one_thread():
+    # idle BLAS threads spun against the kernels (ema_bench/threads.py): a solver runs with
+    # one, and the caller's setting comes back afterwards
+    from threadpoolctl import threadpool_info
+
+    from ema_bench import register_solver
+    from ema_bench.registry import SolveResult
+
+    seen = []
+
+    @register_solver("test-blas-threads", description="records BLAS threads", library="numpy")
+    def _probe(problem, budget, seed):
+        seen.extend(i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas")
+        problem.evaluate(problem.nominal)
+        return SolveResult("test-blas-threads", problem.nominal, 0.0, 1, "done", 0.0, {})
+
+    before = [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
+    run_solver("test-blas-threads", twin(1))
+    assert seen and set(seen) == {1}
+    assert [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"] == before

@@ -25,7 +25,10 @@ from ema_bench.suites.v2 import tier_instances
 PACKAGE = Path(ema_bench.__file__).resolve().parent
 #: what branching on a suite version looks like (the names the two-suite code used)
 VERSION_BRANCH = re.compile(r"is_v2_case|is_v2_board|suite_v2|parse_case|make_v2_problem|"
-                            r"build_problem|best_known_for|scoring_frame|judged_for")
+                            r"build_problem|best_known_for|scoring_frame|judged_for|"
+                            # a command comparing --suite with a version's id
+                            r"""(==|!=)\s*["']emafdi-v|["']emafdi-v\d+["']\s*(==|!=)|"""
+                            r"SUITE_ID\s*(==|!=)|(==|!=)\s*(\w+\.)?SUITE_ID")
 
 
 def test_no_suite_version_branch_outside_the_suites_package():

@@ -34,8 +34,8 @@ import argparse
 import tempfile
 from pathlib import Path
 
-QUICK = {"seeds": 2, "budget": 400, "cases": ["quick"]}
-DEFAULT = {"seeds": 10, "budget": 5000, "cases": ["all"]}
+QUICK = {"seeds": 2}    # and the suite's quick cases and budget (emafdi-v1: 400)
+DEFAULT = {"seeds": 10}
 
 
 def _shard(text: str) -> tuple[int, int]:
@@ -47,6 +47,8 @@ def _shard(text: str) -> tuple[int, int]:
 
 
 def register(sub: argparse._SubParsersAction) -> None:
+    from ..suites import DEFAULT as DEFAULT_SUITE
+    from ..suites import SUITES
     from ..sweep.executors import EXECUTORS
     from .args import (
         MAX_BUDGET,
@@ -70,7 +72,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="comma-separated instances or groups: all (the suite, default), "
                         "paper (nominal,small,full,random), lhs (s00..s19), quick (paper "
                         "and s00..s03, the --quick default)")
-    p.add_argument("--suite", choices=("emafdi-v1", "emafdi-v2"), default="emafdi-v1",
+    p.add_argument("--suite", choices=tuple(SUITES), default=DEFAULT_SUITE.id,
                    help="emafdi-v1 (default: the four faults, --cases) or emafdi-v2 (tiers "
                         "x conditions, docs/suite-v2.md)")
     p.add_argument("--tiers", type=option_list, default=None,
@@ -88,8 +90,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help=f"seeds per (solver, case, track) (default {DEFAULT['seeds']}, "
                         f"quick {QUICK['seeds']})")
     p.add_argument("--budget", type=count(1, MAX_BUDGET), default=None,
-                   help=f"evaluations per run (default {DEFAULT['budget']}, "
-                        f"quick {QUICK['budget']})")
+                   help="evaluations per run (default: the suite's; emafdi-v1 5000, quick "
+                        "400; emafdi-v2 --budget-per-dim x the tier)")
     p.add_argument("--root-seed", type=seed_number, default=0, help="root seed of the sweep")
     p.add_argument("--out", default=None, metavar="DIR",
                    help="output folder, required (with --check: a temp folder by default); "
@@ -103,8 +105,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--shard", type=_shard, default=(0, 1), metavar="i/n",
                    help="run only the i-th of n interleaved slices of the tasks (0-based)")
     p.add_argument("--quick", action="store_true",
-                   help=f"small budget and seeds for CI ({QUICK['seeds']} seeds, "
-                        f"budget {QUICK['budget']})")
+                   help=f"small budget and seeds for CI ({QUICK['seeds']} seeds; emafdi-v1: "
+                        "budget 400, the quick cases)")
     p.add_argument("--check", default=None, metavar="DIR", nargs="?", const="",
                    help="compare with the committed runs in DIR (and DIR/*/; no DIR: the "
                         "checkout's leaderboards/, else the quick baseline installed with "
@@ -129,7 +131,8 @@ def run(args: argparse.Namespace) -> int:
     from ..leaderboard.run_store import RUNS_FILE, read_records
     from ..leaderboard.tasks import make_tasks
     from ..registry import available_solvers
-    from ..suites.v1 import expand_cases
+    from ..suites import SUITES
+    from ..suites.base import Selection
     from . import CLIError, print_result
     from .args import check_output
 
@@ -144,14 +147,11 @@ def run(args: argparse.Namespace) -> int:
         args.check = str(require_baseline(folder))
     preset = QUICK if args.quick else DEFAULT
     seeds = args.seeds if args.seeds is not None else preset["seeds"]
-    if args.suite == "emafdi-v2":
-        cases, budget = _v2_sweep(args)
-    else:
-        if args.tiers or args.conditions or args.per_tier or args.budget_per_dim:
-            raise CLIError("--tiers, --conditions, --per-tier and --budget-per-dim need "
-                           "--suite emafdi-v2")
-        cases = expand_cases(args.cases or preset["cases"])
-        budget = args.budget if args.budget is not None else preset["budget"]
+    # the suite reads its own options (SuiteError, one line, for one it does not take)
+    suite = SUITES[args.suite]
+    cases = suite.sweep_cases(Selection(args.cases, args.tiers, args.conditions,
+                                        args.per_tier, args.quick))
+    budget = suite.sweep_budget(args.budget, args.budget_per_dim, args.quick)
     # --seeds, --budget and --budget-per-dim are >= 1 by their argparse types
     if args.out is None and args.check is None:
         # no default: a sweep written into the committed leaderboards/ by accident would
@@ -186,13 +186,13 @@ def run(args: argparse.Namespace) -> int:
                                "not comparable; regenerate them (leaderboards/README.md "
                                "lists the commands)")
             raise CLIError(f"no committed runs of these tasks (same seeds and root seed) at "
-                           f"budget >= {_shown(budget, args)} in {folder / RUNS_FILE} or "
+                           f"budget >= {budget} in {folder / RUNS_FILE} or "
                            f"{folder / '*' / RUNS_FILE}")
         now = select(read_records(out / RUNS_FILE), tasks)
         regressions = compare(now, committed)
         summary["regressions"] = [str(r) for r in regressions]
         summary["baseline"] = used
-        against = (f"{args.check} (budget {_shown(budget, args)}, {seeds} seeds; "
+        against = (f"{args.check} (budget {budget}, {seeds} seeds; "
                    f"committed runs at this budget: {used['same_budget']}, re-scored "
                    f"from a larger budget: {used['re_scored']})")
         lines = ([f"REGRESSIONS against {against}:", *(f"  {r}" for r in regressions)]
@@ -207,34 +207,6 @@ def run(args: argparse.Namespace) -> int:
         *(f"  {e['key']} (budget {e['budget']}): {e['error_type']}: {e['error']}"
           for e in errors)])
     return 1 if summary.get("regressions") else 0
-
-
-def _v2_sweep(args: argparse.Namespace):
-    """Cases and per-case budget of an emafdi-v2 sweep (budget: per-dimension x the tier's
-    dimension, or one fixed --budget)."""
-    from ..suites import instance, v2
-    from . import CLIError
-
-    if args.cases:
-        raise CLIError("--suite emafdi-v2 picks its instances with --tiers, --conditions and "
-                       "--per-tier, not --cases")
-    # SuiteError, or a tier that is not a number: a ValueError, one line by main()
-    tiers = [int(t) for t in (args.tiers or v2.TIERS)]
-    cases = v2.cases(tiers, args.conditions or list(v2.CONDITIONS), args.per_tier)
-    if args.budget is not None:
-        return cases, args.budget
-    per_dim = args.budget_per_dim or v2.BUDGET_PER_DIM
-    return cases, lambda case: per_dim * instance(case).dim
-
-
-def _shown(budget, args: argparse.Namespace) -> str:
-    """The budget of a sweep in words (v2: per dimension x the tier)."""
-    if not callable(budget):
-        return str(budget)
-    from ..suites.v2 import BUDGET_PER_DIM
-
-    return f"{args.budget_per_dim or BUDGET_PER_DIM} x tier"
-
 
 
 def _recorded_solvers(out: str | None) -> list[str]:

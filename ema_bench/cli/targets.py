@@ -31,6 +31,7 @@ import argparse
 
 
 def register(sub: argparse._SubParsersAction) -> None:
+    from ..suites import DEFAULT, SUITES
     from .args import add_json, add_quiet, count, option_list, seed_number, worker_count
 
     p = sub.add_parser("targets", help="compute or show the suite's best-known optima f*",
@@ -38,7 +39,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", default=None, metavar="FILE.json",
                    help="where to write the table (required unless --show)")
-    p.add_argument("--suite", choices=("emafdi-v1", "emafdi-v2"), default="emafdi-v1",
+    p.add_argument("--suite", choices=tuple(SUITES), default=DEFAULT.id,
                    help="the suite whose table to compute or show (default emafdi-v1)")
     p.add_argument("--cases", type=option_list, default=None,
                    help="emafdi-v1: instances or groups (all, paper, lhs, quick; default all)")
@@ -64,50 +65,33 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _keys(args: argparse.Namespace) -> list[str] | None:
-    """The keys to compute (None: v1's default, every key of the suite)."""
+    """The keys to compute (None: every key of the suite's table)."""
     from ..instances import TRACKS
-    from ..suites import v2
-    from ..suites.targets import target_key
-    from ..suites.v1 import SANITY_CASES, TARGET_SEEDS, expand_cases
+    from ..suites import SUITES
+    from ..suites.base import Selection
     from . import CLIError
 
-    tracks = args.tracks or list(TRACKS)
-    bad = [t for t in tracks if t not in TRACKS]
+    bad = [t for t in args.tracks or () if t not in TRACKS]
     if bad:
         raise CLIError(f"unknown track(s) {bad}; known: {list(TRACKS)}")
     # SuiteError, FaultError, a tier that is not a number: ValueErrors, one line by main()
-    if args.suite == "emafdi-v2":
-        if args.cases:
-            raise CLIError("--suite emafdi-v2 picks its instances with --tiers, "
-                           "--conditions and --per-tier, not --cases")
-        keys = v2.target_keys(args.seeds or v2.TARGET_SEEDS, tracks,
-                                    [int(t) for t in args.tiers] if args.tiers else None,
-                                    args.conditions, args.per_tier)
-        if not keys:
-            raise CLIError("no v2 case there needs its own entries (tier 4 with full "
-                           "information uses v1's table)")
-        return keys
-    if args.tiers or args.conditions or args.per_tier:
-        raise CLIError("--tiers, --conditions and --per-tier need --suite emafdi-v2")
-    if not (args.cases or args.seeds or args.tracks):
-        return None
-    cases = [c for c in expand_cases(args.cases or ["all"]) if c not in SANITY_CASES]
-    return [target_key(c, t, k) for k in range(args.seeds or TARGET_SEEDS)
-            for c in cases for t in tracks]
+    return SUITES[args.suite].target_keys(
+        Selection(args.cases, args.tiers, args.conditions, args.per_tier), args.seeds,
+        args.tracks)
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..suites import v2
+    from ..suites import SUITES
     from ..suites.targets import read_targets
-    from ..suites.v1 import describe, shipped_targets
+    from ..suites.v1 import describe
     from . import CLIError, print_result
     from .args import check_output
 
+    suite = SUITES[args.suite]
     # a suite with clean-data fits (emafdi-v2) reports what they exclude and their cost
-    clean = args.suite == v2.SUITE_ID
+    clean = suite.clean_fits
     if args.show:
-        data = read_targets(v2.targets_path(), v2.SUITE_ID, missing_ok=False) \
-            if clean else shipped_targets()
+        data = read_targets(suite.targets_file(), suite.id, missing_ok=False)
     elif args.out is None:
         raise CLIError("--out FILE.json is required (or --show)")
     else:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from importlib.resources.abc import Traversable
 
 import numpy as np
 
@@ -118,6 +119,35 @@ class Instance:
 
 
 @dataclass(frozen=True)
+class Selection:
+    """The part of a suite a command covers, as its options give it (None: the suite's
+    default): named cases or groups (a suite without tiers), or tiers x conditions and the
+    first ``per_tier`` instances of each (a suite with tiers); ``quick``: the small CI
+    preset.  A suite refuses (SuiteError) the options it does not take."""
+
+    cases: Sequence[str] | None = None
+    tiers: Sequence[str] | None = None
+    conditions: Sequence[str] | None = None
+    per_tier: int | None = None
+    quick: bool = False
+
+
+@dataclass(frozen=True)
+class PerDimBudget:
+    """A budget of ``per_dim`` evaluations per searched dimension (``budget(case)``)."""
+
+    per_dim: int
+
+    def __call__(self, case: str) -> int:
+        from . import instance
+
+        return self.per_dim * instance(case).dim
+
+    def __str__(self) -> str:
+        return f"{self.per_dim} x tier"
+
+
+@dataclass(frozen=True)
 class Suite:
     """One suite version (see the module docstring); every field but ``id`` and ``grouped``
     is a function of the version's module.
@@ -142,6 +172,16 @@ class Suite:
         ``(instances entered, per_tier) -> case keys`` a complete submission covers.
     case_order : callable
         ``() -> case names``: the order of the suite's tables.
+    sweep_cases : callable
+        ``(Selection) -> case keys`` of a sweep (``ema-bench leaderboard``).
+    sweep_budget : callable
+        ``(budget or None, per-dimension budget or None, quick) -> budget``: an int, or a
+        :class:`PerDimBudget` (evaluations per case).
+    target_keys : callable
+        ``(Selection, seeds or None, tracks or None) -> keys or None`` whose best-known
+        entries ``ema-bench targets`` computes (None: every key of the suite's table).
+    targets_file : callable
+        ``() -> path`` of the best-known table shipped with the package.
     grouped : bool
         Its board is scored per (dimension, condition) group as well as overall.
     clean_fits : bool
@@ -157,5 +197,9 @@ class Suite:
     ioh_functions: Callable[[], Sequence[str]]
     complete_cases: Callable[[Sequence[Instance], int | None], list[str]]
     case_order: Callable[[], Sequence[str]]
+    sweep_cases: Callable[[Selection], list[str]]
+    sweep_budget: Callable[[int | None, int | None, bool], int | PerDimBudget]
+    target_keys: Callable[[Selection, int | None, Sequence[str] | None], list[str] | None]
+    targets_file: Callable[[], Traversable]
     grouped: bool = False
     clean_fits: bool = False

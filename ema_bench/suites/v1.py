@@ -25,7 +25,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..faults import CASES, FAULT_NAMES, LOWER, UPPER, FaultError, faults_to_dict
-from .base import Instance, Suite
+from .base import Instance, Selection, Suite
 from .targets import (
     FITNESS_PRECISIONS,
     PARAMETER_TARGETS,
@@ -47,8 +47,9 @@ PAPER_CASES: tuple[str, ...] = tuple(CASES)
 SANITY_CASES: tuple[str, ...] = ("nominal",)
 #: Noise seeds (leaderboard rows, root seed 0) whose ``f*`` the suite ships.
 TARGET_SEEDS = 10
-#: The board's budget (evaluations per run).
+#: The board's budget (evaluations per run), and the quick (CI) preset's.
 BUDGET = 5000
+QUICK_BUDGET = 400
 #: IOH tools store instance ids as unsigned 16-bit integers (iohinspector: ``UInt16``).
 MAX_IOH_INSTANCE = 2**16 - 1
 TARGETS_FILE = "suite_targets.json"
@@ -148,6 +149,38 @@ def _ioh_instance(inst: Instance, seed: int) -> int:
     return seed
 
 
+def _no_tiers(sel: Selection) -> None:
+    if sel.tiers or sel.conditions or sel.per_tier:
+        raise SuiteError(f"{SUITE_ID} has no tiers or conditions: --tiers, --conditions and "
+                         "--per-tier belong to a suite with tiers (--suite emafdi-v2)")
+
+
+def _sweep_cases(sel: Selection) -> list[str]:
+    """The cases and groups named (default: every instance; quick: the quick group)."""
+    _no_tiers(sel)
+    return expand_cases(sel.cases or ["quick" if sel.quick else "all"])
+
+
+def _sweep_budget(budget: int | None, per_dim: int | None, quick: bool) -> int:
+    if per_dim:
+        raise SuiteError(f"{SUITE_ID} has one budget for every case: --budget, not "
+                         "--budget-per-dim")
+    return budget or (QUICK_BUDGET if quick else BUDGET)
+
+
+def _target_keys(sel: Selection, seeds: int | None,
+                 tracks: Sequence[str] | None) -> list[str] | None:
+    """Keys of the cases named (none named: every key of the table)."""
+    from ..instances import TRACKS
+
+    _no_tiers(sel)
+    if not (sel.cases or seeds or tracks):
+        return None
+    cases = [c for c in expand_cases(sel.cases or ["all"]) if c not in SANITY_CASES]
+    return [target_key(c, t, k) for k in range(seeds or TARGET_SEEDS)
+            for c in cases for t in (tracks or TRACKS)]
+
+
 SUITE = Suite(
     id=SUITE_ID, lookup=_lookup,
     # v1's entries hold for every compatible model version (its problems have no trigonometry)
@@ -156,4 +189,6 @@ SUITE = Suite(
     ioh_instance=_ioh_instance, ioh_functions=lambda: instance_names(),
     complete_cases=lambda entered, per_tier: [c for c in instance_names()
                                               if c not in SANITY_CASES],
-    case_order=lambda: instance_names())
+    case_order=lambda: instance_names(), sweep_cases=_sweep_cases,
+    sweep_budget=_sweep_budget, target_keys=_target_keys,
+    targets_file=lambda: package_file(TARGETS_FILE))

@@ -36,7 +36,7 @@ from ..faults import FAULT_NAMES, LOWER, UPPER
 from ..seeding import child
 from ..trace_cache import MODEL_VERSION
 from . import v1
-from .base import Instance, Suite
+from .base import Instance, PerDimBudget, Selection, Suite
 from .targets import (
     TARGET_ROOT_SEED,
     SuiteError,
@@ -430,8 +430,41 @@ def _complete_cases(entered, per_tier: int | None) -> list[str]:
             for n in instance_names(d)[:per_tier]]
 
 
+def _sweep_cases(sel: Selection) -> list[str]:
+    """Tiers x conditions (default all), the first ``per_tier`` instances of each."""
+    if sel.cases:
+        raise SuiteError(f"--suite {SUITE_ID} picks its instances with --tiers, --conditions "
+                         "and --per-tier, not --cases")
+    # a tier that is not a number: a ValueError, one line on the command line
+    return cases([int(t) for t in (sel.tiers or TIERS)], sel.conditions or list(CONDITIONS),
+                 sel.per_tier)
+
+
+def _sweep_budget(budget: int | None, per_dim: int | None, quick: bool) -> int | PerDimBudget:
+    """One fixed budget, else evaluations per searched dimension (the suite's: tier budgets)."""
+    return budget if budget is not None else PerDimBudget(per_dim or BUDGET_PER_DIM)
+
+
+def _target_keys(sel: Selection, seeds: int | None,
+                 tracks: Sequence[str] | None) -> list[str]:
+    """:func:`target_keys` of the tiers, conditions and instances selected."""
+    if sel.cases:
+        raise SuiteError(f"--suite {SUITE_ID} picks its instances with --tiers, --conditions "
+                         "and --per-tier, not --cases")
+    from ..instances import TRACKS
+
+    keys = target_keys(seeds or TARGET_SEEDS, tracks or TRACKS,
+                       [int(t) for t in sel.tiers] if sel.tiers else None, sel.conditions,
+                       sel.per_tier)
+    if not keys:
+        raise SuiteError("no v2 case there needs its own entries (tier 4 with full "
+                         "information uses v1's table)")
+    return keys
+
+
 SUITE = Suite(id=SUITE_ID, lookup=_lookup, best_known=_best_known, judged=_judged,
               ioh_instance=_ioh_instance, ioh_functions=lambda: list(CONDITIONS),
               complete_cases=_complete_cases,
-              case_order=lambda: cases(list(TIERS), list(CONDITIONS)), grouped=True,
-              clean_fits=True)
+              case_order=lambda: cases(list(TIERS), list(CONDITIONS)),
+              sweep_cases=_sweep_cases, sweep_budget=_sweep_budget, target_keys=_target_keys,
+              targets_file=lambda: targets_path(), grouped=True, clean_fits=True)

@@ -144,6 +144,8 @@ def refit(counter: Counter, u0: np.ndarray, free: np.ndarray | None = None,
     cap is reached (then the best point so far is returned)."""
     from scipy.optimize import least_squares
 
+    from ..threads import blas_single_thread
+
     u0 = np.clip(np.asarray(u0, dtype=float), 0.0, 1.0)
     free = np.ones(u0.size, bool) if free is None else np.asarray(free, bool)
     factors = counter.objective.factors
@@ -178,8 +180,9 @@ def refit(counter: Counter, u0: np.ndarray, free: np.ndarray | None = None,
         return factors[:, None] * J
 
     try:
-        least_squares(fun, u0[free], jac=jac, bounds=(0.0, 1.0), method="trf",
-                      x_scale="jac", ftol=ftol, xtol=xtol, gtol=1e-12)
+        with blas_single_thread():   # an SVD per step between kernel calls (threads.py)
+            least_squares(fun, u0[free], jac=jac, bounds=(0.0, 1.0), method="trf",
+                          x_scale="jac", ftol=ftol, xtol=xtol, gtol=1e-12)
     except (OutOfEvaluations, UncertaintyError):
         pass
     if not np.isfinite(best[1]):
