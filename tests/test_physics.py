@@ -42,7 +42,7 @@ from ema_bench.physics.command import (
     make_command,
 )
 from ema_bench.physics.load import hinge_extra
-from ema_bench.physics.mechanics import gear_torque, mech_consts, mech_step
+from ema_bench.physics.mechanics import gear_mean, gear_torque, mech_consts, mech_step
 from ema_bench.physics.sensors import SENSORS, measure, quantise
 
 P = DEFAULT_PARAMS.to_array()
@@ -298,6 +298,27 @@ def test_backlash_contact_never_pulls():
     # without backlash the stiffness is linear through zero
     assert gear_torque(1e-4, 0.0, 0.0, KS, 0.0) == pytest.approx(30.0)
     assert gear_torque(-1e-4, 0.0, 0.0, KS, 0.0) == pytest.approx(-30.0)
+
+
+@pytest.mark.parametrize("d0,dd", [
+    (0.015, 100.0),     # enters contact inside the step
+    (0.025, -100.0),    # leaves it
+    (0.021, -0.295),    # the damped contact lifts off inside the step (at 56 us)
+    (0.03, 5.0),        # in contact throughout
+    (-0.025, 150.0),    # crosses the whole dead band into the other flank
+    (0.0, 1.0),         # in the dead band throughout
+])
+def test_kernel_step_mean_is_the_mean_of_the_gear_law(d0, dd):
+    # the kernel's explicit step mean (gear_mean: contact entry and lift-off located inside
+    # the step) against the point law gear_torque averaged along the same straight path by
+    # a fine midpoint rule: a wrong crossing time or lift-off point shows here
+    h = 1e-4
+    t = (np.arange(20_000) + 0.5) * (h / 20_000)
+    law = np.mean([gear_torque(d0 + dd * ti, dd, BLK, KS, CS) for ti in t[::10]])
+    fine = np.mean([gear_torque(d0 + dd * ti, dd, BLK, KS, CS) for ti in t])
+    # the midpoint rule's error at a kink falls as 1/N: 10x the points, a tenth of it
+    assert law == pytest.approx(fine, rel=2e-3, abs=1e-6)
+    assert gear_mean(d0, dd, BLK / 2, KS, CS, h) == pytest.approx(fine, rel=2e-4, abs=1e-6)
 
 
 FST, FDYN, J, W_STICK = 0.5, 0.25, 5e-5, 1e-3

@@ -99,7 +99,9 @@ def gear_torque(delta, d_delta, blk, k_s, c_s):
     """Torque transmitted by the reducer at the surface side, N m (a point evaluation).
 
     ``delta = tau * th_m - th_u`` (rad), ``d_delta`` its rate (rad/s); no torque while
-    ``|delta| <= blk / 2``; the contact pushes but never pulls."""
+    ``|delta| <= blk / 2``; the contact pushes but never pulls.  The reducer's law as a
+    reader checks it: the kernels integrate it over each step (:func:`gear_mean`, the
+    contact solves), and ``tests/test_physics.py`` holds the step mean to this law's mean."""
     half = 0.5 * blk
     if delta > half:
         t = k_s * (delta - half) + c_s * d_delta
