@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..faults import N_FAULTS
+from .targets import FITNESS_PRECISIONS
 
 
 @dataclass(frozen=True, eq=False)
@@ -107,9 +108,19 @@ class Instance:
         return self.suite.judged(self, track)
 
     def frame(self, track: str) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-        """Truth, ranges and judged mask (None: all) of the parameters the parameter targets
-        and the success rule judge on ``track``."""
-        return self.truth, self.ranges, self.judged(track)
+        """Truth, target scales and judged mask (None: all) of the parameters the parameter
+        targets and the success rule judge on ``track``: level ``L`` holds where every
+        judged parameter lies within ``L x scale`` of the truth.  The scales are the ranges,
+        or in a suite with noise-allowed targets (:attr:`Suite.target_scales`) the scale it
+        gives."""
+        scale = None if self.suite.target_scales is None else \
+            self.suite.target_scales(self, track)
+        return self.truth, self.ranges if scale is None else scale, self.judged(track)
+
+    @property
+    def fitness_precisions(self) -> tuple[float, ...]:
+        """The precisions ``p`` of the fitness targets ``f* + p (f_nominal - f*)``."""
+        return self.suite.fitness_precisions
 
     def ioh_instance(self, seed: int) -> int:
         """The IOH instance id of run ``seed`` on this instance (ValueError beyond the ids
@@ -147,6 +158,12 @@ class Suite:
     clean_fits : bool
         Its best-known entries carry a clean-data fit, from which the reference track's
         judged parameters are chosen (``ema-bench targets`` computes it).
+    target_scales : callable or None
+        ``(instance, track) -> scales or None``: each searched parameter's target scale
+        (physical units; level ``L`` of the parameter ladder is ``L x scale``); None: the
+        ranges (emafdi-v3: the noise-allowed tolerances).
+    fitness_precisions : tuple of float
+        The fitness ladder's precisions (default :data:`~.targets.FITNESS_PRECISIONS`).
     """
 
     id: str
@@ -159,3 +176,5 @@ class Suite:
     case_order: Callable[[], Sequence[str]]
     grouped: bool = False
     clean_fits: bool = False
+    target_scales: Callable[[Instance, str], np.ndarray | None] | None = None
+    fitness_precisions: tuple[float, ...] = FITNESS_PRECISIONS
