@@ -148,7 +148,7 @@ def run_record(problem: Problem, result: SolveResult, *, case: str, track: str, 
     rec["best_at"] = [[b, float(best[b - 1])] for b in BUDGET_CHECKPOINTS if b <= best.size]
     if problem.has_truth:
         score = problem.score(result.x)
-        hits = problem.parameter_hits(PARAMETER_TARGETS, judged=judged)
+        hits = problem.parameter_hits(PARAMETER_TARGETS, judged=judged, scales=ranges)
         ok = (np.abs(result.x[:every.size] - every) / ranges <= SUCCESS_RANGE_ERROR
               if ranges is not None else None)
         success = score.success if ok is None else bool(
@@ -156,7 +156,8 @@ def run_record(problem: Problem, result: SolveResult, *, case: str, track: str, 
         rec.update(x=score.x, truth=score.truth, fitness_at_truth=problem.fitness_at_truth(),
                    success=success,
                    evals_to_success=problem.parameter_hits(
-                       (SUCCESS_RANGE_ERROR,), judged=judged)[0] if success else None,
+                       (SUCCESS_RANGE_ERROR,), judged=judged, scales=ranges)[0]
+                   if success else None,
                    accuracy=score.accuracy, range_error=score.range_error,
                    targets=anytime_targets(best, hits, known,
                                            FITNESS_PRECISIONS if inst is None

@@ -22,6 +22,7 @@ from ..sweep.schema import check, opt, req
 from ..trace_cache import MODEL_VERSION
 from .anytime import anytime_scores
 from .figures import (
+    ECDF_KINDS,
     convergence_plot,
     ecdf_plot,
     ecdf_tiers_plot,
@@ -145,12 +146,15 @@ def write_outputs(records: list[dict], out: Path, command: str, plots: bool = Tr
         images.append(out / name)
         plot(*data, images[-1])
 
-    grouped = board_suite(records).grouped
+    suite = board_suite(records)
+    grouped = suite.grouped
     if plots and grouped:
         # a grouped suite (emafdi-v2): tiers have their own budgets; one ECDF per tier and
-        # condition instead
+        # condition instead (emafdi-v3: fitness and parameter targets apart as well)
         for track in dict.fromkeys(r["track"] for r in records):
-            draw(f"ecdf_tiers_{track}.png", ecdf_tiers_plot, records, track)
+            for kinds in ("fp", "f", "p") if suite.split_ecdf else ("fp",):
+                draw(f"ecdf_tiers_{track}{ECDF_KINDS[kinds][0]}.png", ecdf_tiers_plot,
+                     records, track, kinds)
         draw("ert_scaling.png", ert_scaling_plot, records, scaling_points(group_scores(records)))
     elif plots:
         draw("ecdf.png", ecdf_plot, records)

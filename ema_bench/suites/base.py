@@ -164,6 +164,9 @@ class Suite:
         ranges (emafdi-v3: the noise-allowed tolerances).
     fitness_precisions : tuple of float
         The fitness ladder's precisions (default :data:`~.targets.FITNESS_PRECISIONS`).
+    split_ecdf : bool
+        Its board also draws the ECDFs of fitness and of parameter targets apart (a dense
+        fitness ladder would otherwise outweigh the three parameter targets).
     """
 
     id: str
@@ -178,3 +181,4 @@ class Suite:
     clean_fits: bool = False
     target_scales: Callable[[Instance, str], np.ndarray | None] | None = None
     fitness_precisions: tuple[float, ...] = FITNESS_PRECISIONS
+    split_ecdf: bool = False

@@ -199,4 +199,5 @@ SUITE = Suite(id=SUITE_ID, lookup=_lookup, best_known=v2.SUITE.best_known,
               judged=v2.SUITE.judged, ioh_instance=v2.SUITE.ioh_instance,
               ioh_functions=v2.SUITE.ioh_functions, complete_cases=_complete_cases,
               case_order=lambda: cases(list(v2.TIERS), list(v2.CONDITIONS)), grouped=True,
-              clean_fits=True, target_scales=scales, fitness_precisions=FITNESS_PRECISIONS)
+              clean_fits=True, target_scales=scales, fitness_precisions=FITNESS_PRECISIONS,
+              split_ecdf=True)
