@@ -70,9 +70,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="comma-separated instances or groups: all (the suite, default), "
                         "paper (nominal,small,full,random), lhs (s00..s19), quick (paper "
                         "and s00..s03, the --quick default)")
-    p.add_argument("--suite", choices=("emafdi-v1", "emafdi-v2"), default="emafdi-v1",
-                   help="emafdi-v1 (default: the four faults, --cases) or emafdi-v2 (tiers "
-                        "x conditions, docs/suite-v2.md)")
+    p.add_argument("--suite", choices=("emafdi-v1", "emafdi-v2", "emafdi-v3"),
+                   default="emafdi-v1",
+                   help="emafdi-v1 (default: the four faults, --cases), emafdi-v2 (tiers "
+                        "x conditions, docs/suite-v2.md) or emafdi-v3 (v2's problems on "
+                        "the targets the noise allows, docs/suite-v3.md)")
     p.add_argument("--tiers", type=option_list, default=None,
                    help="emafdi-v2: comma-separated tiers (default 4,7,12)")
     p.add_argument("--conditions", type=option_list, default=None,
@@ -144,7 +146,7 @@ def run(args: argparse.Namespace) -> int:
         args.check = str(require_baseline(folder))
     preset = QUICK if args.quick else DEFAULT
     seeds = args.seeds if args.seeds is not None else preset["seeds"]
-    if args.suite == "emafdi-v2":
+    if args.suite in ("emafdi-v2", "emafdi-v3"):
         cases, budget = _v2_sweep(args)
     else:
         if args.tiers or args.conditions or args.per_tier or args.budget_per_dim:
@@ -210,17 +212,18 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _v2_sweep(args: argparse.Namespace):
-    """Cases and per-case budget of an emafdi-v2 sweep (budget: per-dimension x the tier's
-    dimension, or one fixed --budget)."""
-    from ..suites import instance, v2
+    """Cases and per-case budget of an emafdi-v2 or -v3 sweep (v3: v2's cases under v3 keys;
+    budget: per-dimension x the tier's dimension, or one fixed --budget)."""
+    from ..suites import instance, v2, v3
     from . import CLIError
 
     if args.cases:
-        raise CLIError("--suite emafdi-v2 picks its instances with --tiers, --conditions and "
-                       "--per-tier, not --cases")
+        raise CLIError(f"--suite {args.suite} picks its instances with --tiers, --conditions "
+                       "and --per-tier, not --cases")
     # SuiteError, or a tier that is not a number: a ValueError, one line by main()
     tiers = [int(t) for t in (args.tiers or v2.TIERS)]
-    cases = v2.cases(tiers, args.conditions or list(v2.CONDITIONS), args.per_tier)
+    of_suite = v3.cases if args.suite == "emafdi-v3" else v2.cases
+    cases = of_suite(tiers, args.conditions or list(v2.CONDITIONS), args.per_tier)
     if args.budget is not None:
         return cases, args.budget
     per_dim = args.budget_per_dim or v2.BUDGET_PER_DIM
