@@ -17,7 +17,7 @@ from ema_bench.objective import PENALTY
 
 # the zoo this project ships (paper-ga comes from another module of the same package)
 ZOO = ("random", "cmaes", "de", "ngopt", "ng-de", "ng-pso", "least-squares", "nelder-mead",
-       "lbfgsb", "powell")
+       "lbfgsb", "powell", "bipop-cmaes", "ms-least-squares")
 SOLVERS = sorted(name for name, info in available_solvers().items()
                  if info.func.__module__.split(".")[0] == "ema_bench_solvers")
 
@@ -124,3 +124,16 @@ def test_cmaes_identifies_twin_cases(case):
     assert res.evaluations <= 5000
     score = problem.score(res.x)
     assert score.success, score.range_error
+
+
+@pytest.mark.parametrize("name,budget", [("bipop-cmaes", 3000), ("ms-least-squares", 1500)])
+def test_restart_baselines_identify_the_small_twin_case(name, budget):
+    """The restart baselines a competent user would run solve the easy case: every fault
+    within 1 % of its range at a fraction of tier 4's budget; BIPOP restarts at least once
+    and the multi-start splits the budget between several starts."""
+    problem = twin(budget, "small")
+    res = run_solver(name, problem, seed=0)
+    assert res.evaluations == budget
+    assert problem.score(res.x).success, problem.score(res.x).range_error
+    if name == "ms-least-squares":
+        assert res.extra["starts"] >= 2

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import json
 import shlex
 import sys
@@ -153,8 +154,8 @@ def write_outputs(records: list[dict], out: Path, command: str, plots: bool = Tr
         # condition instead (emafdi-v3: fitness and parameter targets apart as well)
         for track in dict.fromkeys(r["track"] for r in records):
             for kinds in ("fp", "f", "p") if suite.split_ecdf else ("fp",):
-                draw(f"ecdf_tiers_{track}{ECDF_KINDS[kinds][0]}.png", ecdf_tiers_plot,
-                     records, track, kinds)
+                draw(f"ecdf_tiers_{track}{ECDF_KINDS[kinds][0]}.png",
+                     functools.partial(ecdf_tiers_plot, kinds=kinds), records, track)
         draw("ert_scaling.png", ert_scaling_plot, records, scaling_points(group_scores(records)))
     elif plots:
         draw("ecdf.png", ecdf_plot, records)
