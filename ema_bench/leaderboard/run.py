@@ -21,6 +21,7 @@ from ..sweep.executors import Runner
 from ..sweep.loop import run_sweep
 from ..sweep.schema import check, opt, req
 from ..trace_cache import MODEL_VERSION
+from . import by_instance
 from .anytime import anytime_scores
 from .figures import (
     ECDF_KINDS,
@@ -98,7 +99,7 @@ SUMMARY_SCHEMA = {"command": req("str"), "runs": req("int"), "suite": req("str")
                   "model_version": req("str"), "errors": req("list"), "targets": opt("str"),
                   "files": req("list"), "anytime": req("list"), "scores": req("list"),
                   "figure5_valley_rise": opt("dict"), "global_vs_local": opt("list"),
-                  "saturation": opt("dict")}
+                  "saturation": opt("dict"), "claims_by_instance": opt("list")}
 
 
 def _has_f_star(record: dict) -> bool:
@@ -177,6 +178,9 @@ def write_outputs(records: list[dict], out: Path, command: str, plots: bool = Tr
         summary["global_vs_local"] = [asdict(r) for r in global_vs_local(records)]
         summary["saturation"] = {t: saturation_lines(records, grouped, t)
                                  for t in dict.fromkeys(r["track"] for r in records)}
+        summary["claims_by_instance"] = [{**asdict(c), "fragile": c.fragile,
+                                          "verdict": c.verdict}
+                                         for c in by_instance.claims(records)]
     written += images
     written.append(write_page(records, out / "leaderboard.html", header, images))
     summary["files"] = [str(p) for p in written]
