@@ -78,7 +78,7 @@ def test_claims_on_a_board_whose_answers_are_known(areas_from_records):
     assert (first.a, first.b) == (("top",), ("second",))
     assert first.diff[0] == pytest.approx(0.2, abs=1e-3) and first.diff[1] <= 0
     assert first.fragile and "interval over instances" in first.verdict
-    gl = by[("twin", "global vs local (no-prior)")]
+    gl = by[("twin", "global vs local, no-prior")]
     assert gl.a == ("top", "second", "sixth") and gl.without == "top"
     # by construction: global (0.3 + 0.1 + 0.02) / 3 - local (0.05 + 0.04 + 0.03) / 3
     assert gl.diff[0] == pytest.approx(0.1, abs=1e-3) and gl.diff[1] > 0

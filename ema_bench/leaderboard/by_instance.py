@@ -174,7 +174,7 @@ def claims(records: list[dict], rank: int = FIFTH, condition: str = "no-prior",
         loc = tuple(s for s in _ranked(nop) if scopes.get(s) == "local")
         if not glob or not loc:
             continue
-        what = f"global vs local ({condition})"
+        what = f"global vs local, {condition}"
         n, d = _diff(track, tier, what, nop, glob, loc)
         top = glob[0] if d[0] >= 0 else loc[0]      # the leading group's best solver
         wa = tuple(s for s in glob if s != top)
@@ -203,7 +203,7 @@ def claim_rows(cs: list[Claim], track: str) -> list[dict[str, object]]:
     """The report's table of ``track``'s claims: text cells (solver names, escaped by the
     table writer) and ``(text, value)`` number cells."""
     def side(s: Sequence[str]) -> str:
-        return ", ".join(s) if len(s) <= 3 else f"{len(s)} solvers ({s[0]} first)"
+        return ", ".join(s) if len(s) <= 3 else f"{s[0]} + {len(s) - 1} more"
     return [{"tier": c.tier, "claim": c.claim, "a": side(c.a), "b": side(c.b),
              "instances": c.instances,
              "area a - b [95 % CI over instances]": (_ci(c.diff), c.diff[0]),
