@@ -8,7 +8,7 @@ it reads from v2's tables (model version 3).  A v3 case key is v2's with :data:`
 
 - **parameter targets the noise allows.**  In v2 a parameter target is the best-so-far point
   within ``L`` of every judged range; on tier 12 the exact best fit of the noisy data lies
-  outside 1 % of range on some parameter on up to 41 % of the noise draws, so a perfect
+  outside 1 % of range on some parameter on up to half of the noise draws, so a perfect
   optimiser misses the target.  In v3 each judged parameter ``i`` of a case has the target
   scale ``s_i = max(range_i, z sigma_i / FLOOR)`` (:func:`scales`): at the 1 % level the
   tolerance is ``max(1 % of range, z sigma_i)``, and every level of the ladder scales with it.
