@@ -413,17 +413,19 @@ class Problem(_Counted):
         far), not at any evaluated point (scorer-only, like :meth:`score`)."""
         return self.parameter_hits((SUCCESS_RANGE_ERROR,))[0]
 
-    def parameter_hits(self, levels: Sequence[float],
-                       judged: np.ndarray | None = None) -> list[int | None]:
+    def parameter_hits(self, levels: Sequence[float], judged: np.ndarray | None = None,
+                       scales: np.ndarray | None = None) -> list[int | None]:
         """Per level, the evaluation (1-based) from which the best-so-far point first lies
         within ``level`` of every judged parameter's range of the truth, or None
         (scorer-only).  The truth holds the faults, or every searched parameter (suite
-        ``emafdi-v2``); ``judged`` masks the parameters without a parameter target."""
+        ``emafdi-v2``); ``judged`` masks the parameters without a parameter target;
+        ``scales`` replaces the ranges (a suite's target scales, ``Instance.frame``)."""
         if self.__truth is None:
             raise ProblemError("the true faults of measured data are unknown")
         n = self._log.count
         return parameter_hits(self._log.X[:n], self._log.f[:n], self.__truth, levels,
-                              ranges=self.space.upper - self.space.lower, judged=judged)
+                              ranges=self.space.upper - self.space.lower
+                              if scales is None else scales, judged=judged)
 
     def truth_size(self) -> int:
         """How many values the hidden truth has: 4 (the faults) or ``dim`` (scorer-only)."""

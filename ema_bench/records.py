@@ -26,6 +26,7 @@ no vectors but the final one.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -136,7 +137,8 @@ def run_record(problem: Problem, result: SolveResult, *, case: str, track: str, 
                                   None, None))
     keep = trajectory_indices(hist["x"], hist["fitness"], every,
                               [] if known is None else
-                              fitness_targets(known["f_star"], known["f_nominal"]), ranges,
+                              fitness_targets(known["f_star"], known["f_nominal"],
+                                              inst.fitness_precisions), ranges,
                               judged)
     rec["trajectory"] = trajectory(hist["x"], hist["fitness"], keep)
     # the trace is the trajectory without vectors, and the last evaluation
@@ -146,7 +148,7 @@ def run_record(problem: Problem, result: SolveResult, *, case: str, track: str, 
     rec["best_at"] = [[b, float(best[b - 1])] for b in BUDGET_CHECKPOINTS if b <= best.size]
     if problem.has_truth:
         score = problem.score(result.x)
-        hits = problem.parameter_hits(PARAMETER_TARGETS, judged=judged)
+        hits = problem.parameter_hits(PARAMETER_TARGETS, judged=judged, scales=ranges)
         ok = (np.abs(result.x[:every.size] - every) / ranges <= SUCCESS_RANGE_ERROR
               if ranges is not None else None)
         success = score.success if ok is None else bool(
@@ -154,23 +156,27 @@ def run_record(problem: Problem, result: SolveResult, *, case: str, track: str, 
         rec.update(x=score.x, truth=score.truth, fitness_at_truth=problem.fitness_at_truth(),
                    success=success,
                    evals_to_success=problem.parameter_hits(
-                       (SUCCESS_RANGE_ERROR,), judged=judged)[0] if success else None,
+                       (SUCCESS_RANGE_ERROR,), judged=judged, scales=ranges)[0]
+                   if success else None,
                    accuracy=score.accuracy, range_error=score.range_error,
-                   targets=anytime_targets(best, hits, known))
+                   targets=anytime_targets(best, hits, known,
+                                           FITNESS_PRECISIONS if inst is None
+                                           else inst.fitness_precisions))
     return rec
 
 
 def anytime_targets(best: np.ndarray, parameter_hits: list[int | None],
-                    known: dict | None) -> dict[str, Any]:
+                    known: dict | None,
+                    precisions: Sequence[float] = FITNESS_PRECISIONS) -> dict[str, Any]:
     """The ``targets`` field: per target level, the evaluation at which it was first
     reached (None: not reached).  ``fitness`` is None where the suite has no best-known
-    ``f*`` for the instance."""
+    ``f*`` for the instance; ``precisions``: the suite's fitness ladder."""
     out: dict[str, Any] = {"parameters": {precision_key(p): h for p, h in
                                           zip(PARAMETER_TARGETS, parameter_hits)},
                            "fitness": None}
     if known is not None:
-        levels = fitness_targets(known["f_star"], known["f_nominal"])
-        out["fitness"] = dict(zip(map(precision_key, FITNESS_PRECISIONS),
+        levels = fitness_targets(known["f_star"], known["f_nominal"], precisions)
+        out["fitness"] = dict(zip(map(precision_key, precisions),
                                   first_hits(best, levels)))
         out["f_star"], out["f_nominal"] = known["f_star"], known["f_nominal"]
     return out

@@ -11,6 +11,15 @@ evaluation), so a warm start is never lost.
 Budget: pycma would overshoot ``maxfevals`` by up to a population, so the last generation is
 truncated to what the problem has left (the first ``k`` candidates are evaluated, then the
 search stops without a partial ``tell``).
+
+``bipop-cmaes``: pycma's own BIPOP-CMA-ES (``cma.fmin2(..., restarts=9, bipop=True)``, Hansen
+2009): after the first run (pycma's default population, from the problem's start) it
+alternates IPOP's doubling populations with runs of small populations and a random initial
+step ``sigma0 x 0.01^U`` while their summed evaluations stay below the large runs'; every
+restart starts from a uniform random point of the box (``x0`` a callable, as pycma
+recommends) and pycma increments its seed per restart.  A generation is one batched call
+(``parallel_objective``); the generation that would pass the budget is truncated as above
+and the search unwinds out of pycma.
 """
 
 from __future__ import annotations
@@ -22,6 +31,7 @@ import numpy as np
 from ema_bench.registry import SolveResult, finish, register_solver
 
 from ._common import (
+    StopSolver,
     children,
     evaluate_unit,
     global_numpy_rng,
@@ -75,3 +85,46 @@ def solve(problem, budget: int, seed: np.random.SeedSequence) -> SolveResult:
             stop_reason = "restarts"
     return finish(problem, "cmaes", stop_reason, t0, libraries=("cma",),
                   restarts=max(len(stops) - 1, 0), run_stops=stops, sigma0=SIGMA0)
+
+
+#: pycma's IPOP restarts of the large populations (small-population runs come on top).
+BIPOP_RESTARTS = 9
+
+
+@register_solver("bipop-cmaes", description="BIPOP-CMA-ES (pycma fmin2, bipop=True), sigma0 "
+                 "0.3, restarts from random points", library="cma", scope="global")
+def solve_bipop(problem, budget: int, seed: np.random.SeedSequence) -> SolveResult:
+    cma = import_cma()
+
+    t0 = time.perf_counter()
+    s_x0, s_cma = children(seed, 2)
+    rng = np.random.default_rng(s_x0)
+    first = [start_unit(problem, seed)]
+
+    def x0() -> np.ndarray:
+        """The problem's start first, then uniform points of the box (one per restart)."""
+        return first.pop() if first else rng.random(problem.dim)
+
+    def batch(X: list) -> list[float]:
+        k = min(len(X), problem.remaining)
+        f = evaluate_unit(problem, np.asarray(X[:k])) if k else np.empty(0)
+        if k < len(X):
+            raise StopSolver   # budget spent mid-generation: unwind out of pycma
+        return f.tolist()
+
+    evaluate_unit(problem, first[0][None, :])   # pycma never scores x0 itself
+    opts = {"bounds": [0.0, 1.0], "seed": int_seed(s_cma), "maxfevals": problem.remaining,
+            "verbose": -9, "verb_log": 0, "verb_disp": 0}
+    stop_reason, runs = "budget", 0
+    with global_numpy_rng(), quiet(UserWarning, RuntimeWarning):
+        try:
+            _, es = cma.fmin2(None, x0, SIGMA0, opts, parallel_objective=batch,
+                              restarts={"maxrestarts": BIPOP_RESTARTS,
+                                        "maxfevals": problem.remaining},
+                              bipop=True, eval_initial_x=False)
+            runs = len(es.all_stoppings) - 1
+            stop_reason = "budget" if problem.remaining == 0 else "restarts"
+        except StopSolver:
+            pass
+    return finish(problem, "bipop-cmaes", stop_reason, t0, libraries=("cma",),
+                  runs=runs, sigma0=SIGMA0)

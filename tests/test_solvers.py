@@ -17,7 +17,7 @@ from ema_bench.objective import PENALTY
 
 # the zoo this project ships (paper-ga comes from another module of the same package)
 ZOO = ("random", "cmaes", "de", "ngopt", "ng-de", "ng-pso", "least-squares", "nelder-mead",
-       "lbfgsb", "powell")
+       "lbfgsb", "powell", "bipop-cmaes", "ms-least-squares")
 SOLVERS = sorted(name for name, info in available_solvers().items()
                  if info.func.__module__.split(".")[0] == "ema_bench_solvers")
 
@@ -172,3 +172,16 @@ def test_solvers_run_with_blas_on_one_thread():
     run_solver("test-blas-threads", twin(1))
     assert seen and set(seen) == {1}
     assert [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"] == before
+
+
+@pytest.mark.parametrize("name,budget", [("bipop-cmaes", 3000), ("ms-least-squares", 1500)])
+def test_restart_baselines_identify_the_small_twin_case(name, budget):
+    """The restart baselines a competent user would run solve the easy case: every fault
+    within 1 % of its range at a fraction of tier 4's budget; BIPOP restarts at least once
+    and the multi-start splits the budget between several starts."""
+    problem = twin(budget, "small")
+    res = run_solver(name, problem, seed=0)
+    assert res.evaluations == budget
+    assert problem.score(res.x).success, problem.score(res.x).range_error
+    if name == "ms-least-squares":
+        assert res.extra["starts"] >= 2

@@ -73,8 +73,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "paper (nominal,small,full,random), lhs (s00..s19), quick (paper "
                         "and s00..s03, the --quick default)")
     p.add_argument("--suite", choices=tuple(SUITES), default=DEFAULT_SUITE.id,
-                   help="emafdi-v1 (default: the four faults, --cases) or emafdi-v2 (tiers "
-                        "x conditions, docs/suite-v2.md)")
+                   help="emafdi-v1 (default: the four faults, --cases), emafdi-v2 (tiers "
+                        "x conditions, docs/suite-v2.md) or emafdi-v3 (v2's problems on "
+                        "the targets the noise allows, docs/suite-v3.md)")
     p.add_argument("--tiers", type=option_list, default=None,
                    help="emafdi-v2: comma-separated tiers (default 4,7,12)")
     p.add_argument("--conditions", type=option_list, default=None,
@@ -151,7 +152,7 @@ def run(args: argparse.Namespace) -> int:
     suite = SUITES[args.suite]
     cases = suite.sweep_cases(Selection(args.cases, args.tiers, args.conditions,
                                         args.per_tier, args.quick))
-    budget = suite.sweep_budget(args.budget, args.budget_per_dim, args.quick)
+    budget = suite.sweep_budget(cases, args.budget, args.budget_per_dim, args.quick)
     # --seeds, --budget and --budget-per-dim are >= 1 by their argparse types
     if args.out is None and args.check is None:
         # no default: a sweep written into the committed leaderboards/ by accident would

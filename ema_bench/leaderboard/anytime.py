@@ -255,11 +255,12 @@ def sanity_scores(records: list[dict]) -> list[SanityScore]:
     return out
 
 
-def ecdf_curve(records: list[dict], grid: np.ndarray) -> np.ndarray:
+def ecdf_curve(records: list[dict], grid: np.ndarray, kinds: str = "fp") -> np.ndarray:
     """Fraction of (run, target) pairs reached by each evaluation count of ``grid`` (the
-    runs' non-sanity targets)."""
+    runs' non-sanity targets of ``kinds``: ``f`` fitness, ``p`` parameter)."""
     hit_times = [v if v is not None else math.inf for r in records
-                 if r["case"] not in SANITY_CASES for v in hits(r).values()]
+                 if r["case"] not in SANITY_CASES for k, v in hits(r).items()
+                 if k[0] in kinds]
     if not hit_times:
         return np.full(grid.shape, math.nan)
     t = np.sort(np.asarray(hit_times, float))

@@ -173,9 +173,10 @@ def derive(record: dict) -> Derived:
         known_final = full_imp[-1] <= cut
     f_hits = None
     if known is not None:
-        levels = fitness_targets(known["f_star"], known["f_nominal"])
+        ladder = FITNESS_PRECISIONS if inst is None else inst.fitness_precisions
+        levels = fitness_targets(known["f_star"], known["f_nominal"], ladder)
         f_hits = {precision_key(p): _first([f <= lv for f in fit], ev)
-                  for p, lv in zip(FITNESS_PRECISIONS, levels)}
+                  for p, lv in zip(ladder, levels)}
     if vecs is not None:
         worst = [float(np.max((np.abs(v[:every.size] - every) / ranges)[judged]))
                  for v in vecs]

@@ -87,26 +87,32 @@ def ecdf_plot(records: list[dict], path: Path) -> None:
     save_figure(fig, path)
 
 
-def _ecdf_panel(ax, records: list[dict], grid: np.ndarray, style: dict, per: float = 1.0
-                ) -> None:
-    """One ECDF panel: per solver, the fraction of its (run, target) pairs reached by each
-    evaluation count of ``grid`` (:func:`.anytime.ecdf_curve`), drawn against ``grid / per``
-    on a log axis."""
+def _ecdf_panel(ax, records: list[dict], grid: np.ndarray, style: dict, per: float = 1.0,
+                kinds: str = "fp") -> None:
+    """One ECDF panel: per solver, the fraction of its (run, target) pairs of ``kinds``
+    reached by each evaluation count of ``grid`` (:func:`.anytime.ecdf_curve`), drawn against
+    ``grid / per`` on a log axis."""
     groups = defaultdict(list)
     for r in records:
         groups[r["solver"]].append(r)
     for solver, rs in sorted(groups.items()):
-        ax.step(grid / per, ecdf_curve(rs, grid), where="post", label=solver, lw=1.3,
+        ax.step(grid / per, ecdf_curve(rs, grid, kinds), where="post", label=solver, lw=1.3,
                 **style[solver])
     ax.set_xscale("log")
     ax.set_ylim(0, 1.02)
     ax.grid(alpha=0.3, which="both")
 
 
-def ecdf_tiers_plot(records: list[dict], track: str, path: Path) -> None:
-    """emafdi-v2: the ECDF of (run, target) pairs reached per solver, one panel per tier
-    (rows) and condition (columns) of ``track``, against evaluations / dimension (COCO's
-    runtime distributions: panels of different tiers share an axis)."""
+#: The targets an ECDF figure counts: its file-name suffix and its title's words.
+ECDF_KINDS = {"fp": ("", "targets"), "f": ("_fitness", "fitness targets"),
+              "p": ("_parameters", "parameter targets")}
+
+
+def ecdf_tiers_plot(records: list[dict], track: str, path: Path, kinds: str = "fp") -> None:
+    """emafdi-v2 and -v3: the ECDF of (run, target) pairs reached per solver, one panel per
+    tier (rows) and condition (columns) of ``track``, against evaluations / dimension
+    (COCO's runtime distributions: panels of different tiers share an axis); ``kinds``: the
+    targets counted (:data:`ECDF_KINDS`)."""
     g = {(t, c): rs for (tr, t, c), rs in groups(records).items() if tr == track}
     tiers = sorted({t for t, _ in g})
     conds = list(dict.fromkeys(c for _, c in g))
@@ -124,12 +130,12 @@ def ecdf_tiers_plot(records: list[dict], track: str, path: Path) -> None:
                 continue
             budget = max(r["budget"] for r in rs)
             grid = np.unique(np.geomspace(1, budget, 200).astype(int))
-            _ecdf_panel(ax, rs, grid, style, per=t)
+            _ecdf_panel(ax, rs, grid, style, per=t, kinds=kinds)
             ax.set_title(f"tier {t}, {c} ({track}, {len(rs)} runs)", fontsize=9)
             if i == len(tiers) - 1:
                 ax.set_xlabel("evaluations / dimension")
             if j == 0:
-                ax.set_ylabel("fraction of targets reached")
+                ax.set_ylabel(f"fraction of {ECDF_KINDS[kinds][1]} reached")
     save_figure(fig, path, dpi=100, rect=(0, 0, 1, _shared_legend(fig, axes)))
 
 

@@ -15,7 +15,7 @@ import numpy as np
 from ..escape import csv_value, markdown
 from ..faults import CASES, FAULT_NAMES, FAULT_UNITS
 from ..suites import board_suite, case_order, find
-from . import scaling
+from . import by_instance, scaling
 from .anytime import (
     FITNESS_TARGETS,
     AnytimeScore,
@@ -219,9 +219,19 @@ def v2_markdown(records: list[dict], grouped: list[AnytimeScore], track: str) ->
     and condition."""
     gl = scaling.global_vs_local(records)
     prior = scaling.global_vs_local(records, "prior")
+    cs = by_instance.claims(records)
     md = ["## Saturation check", "",
           *(f"- {line}" for line in scaling.saturation_lines(records, grouped, track,
                                                                name=markdown)), "",
+          "## Claims by instance", "", by_instance.fragile_line(cs, track, markdown), "",
+          "Each claim re-asked over the board's instances: per instance the mean over its "
+          "(condition, seed) runs of the paired difference in ECDF area (side a - side b), "
+          "the mean over instances, 95 % interval from a two-level bootstrap (instances, "
+          "then each instance's runs, with replacement); best vs fifth and first vs second "
+          "rank the solvers by mean area over the tier's conditions pooled; global vs local "
+          "is without a prior. Left out: the claim asked again without the top solver of "
+          "its leading side. Fragile: either interval reaches 0.", "",
+          *markdown_table(by_instance.claim_rows(cs, track)), "",
           "## Global vs local search without a prior", "", scaling.answer(gl, track), "",
           "Groups: the scope each solver declares where it is registered (`ema-bench "
           "solvers`); in neither group: "

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import json
 import shlex
 import sys
@@ -20,8 +21,10 @@ from ..sweep.executors import Runner
 from ..sweep.loop import run_sweep
 from ..sweep.schema import check, opt, req
 from ..trace_cache import MODEL_VERSION
+from . import by_instance
 from .anytime import anytime_scores
 from .figures import (
+    ECDF_KINDS,
     convergence_plot,
     ecdf_plot,
     ecdf_tiers_plot,
@@ -96,7 +99,7 @@ SUMMARY_SCHEMA = {"command": req("str"), "runs": req("int"), "suite": req("str")
                   "model_version": req("str"), "errors": req("list"), "targets": opt("str"),
                   "files": req("list"), "anytime": req("list"), "scores": req("list"),
                   "figure5_valley_rise": opt("dict"), "global_vs_local": opt("list"),
-                  "saturation": opt("dict")}
+                  "saturation": opt("dict"), "claims_by_instance": opt("list")}
 
 
 def _has_f_star(record: dict) -> bool:
@@ -145,12 +148,15 @@ def write_outputs(records: list[dict], out: Path, command: str, plots: bool = Tr
         images.append(out / name)
         plot(*data, images[-1])
 
-    grouped = board_suite(records).grouped
+    suite = board_suite(records)
+    grouped = suite.grouped
     if plots and grouped:
         # a grouped suite (emafdi-v2): tiers have their own budgets; one ECDF per tier and
-        # condition instead
+        # condition instead (emafdi-v3: fitness and parameter targets apart as well)
         for track in dict.fromkeys(r["track"] for r in records):
-            draw(f"ecdf_tiers_{track}.png", ecdf_tiers_plot, records, track)
+            for kinds in ("fp", "f", "p") if suite.split_ecdf else ("fp",):
+                draw(f"ecdf_tiers_{track}{ECDF_KINDS[kinds][0]}.png",
+                     functools.partial(ecdf_tiers_plot, kinds=kinds), records, track)
         draw("ert_scaling.png", ert_scaling_plot, records, scaling_points(group_scores(records)))
     elif plots:
         draw("ecdf.png", ecdf_plot, records)
@@ -172,6 +178,9 @@ def write_outputs(records: list[dict], out: Path, command: str, plots: bool = Tr
         summary["global_vs_local"] = [asdict(r) for r in global_vs_local(records)]
         summary["saturation"] = {t: saturation_lines(records, grouped, t)
                                  for t in dict.fromkeys(r["track"] for r in records)}
+        summary["claims_by_instance"] = [{**asdict(c), "fragile": c.fragile,
+                                          "verdict": c.verdict}
+                                         for c in by_instance.claims(records)]
     written += images
     written.append(write_page(records, out / "leaderboard.html", header, images))
     summary["files"] = [str(p) for p in written]

@@ -1,7 +1,8 @@
 """The benchmark's suite versions and the one registry of their cases.
 
 Every suite version is one module building one :class:`~.base.Suite` value (:mod:`.v1`:
-the paper's four-fault problem, :mod:`.v2`: tiers of dimension and conditions).  A run's
+the paper's four-fault problem, :mod:`.v2`: tiers of dimension and conditions, :mod:`.v3`:
+v2's problems judged on the targets the noise allows).  A run's
 case key (``small``, ``t7-s03@no-prior``) is parsed here and nowhere else:
 :func:`instance` returns the :class:`~.base.Instance` that every consumer asks (truth,
 ranges, judged parameters, best-known entry, IOH ids, budget, the problem's settings);
@@ -15,13 +16,13 @@ from __future__ import annotations
 import functools
 from collections.abc import Iterable
 
-from . import v1, v2
+from . import v1, v2, v3
 from .base import Instance, Suite
 from .targets import SuiteError
 
 #: Every suite version, oldest first: the first is the default (a case drawn from the seed,
 #: custom faults).
-SUITES: dict[str, Suite] = {s.id: s for s in (v1.SUITE, v2.SUITE)}
+SUITES: dict[str, Suite] = {s.id: s for s in (v1.SUITE, v2.SUITE, v3.SUITE)}
 DEFAULT = v1.SUITE
 #: Between an instance and its condition in a case key.
 CASE_SEP = "@"
@@ -51,7 +52,7 @@ def instance(case: object) -> Instance:
         raise SuiteError(f"unknown case {case!r}: not an instance of suite "
                          f"{' or '.join(SUITES)} (v1: small, full, random, nominal, s00 .. "
                          f"s{v1.N_SEEDED - 1:02d}; v2: instance{CASE_SEP}condition, e.g. "
-                         f"t7-s03{CASE_SEP}no-prior)")
+                         f"t7-s03{CASE_SEP}no-prior; v3: {v3.PREFIX}t7-s03{CASE_SEP}no-prior)")
     return found
 
 

@@ -17,6 +17,7 @@ from importlib.resources.abc import Traversable
 import numpy as np
 
 from ..faults import N_FAULTS
+from .targets import FITNESS_PRECISIONS
 
 
 @dataclass(frozen=True, eq=False)
@@ -108,9 +109,19 @@ class Instance:
         return self.suite.judged(self, track)
 
     def frame(self, track: str) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-        """Truth, ranges and judged mask (None: all) of the parameters the parameter targets
-        and the success rule judge on ``track``."""
-        return self.truth, self.ranges, self.judged(track)
+        """Truth, target scales and judged mask (None: all) of the parameters the parameter
+        targets and the success rule judge on ``track``: level ``L`` holds where every
+        judged parameter lies within ``L x scale`` of the truth.  The scales are the ranges,
+        or in a suite with noise-allowed targets (:attr:`Suite.target_scales`) the scale it
+        gives."""
+        scale = None if self.suite.target_scales is None else \
+            self.suite.target_scales(self, track)
+        return self.truth, self.ranges if scale is None else scale, self.judged(track)
+
+    @property
+    def fitness_precisions(self) -> tuple[float, ...]:
+        """The precisions ``p`` of the fitness targets ``f* + p (f_nominal - f*)``."""
+        return self.suite.fitness_precisions
 
     def ioh_instance(self, seed: int) -> int:
         """The IOH instance id of run ``seed`` on this instance (ValueError beyond the ids
@@ -133,18 +144,18 @@ class Selection:
 
 
 @dataclass(frozen=True)
-class PerDimBudget:
-    """A budget of ``per_dim`` evaluations per searched dimension (``budget(case)``)."""
+class CaseBudgets:
+    """A sweep's budget that depends on the case: ``budgets(case)`` evaluations, said
+    ``label`` (``1250 x tier``)."""
 
-    per_dim: int
+    budgets: Mapping[str, int]
+    label: str
 
     def __call__(self, case: str) -> int:
-        from . import instance
-
-        return self.per_dim * instance(case).dim
+        return self.budgets[case]
 
     def __str__(self) -> str:
-        return f"{self.per_dim} x tier"
+        return self.label
 
 
 @dataclass(frozen=True)
@@ -175,8 +186,8 @@ class Suite:
     sweep_cases : callable
         ``(Selection) -> case keys`` of a sweep (``ema-bench leaderboard``).
     sweep_budget : callable
-        ``(budget or None, per-dimension budget or None, quick) -> budget``: an int, or a
-        :class:`PerDimBudget` (evaluations per case).
+        ``(cases, budget or None, per-dimension budget or None, quick) -> budget``: an int,
+        or :class:`CaseBudgets` (evaluations per case).
     target_keys : callable
         ``(Selection, seeds or None, tracks or None) -> keys or None`` whose best-known
         entries ``ema-bench targets`` computes (None: every key of the suite's table).
@@ -187,6 +198,15 @@ class Suite:
     clean_fits : bool
         Its best-known entries carry a clean-data fit, from which the reference track's
         judged parameters are chosen (``ema-bench targets`` computes it).
+    target_scales : callable or None
+        ``(instance, track) -> scales or None``: each searched parameter's target scale
+        (physical units; level ``L`` of the parameter ladder is ``L x scale``); None: the
+        ranges (emafdi-v3: the noise-allowed tolerances).
+    fitness_precisions : tuple of float
+        The fitness ladder's precisions (default :data:`~.targets.FITNESS_PRECISIONS`).
+    split_ecdf : bool
+        Its board also draws the ECDFs of fitness and of parameter targets apart (a dense
+        fitness ladder would otherwise outweigh the three parameter targets).
     """
 
     id: str
@@ -198,8 +218,11 @@ class Suite:
     complete_cases: Callable[[Sequence[Instance], int | None], list[str]]
     case_order: Callable[[], Sequence[str]]
     sweep_cases: Callable[[Selection], list[str]]
-    sweep_budget: Callable[[int | None, int | None, bool], int | PerDimBudget]
+    sweep_budget: Callable[[Sequence[str], int | None, int | None, bool], int | CaseBudgets]
     target_keys: Callable[[Selection, int | None, Sequence[str] | None], list[str] | None]
     targets_file: Callable[[], Traversable]
     grouped: bool = False
     clean_fits: bool = False
+    target_scales: Callable[[Instance, str], np.ndarray | None] | None = None
+    fitness_precisions: tuple[float, ...] = FITNESS_PRECISIONS
+    split_ecdf: bool = False

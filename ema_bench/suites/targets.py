@@ -82,13 +82,15 @@ def read_targets(path: Traversable, suite: str, missing_ok: bool = True) -> dict
     return data
 
 
-def fitness_targets(f_star: float, f_nominal: float) -> list[float]:
-    """The ladder ``f* + p (f_nominal - f*)`` for :data:`FITNESS_PRECISIONS`."""
+def fitness_targets(f_star: float, f_nominal: float,
+                    precisions: Sequence[float] = FITNESS_PRECISIONS) -> list[float]:
+    """The ladder ``f* + p (f_nominal - f*)`` for ``precisions`` (default
+    :data:`FITNESS_PRECISIONS`; a suite's own: ``Instance.fitness_precisions``)."""
     gap = f_nominal - f_star
     if not (math.isfinite(gap) and gap > 0):
         raise SuiteError(f"no fitness targets: f_nominal {f_nominal!r} is not above "
                          f"f* {f_star!r}")
-    return [f_star + p * gap for p in FITNESS_PRECISIONS]
+    return [f_star + p * gap for p in precisions]
 
 
 def precision_key(p: float) -> str:

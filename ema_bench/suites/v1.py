@@ -161,7 +161,8 @@ def _sweep_cases(sel: Selection) -> list[str]:
     return expand_cases(sel.cases or ["quick" if sel.quick else "all"])
 
 
-def _sweep_budget(budget: int | None, per_dim: int | None, quick: bool) -> int:
+def _sweep_budget(cases: Sequence[str], budget: int | None, per_dim: int | None,
+                  quick: bool) -> int:
     if per_dim:
         raise SuiteError(f"{SUITE_ID} has one budget for every case: --budget, not "
                          "--budget-per-dim")

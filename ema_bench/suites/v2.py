@@ -36,7 +36,7 @@ from ..faults import FAULT_NAMES, LOWER, UPPER
 from ..seeding import child
 from ..trace_cache import MODEL_VERSION
 from . import v1
-from .base import Instance, PerDimBudget, Selection, Suite
+from .base import CaseBudgets, Instance, Selection, Suite
 from .targets import (
     TARGET_ROOT_SEED,
     SuiteError,
@@ -440,9 +440,14 @@ def _sweep_cases(sel: Selection) -> list[str]:
                  sel.per_tier)
 
 
-def _sweep_budget(budget: int | None, per_dim: int | None, quick: bool) -> int | PerDimBudget:
+def _sweep_budget(keys: Sequence[str], budget: int | None, per_dim: int | None,
+                  quick: bool) -> int | CaseBudgets:
     """One fixed budget, else evaluations per searched dimension (the suite's: tier budgets)."""
-    return budget if budget is not None else PerDimBudget(per_dim or BUDGET_PER_DIM)
+    if budget is not None:
+        return budget
+    per = per_dim or BUDGET_PER_DIM
+    return CaseBudgets({k: per * _lookup(*k.split(CASE_SEP, 1)).dim for k in keys},
+                       f"{per} x tier")
 
 
 def _target_keys(sel: Selection, seeds: int | None,

@@ -1,0 +1,306 @@
+"""Landscape atlas of suite emafdi-v3, per tier: writes docs/landscape-atlas.md and its plots.
+
+A small sample (``--per-tier`` instances of each tier, twin track, noise seed 0, the prior's
+objective), around each instance's best-known fit ``x*`` (the shipped twin entry):
+
+- **conditioning at the truth**: the condition number of the noise-whitened Jacobian
+  (:func:`ema_bench.uncertainty.methods.intervals`' singular values);
+- **jumps near the optimum**: the fitness along lines through ``x*`` (every parameter's axis
+  and ``--directions`` random unit directions of the unit box), ``2 K + 1`` points over
+  +-``--half-width`` of the box; the line's jump is its largest step between neighbours
+  beyond the local slope (:func:`jumps`, in units of ``f*``);
+- **the halved-step experiment**: the same lines with the monitor's step halved (25 us,
+  ``simulate_monitor(dt=...)``): a jump that shrinks with the step is numerical (an event
+  decided at step resolution), one that stays is a property of the problem;
+- **distinct local minima**: local least-squares refits (:func:`ema_bench.uncertainty.local.
+  refit`) from ``--starts`` uniform random points, end points within 2 % of the box merged;
+- **zoom**: each instance's worst line's largest jump resampled 40x closer (:func:`refine`):
+  a discontinuity keeps its size, a steep continuous stretch splits into small steps;
+- **valley width**: per parameter, the smallest offset from ``x*`` (either side, fraction of
+  range) at which the fitness rises above the finest fitness target of v2 (1e-4 of the
+  f*-to-nominal gap) and of v3 (1e-6).
+
+    nice python benchmarks/landscape_atlas.py --per-tier 3 --out docs/landscape-atlas.md
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import time
+from pathlib import Path
+
+import numpy as np
+
+import ema_bench.objective as objective_module
+from ema_bench.monitor import simulate_monitor
+from ema_bench.params import DEFAULT_PARAMS
+from ema_bench.plots import save_figure
+from ema_bench.seeding import child, run_seed
+from ema_bench.suites import instance, v2, v3
+from ema_bench.suites.problem import make_problem
+from ema_bench.uncertainty.local import Counter, refit
+from ema_bench.uncertainty.methods import intervals
+
+SEED = 20261128
+TRACK = "twin"
+
+
+def _problem(case: str):
+    return make_problem(case, track=TRACK, seed=run_seed(0, 0), budget=1)
+
+
+def _f(p, U: np.ndarray) -> np.ndarray:
+    """Fitness of unit-box points (one batched monitor call, not counted)."""
+    space = p.objective.space
+    return p.objective.evaluate(space.from_unit(np.clip(U, 0.0, 1.0)))[0]
+
+
+@functools.cache
+def _half_step():
+    return functools.partial(simulate_monitor, dt=DEFAULT_PARAMS.dt_mon / 2)
+
+
+def _at(step: str):
+    """The objective module's monitor at the standard or the halved step."""
+    objective_module.simulate_monitor = simulate_monitor if step == "full" else _half_step()
+
+
+def lines(p, u_star: np.ndarray, dirs: np.ndarray, half: float, k: int) -> np.ndarray:
+    """Fitness on ``2 k + 1`` points of each direction through ``u_star`` (rows: lines)."""
+    t = np.linspace(-half, half, 2 * k + 1)
+    U = u_star[None, None, :] + t[None, :, None] * dirs[:, None, :]
+    return _f(p, U.reshape(-1, u_star.size)).reshape(len(dirs), t.size)
+
+
+def jumps(F: np.ndarray, f_star: float) -> np.ndarray:
+    """Per line, the largest step between neighbours beyond the local slope (each difference
+    minus the mean of its two neighbours: a smooth fitness leaves ``h^2 f''``, a jump of
+    size ``J`` leaves about ``J``), in units of ``f*``."""
+    d = np.diff(F, axis=1)
+    return np.max(np.abs(d[:, 1:-1] - 0.5 * (d[:, :-2] + d[:, 2:])), axis=1) / f_star
+
+
+def refine(p, u_star: np.ndarray, direction: np.ndarray, F: np.ndarray, half: float,
+           f_star: float, zoom: int = 40) -> tuple[float, float]:
+    """The largest jump of one line looked at ``zoom`` times closer: the line's worst interval
+    (:func:`jumps`) resampled in ``zoom + 1`` points, at the standard and the halved step;
+    the largest step between neighbours there, in units of ``f*``.  A discontinuity keeps its
+    size under the zoom; a steep but continuous stretch splits into ``zoom`` small steps."""
+    t = np.linspace(-half, half, F.size)
+    d = np.diff(F)
+    k = int(np.argmax(np.abs(d[1:-1] - 0.5 * (d[:-2] + d[2:])))) + 1
+    tt = np.linspace(t[k], t[k + 1], zoom + 1)
+    out = []
+    for step in ("full", "half"):
+        _at(step)
+        f = _f(p, u_star[None, :] + tt[:, None] * direction[None, :])
+        out.append(float(np.max(np.abs(np.diff(f))) / f_star))
+    _at("full")
+    return out[0], out[1]
+
+
+def minima(p, u_star: np.ndarray, f_star: float, f_nom: float, starts: int, seed,
+           max_evals: int) -> list[tuple[float, float, int]]:
+    """Distinct end points of local refits from uniform starts: (precision of their
+    fitness, unit-box distance from ``x*``, how many starts ended there)."""
+    rng = np.random.default_rng(seed)
+    ends = []
+    for _ in range(starts):
+        u, f = refit(Counter(p.objective), rng.random(u_star.size), max_evals=max_evals)
+        ends.append((u, f))
+    found: list[list] = []
+    for u, f in sorted(ends, key=lambda e: e[1]):
+        for g in found:
+            if np.max(np.abs(g[0] - u)) < 0.02:
+                g[2] += 1
+                break
+        else:
+            found.append([u, f, 1])
+    return [((f - f_star) / (f_nom - f_star), float(np.max(np.abs(u - u_star))), n)
+            for u, f, n in found]
+
+
+def valley(p, u_star: np.ndarray, f_star: float, gap: float,
+           levels=(1e-4, 1e-6)) -> np.ndarray:
+    """(levels, dim): per parameter the smallest offset (fraction of range, either side) at
+    which the fitness exceeds ``f* + level x gap`` (nan: not within 0.3)."""
+    d = np.geomspace(1e-5, 0.3, 40)
+    n = u_star.size
+    U = np.repeat(u_star[None, :], 2 * n * d.size, axis=0).reshape(2, n, d.size, n)
+    for i in range(n):
+        U[0, i, :, i] += d
+        U[1, i, :, i] -= d
+    F = _f(p, U.reshape(-1, n)).reshape(2, n, d.size)
+    out = np.full((len(levels), n), np.nan)
+    for j, lv in enumerate(levels):
+        above = F - f_star > lv * gap
+        for i in range(n):
+            first = [d[np.argmax(above[s, i])] for s in range(2) if above[s, i].any()]
+            out[j, i] = min(first) if first else np.nan
+    return out
+
+
+def atlas(per_tier: int, directions: int, half: float, k: int, starts: int,
+          max_evals: int) -> dict:
+    out = {}
+    for d in v2.TIERS:
+        rows = []
+        for idx, name in enumerate(v2.instance_names(d)[:per_tier]):
+            case = v3.case_key(name, "prior")
+            inst = instance(case)
+            e = inst.best_known(TRACK, 0)
+            p = _problem(case)
+            space = p.objective.space
+            x_star = np.array([e["x_star"][n] for n in inst.names])
+            u_star = space.to_unit(x_star[None, :])[0]
+            f_star, gap = e["f_star"], e["f_nominal"] - e["f_star"]
+            iv = intervals(p.objective, inst.truth, method="laplace", polish=False,
+                           calibrate=False, noise="known", model_form="none")
+            s = np.array(iv.identifiability["singular_values"])
+            rng = np.random.default_rng(child(SEED, 1000 * d + idx))
+            R = rng.standard_normal((directions, inst.dim))
+            dirs = np.vstack([np.eye(inst.dim), R / np.linalg.norm(R, axis=1)[:, None]])
+            F = {}
+            for step in ("full", "half"):
+                _at(step)
+                F[step] = lines(p, u_star, dirs, half, k)
+            _at("full")
+            worst = int(np.argmax(jumps(F["full"], f_star)))
+            rows.append({
+                "zoom": refine(p, u_star, dirs[worst], F["full"][worst], half, f_star),
+                "case": case, "names": inst.names, "cond": float(s[0] / s[-1]),
+                "jump_full": jumps(F["full"], f_star), "jump_half": jumps(F["half"], f_star),
+                "F": F, "f_star": f_star,
+                "minima": minima(p, u_star, f_star, e["f_nominal"], starts,
+                                 child(SEED, 7 + 1000 * d + idx), max_evals),
+                "valley": valley(p, u_star, f_star, gap), "gap_over_f": gap / f_star})
+        out[d] = rows
+    return out
+
+
+def plots(data: dict, folder: Path) -> list[str]:
+    import matplotlib.pyplot as plt
+
+    folder.mkdir(parents=True, exist_ok=True)
+    names = []
+    fig, axes = plt.subplots(1, len(data), figsize=(4.4 * len(data), 3.4), squeeze=False)
+    for ax, (d, rows) in zip(axes[0], data.items()):
+        full = np.concatenate([r["jump_full"] for r in rows])
+        halfs = np.concatenate([r["jump_half"] for r in rows])
+        bins = np.geomspace(max(min(full.min(), halfs.min()), 1e-12), max(full.max(),
+                                                                          halfs.max()), 30)
+        ax.hist(full, bins=bins, alpha=0.6, label="step 50 us")
+        ax.hist(halfs, bins=bins, alpha=0.6, label="step 25 us")
+        ax.set_xscale("log")
+        ax.set_title(f"tier {d}: largest jump per line")
+        ax.set_xlabel("jump / f*")
+    axes[0, 0].set_ylabel("lines")
+    axes[0, 0].legend(fontsize=8)
+    save_figure(fig, folder / "jumps.png", dpi=100)
+    names.append("jumps.png")
+    fig, axes = plt.subplots(1, len(data), figsize=(4.4 * len(data), 3.4), squeeze=False)
+    for ax, rows in zip(axes[0], data.values()):
+        r = rows[0]
+        i = int(np.argmax(r["jump_full"]))
+        t = np.linspace(-1, 1, r["F"]["full"].shape[1])
+        for step, ls in (("full", "-"), ("half", "--")):
+            ax.plot(t, r["F"][step][i] / r["f_star"] - 1, ls, label=f"step {step}")
+        label = r["names"][i] if i < len(r["names"]) else f"random direction {i - len(r['names'])}"
+        ax.set_title(f"{r['case']}: {label}", fontsize=9)
+        ax.set_xlabel("offset / half-width")
+    axes[0, 0].set_ylabel("f / f* - 1")
+    axes[0, 0].legend(fontsize=8)
+    save_figure(fig, folder / "worst_line.png", dpi=100)
+    names.append("worst_line.png")
+    return names
+
+
+def markdown(data: dict, args, cost: str, images: list[str]) -> str:
+    md = ["# Landscape atlas (suite emafdi-v3, per tier)", "",
+          f"Generated by `python benchmarks/landscape_atlas.py --per-tier {args.per_tier} "
+          f"--directions {args.directions} --half-width {args.half_width:g} --points "
+          f"{args.points} --starts {args.starts} --max-evals {args.max_evals}` ({cost}); do "
+          "not edit by hand. A small sample: the first "
+          f"{args.per_tier} instances of each tier, twin track, noise seed 0, the prior's "
+          "objective, around the shipped best fit x* (twin, seed 0). The script's docstring "
+          "defines every column.", ""]
+    md += ["## Conditioning and jumps", "",
+           "Jump: per line through x* (each parameter's axis, then random directions), the "
+           "largest step between neighbouring points beyond the local slope (a difference "
+           f"minus the mean of its two neighbours), over +-{args.half_width:g} of the unit "
+           f"box in {2 * args.points + 1} "
+           "points, in units of f*. Halved step: the same lines with the monitor at 25 us "
+           "(the kernels unchanged, `simulate_monitor(dt=...)`).", "",
+           "| case | condition number | largest jump (50 us) | median jump (50 us) | "
+           "largest jump (25 us) | median (25 us) | axis of the largest | it zoomed 40x: "
+           "largest step 50 us / 25 us |",
+           "|---|---|---|---|---|---|---|---|"]
+    for rows in data.values():
+        for r in rows:
+            i = int(np.argmax(r["jump_full"]))
+            axis = r["names"][i] if i < len(r["names"]) else "random direction"
+            md.append(f"| {r['case']} | {r['cond']:.0f} | {r['jump_full'].max():.2e} | "
+                      f"{np.median(r['jump_full']):.2e} | {r['jump_half'].max():.2e} | "
+                      f"{np.median(r['jump_half']):.2e} | {axis} | "
+                      f"{r['zoom'][0]:.2e} / {r['zoom'][1]:.2e} |")
+    md += ["", "Per tier, the ratio (25 us / 50 us) of each line's jump: median and range "
+           "(a ratio near 1: the jump stays, near 0.5 or below: it shrinks with the step).", "",
+           "| tier | lines | median ratio | 10-90 % | axes whose jump halves or better |",
+           "|---|---|---|---|---|"]
+    for d, rows in data.items():
+        ratio = np.concatenate([r["jump_half"] / r["jump_full"] for r in rows])
+        shrink = sorted({r["names"][i] for r in rows for i in range(len(r["names"]))
+                         if r["jump_half"][i] <= 0.6 * r["jump_full"][i]})
+        md.append(f"| {d} | {ratio.size} | {np.median(ratio):.2f} | "
+                  f"{np.quantile(ratio, 0.1):.2f}-{np.quantile(ratio, 0.9):.2f} | "
+                  f"{', '.join(shrink) or 'none'} |")
+    md += ["", "## Distinct local minima (multi-start local refits)", "",
+           f"{args.starts} uniform random starts per instance, trust-region least-squares "
+           f"refits of at most {args.max_evals} evaluations, end points within 2 % of the "
+           "box merged: each minimum's fitness precision (f - f*) / (f_nominal - f*), its "
+           "largest distance from x* (fraction of range) and how many starts ended there.",
+           "", "| case | distinct end points | best three (precision, distance, starts) |",
+           "|---|---|---|"]
+    for rows in data.values():
+        for r in rows:
+            best = "; ".join(f"{p:.1e}, {dd:.3f}, {n}" for p, dd, n in r["minima"][:3])
+            md.append(f"| {r['case']} | {len(r['minima'])} | {best} |")
+    md += ["", "## Valley width per parameter", "",
+           "Per parameter, the smallest offset from x* (either side, % of range) at which the "
+           "fitness exceeds v2's finest fitness target (f* + 1e-4 of the gap) / v3's "
+           "(1e-6); '>30' where it stays below within 30 %.", ""]
+    for d, rows in data.items():
+        names = rows[0]["names"]
+        md += [f"### Tier {d}", "", "| case | " + " | ".join(names) + " |",
+               "|---|" + "---|" * len(names)]
+        for r in rows:
+            cells = [("/".join(">30" if np.isnan(v) else f"{100 * v:.2g}"
+                               for v in r["valley"][:, i])) for i in range(len(names))]
+            md.append(f"| {r['case']} | " + " | ".join(cells) + " |")
+        md.append("")
+    md += ["## Plots", ""] + [f"![{n}](landscape-atlas/{n})" for n in images] + [""]
+    return "\n".join(md)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--per-tier", type=int, default=3)
+    ap.add_argument("--directions", type=int, default=8)
+    ap.add_argument("--half-width", type=float, default=2e-3)
+    ap.add_argument("--points", type=int, default=40)
+    ap.add_argument("--starts", type=int, default=6)
+    ap.add_argument("--max-evals", type=int, default=300)
+    ap.add_argument("--out", default="docs/landscape-atlas.md")
+    a = ap.parse_args()
+    t0, c0 = time.perf_counter(), time.process_time()
+    data = atlas(a.per_tier, a.directions, a.half_width, a.points, a.starts, a.max_evals)
+    out = Path(a.out)
+    images = plots(data, out.parent / "landscape-atlas")
+    cost = f"{time.process_time() - c0:.0f} CPU-s, {time.perf_counter() - t0:.0f} s wall"
+    out.write_text(markdown(data, a, cost, images))
+    print(f"{out} ({cost})")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,204 @@
+"""The noise-allowed parameter targets of suite emafdi-v3: writes ``suite_tolerances_v3.json``.
+
+For every objective of the suite (instance x condition's tests and outputs: ``no-prior``
+shares ``prior``'s), the noise-whitened Gauss-Newton covariance of the fitness's best fit at
+the truth (:func:`ema_bench.uncertainty.methods.intervals`, Laplace, datasheet noise, no
+polish, no calibration, no model-form allowance: the scatter the sensor noise alone gives
+the exact best fit), then per track :func:`ema_bench.suites.v3.noise_z`: the smallest ``z``
+for which the best fit lies within ``max(1 % of range, z sigma)`` of the truth on every
+judged parameter with probability >= 0.95 (Monte Carlo over the Gaussian; on the reference
+track centred on the clean-data bias: ``clean_x`` of v2's table, else the mean over the
+shipped noise seeds of the reference ``x*`` minus the twin ``x*``, whose noise is the same
+draw).  Prints the per-instance table (old and new rule) as markdown, and with
+``--linearisation CASES`` checks the Gaussian by refits from the truth on redrawn noise.
+
+    nice python benchmarks/v3_tolerances.py --out ema_bench/suite_tolerances_v3.json \
+        > benchmarks/results/v3_tolerances.md
+    nice python benchmarks/v3_tolerances.py --linearisation v3-t12-s06@prior,v3-small@prior \
+        --draws 10 --no-write
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+from ema_bench.jsonio import write_atomic
+from ema_bench.seeding import child, run_seed
+from ema_bench.suites import instance, v2, v3
+from ema_bench.suites.problem import make_problem
+from ema_bench.suites.targets import SUITE_MODEL_VERSION
+from ema_bench.uncertainty.local import Counter, refit
+from ema_bench.uncertainty.methods import intervals
+
+#: Root of the Monte Carlo draws (one child per table entry).
+MC_SEED = 20261128
+TRACKS = ("reference", "twin")
+
+
+def tolerance_cases() -> list[str]:
+    """One v3 case per objective: the cases whose :func:`v3.tolerance_case` is themselves."""
+    return [c for c in v3.SUITE.case_order() if v3.tolerance_case(instance(c)) == c]
+
+
+def covariance(case: str) -> np.ndarray:
+    """The best fit's covariance at the truth (physical units), datasheet noise."""
+    inst = instance(case)
+    p = make_problem(case, track="twin", seed=run_seed(0, 0), budget=1)
+    iv = intervals(p.objective, inst.truth, method="laplace", polish=False, calibrate=False,
+                   noise="known", model_form="none")
+    return iv.cov
+
+
+def _x(entry: dict, names) -> np.ndarray:
+    return np.array([float(entry["x_star"][n]) for n in names])
+
+
+def reference_bias(case: str) -> np.ndarray:
+    """The clean-data bias of ``case`` on the reference track (see the module docstring)."""
+    inst = instance(case)
+    entry = inst.best_known("reference", v2.CLEAN_SEED)
+    if entry is not None and "clean_x" in entry:
+        return np.array([float(entry["clean_x"][n]) for n in inst.names]) - inst.truth
+    diffs = []
+    for k in range(v2.TARGET_SEEDS):
+        ref, twin = inst.best_known("reference", k), inst.best_known("twin", k)
+        if ref is not None and twin is not None:
+            diffs.append(_x(ref, inst.names) - _x(twin, inst.names))
+    return np.mean(diffs, axis=0) if diffs else np.zeros(inst.dim)
+
+
+def entry(case: str, cov: np.ndarray, track: str, index: int) -> dict:
+    inst = instance(case)
+    judged = inst.judged(track)
+    judged = np.ones(inst.dim, bool) if judged is None else np.asarray(judged, bool)
+    bias = reference_bias(case) if track == "reference" else np.zeros(inst.dim)
+    ranges = inst.ranges
+    z, p_old, p_new = v3.noise_z(cov[np.ix_(judged, judged)], bias[judged], ranges[judged],
+                                 seed=child(MC_SEED, index))
+    return {"names": list(inst.names), "sigma": [float(s) for s in np.sqrt(np.diag(cov))],
+            "bias": [float(b) for b in bias], "judged": [bool(j) for j in judged],
+            "z": z, "p_old": round(p_old, 4), "p_new": round(p_new, 4)}
+
+
+def shipped_inside(case: str, track: str, e: dict) -> tuple[int, int, int]:
+    """Of the shipped noisy best fits ``x*`` of ``case`` on ``track`` (every seed of the
+    best-known table): how many lie inside every judged 1 % of range, how many inside every
+    judged tolerance of the entry ``e``, out of how many."""
+    inst = instance(case)
+    judged = np.array(e["judged"])
+    tol = v3.tolerance(inst.ranges, np.array(e["sigma"]), e["z"])
+    old = new = n = 0
+    for k in range(v2.TARGET_SEEDS):
+        known = inst.best_known(track, k)
+        if known is None:
+            continue
+        d = np.abs(_x(known, inst.names) - inst.truth)[judged]
+        n += 1
+        old += bool(np.all(d <= v3.FLOOR * inst.ranges[judged]))
+        new += bool(np.all(d <= tol[judged]))
+    return old, new, n
+
+
+def linearisation(cases: list[str], draws: int, max_evals: int) -> None:
+    """Refit each case's twin data from the truth on ``draws`` redrawn noise seeds (root seed
+    1000, so none is a board's): the refits' standard deviation against ``sigma``, and how
+    many lie inside every 1 % of range and every tolerance."""
+    table = v3.shipped_tolerances()["entries"]
+    print("\n## Linearisation check: refits from the truth on redrawn noise (twin)\n")
+    print("| case | refits | evaluations each | std / sigma per parameter (median, max) | "
+          "inside 1 % | inside the tolerance | predicted p_old, p_new |")
+    print("|---|---|---|---|---|---|---|")
+    for case in cases:
+        inst = instance(case)
+        e = table.get(v3.tolerance_key(case, "twin"))
+        if e is None:
+            raise SystemExit(f"{case}: no tolerance entry; compute the table first")
+        sigma = np.array(e["sigma"])
+        tol = v3.tolerance(inst.ranges, sigma, e["z"])
+        est, evals = [], []
+        for k in range(draws):
+            p = make_problem(case, track="twin", seed=run_seed(1000, k), budget=1)
+            counter = Counter(p.objective)
+            u0 = p.objective.space.to_unit(inst.truth[None, :])[0]
+            u, _ = refit(counter, u0, max_evals=max_evals)
+            est.append(p.objective.space.from_unit(u[None, :])[0])
+            evals.append(counter.evaluations)
+        d = np.array(est) - inst.truth
+        ratio = d.std(axis=0, ddof=1) / sigma
+        old = int(np.sum(np.all(np.abs(d) <= v3.FLOOR * inst.ranges, axis=1)))
+        new = int(np.sum(np.all(np.abs(d) <= tol, axis=1)))
+        print(f"| {case} | {draws} | {int(np.median(evals))} | {np.median(ratio):.2f}, "
+              f"{ratio.max():.2f} ({inst.names[int(np.argmax(ratio))]}) | {old}/{draws} | "
+              f"{new}/{draws} | {e['p_old']:.3f}, {e['p_new']:.3f} |", flush=True)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", default="ema_bench/suite_tolerances_v3.json")
+    ap.add_argument("--no-write", action="store_true", help="only the linearisation check")
+    ap.add_argument("--linearisation", default="", help="comma-separated v3 cases")
+    ap.add_argument("--draws", type=int, default=10)
+    ap.add_argument("--max-evals", type=int, default=600)
+    a = ap.parse_args()
+    t0, c0 = time.perf_counter(), time.process_time()
+    if not a.no_write:
+        entries = {}
+        cases = tolerance_cases()
+        for i, case in enumerate(cases):
+            cov = covariance(case)
+            for j, track in enumerate(TRACKS):
+                entries[v3.tolerance_key(case, track)] = entry(case, cov, track,
+                                                               2 * i + j)
+        data = {"suite": v3.SUITE_ID, "model_version": SUITE_MODEL_VERSION,
+                "method": {"coverage": v3.COVERAGE, "floor": v3.FLOOR,
+                           "mc_draws": v3.MC_DRAWS, "mc_seed": MC_SEED,
+                           "command": "python benchmarks/v3_tolerances.py"},
+                "entries": entries}
+        write_atomic(Path(a.out), json.dumps(data, indent=0, sort_keys=True) + "\n")
+        v3.shipped_tolerances.cache_clear()
+        report(entries)
+    if a.linearisation:
+        linearisation(a.linearisation.split(","), a.draws, a.max_evals)
+    print(f"\n(wall {time.perf_counter() - t0:.0f} s, CPU {time.process_time() - c0:.0f} s)")
+
+
+def report(entries: dict) -> None:
+    """Per tier, condition and track: the joint probabilities under the old and new rule,
+    and the shipped noisy best fits inside each; then every entry."""
+    groups: dict = defaultdict(list)
+    rows = []
+    for key, e in entries.items():
+        case, track = key.split("|")
+        inst = instance(case)
+        old, new, n = shipped_inside(case, track, e)
+        groups[(inst.group[0], inst.group[1], track)].append((e, old, new, n))
+        sig = np.array(e["sigma"]) / inst.ranges
+        worst = int(np.argmax(np.where(e["judged"], sig, -1)))
+        rows.append(f"| {case} | {track} | {e['p_old']:.3f} | {e['p_new']:.3f} | "
+                    f"{e['z']:.2f} | {inst.names[worst]} {100 * sig[worst]:.2f} % | "
+                    f"{old}/{n} | {new}/{n} |")
+    print("## Per tier, objective and track\n")
+    print("| tier | condition | track | cases | p_old min / median | p_new min | z max | "
+          "shipped x* inside 1 % | inside the tolerance |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for (d, cond, track), g in sorted(groups.items()):
+        po = [e["p_old"] for e, *_ in g]
+        print(f"| {d} | {cond} | {track} | {len(g)} | {min(po):.3f} / {np.median(po):.3f} | "
+              f"{min(e['p_new'] for e, *_ in g):.3f} | {max(e['z'] for e, *_ in g):.2f} | "
+              f"{sum(o for _, o, _, _ in g)}/{sum(n for *_, n in g)} | "
+              f"{sum(w for _, _, w, _ in g)}/{sum(n for *_, n in g)} |")
+    print("\n## Every entry\n")
+    print("| case | track | p_old | p_new | z | widest sigma (% of range) | shipped x* "
+          "inside 1 % | inside the tolerance |")
+    print("|---|---|---|---|---|---|---|---|")
+    print("\n".join(rows), flush=True)
+
+
+if __name__ == "__main__":
+    main()

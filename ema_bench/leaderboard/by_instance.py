@@ -1,0 +1,229 @@
+"""The claims of a grouped board, bootstrapped over instances with the runs nested inside.
+
+The saturation check and the global-vs-local table (:mod:`.scaling`) put their intervals
+over runs (or over (instance, seed) pairs): with one seed per instance and condition, the
+runs of one instance under four conditions are not four independent draws of the suite.
+Here every claim is re-asked the way a reviewer resamples a benchmark: per (track, tier)
+
+- **best vs fifth** and **first vs second**: the solvers ranked by their mean ECDF area over
+  every run of the tier (all its conditions pooled, as :func:`.scaling.pooled_separation`);
+- **global vs local**: the solvers that declare ``scope="global"`` against those that
+  declare ``"local"``, without a prior (``no-prior``), as :func:`.scaling.global_vs_local`;
+
+each is the mean over instances of the per-instance mean of the paired difference (one
+*cell* = one (condition, seed) run of an instance that every compared solver made; the
+difference of the sides' mean ECDF areas on it).  Its 95 % interval is a two-level
+bootstrap (:func:`nested_bootstrap`): instances drawn with replacement, then each drawn
+instance's cells drawn with replacement.  A **leave-one-solver-out** line asks the claim
+again without the top solver of its leading side (best vs fifth: without the best, the new
+best against the new fifth; first vs second: the second against the third; global vs local:
+without the leading group's best solver).  A claim is **fragile** when its instance
+interval reaches 0 or the claim without that solver does.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import defaultdict
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from .anytime import CONFIDENCE, group_seed, run_area
+from .scaling import FIFTH, groups, registered_scopes
+
+N_RESAMPLES = 2000
+
+
+def nested_bootstrap(cells: Sequence[Sequence[float]], seed: int,
+                     n: int = N_RESAMPLES) -> tuple[float, float, float]:
+    """Mean over instances of each instance's mean cell value, and its 95 % percentile
+    interval from ``n`` two-level resamples (instances with replacement, then each drawn
+    instance's cells with replacement); nan bounds for fewer than two instances."""
+    cells = [np.asarray(c, float) for c in cells if len(c)]
+    if not cells:
+        return math.nan, math.nan, math.nan
+    est = math.fsum(float(c.mean()) for c in cells) / len(cells)
+    k = len(cells)
+    if k < 2:
+        return est, math.nan, math.nan
+    rng = np.random.default_rng(seed)
+    pick = rng.integers(k, size=(n, k))       # the instances of each resample
+    vals = np.empty((n, k))
+    for i, c in enumerate(cells):              # the cells of every draw of instance i
+        where = pick == i
+        m = int(where.sum())
+        if m:
+            vals[where] = c[rng.integers(c.size, size=(m, c.size))].mean(axis=1)
+    stat = vals.mean(axis=1)
+    a = (1.0 - CONFIDENCE) / 2.0
+    lo, hi = np.quantile(stat, [a, 1.0 - a])
+    return est, float(lo), float(hi)
+
+
+@dataclass(frozen=True)
+class Claim:
+    """One claim of one (track, tier), by instance: side ``a`` minus side ``b`` in mean ECDF
+    area (``diff``: estimate, 95 % interval over instances), and the same without the
+    solver ``without`` (``without_diff``; None where too few solvers remain)."""
+
+    track: str
+    tier: int
+    claim: str
+    a: tuple[str, ...]
+    b: tuple[str, ...]
+    instances: int
+    diff: tuple[float, float, float]
+    without: str
+    without_a: tuple[str, ...] = ()
+    without_b: tuple[str, ...] = ()
+    without_diff: tuple[float, float, float] | None = None
+
+    @property
+    def holds(self) -> bool:
+        """Side ``a`` ahead on instances: the interval lies above 0."""
+        return bool(self.diff[1] > 0)
+
+    @property
+    def fragile(self) -> bool:
+        """The interval reaches 0 (or is undefined), or the claim fails without the top
+        solver."""
+        lo = self.diff[1]
+        alone = self.without_diff is None or not self.without_diff[1] > 0
+        return not (math.isfinite(lo) and lo > 0) or alone
+
+    @property
+    def verdict(self) -> str:
+        if not (math.isfinite(self.diff[1]) and self.diff[1] > 0):
+            return "fragile: the interval over instances reaches 0"
+        if self.without_diff is None:
+            return "fragile: too few solvers to ask it without " + self.without
+        if not self.without_diff[1] > 0:
+            return f"fragile: without {self.without} the interval reaches 0"
+        return "holds"
+
+
+def _cells(recs: list[dict], a: Sequence[str], b: Sequence[str]) -> list[list[float]]:
+    """Per instance, the paired differences (mean area of ``a`` - of ``b``) of its cells that
+    every solver of both sides ran."""
+    runs: dict[str, dict[tuple[str, int], dict[str, float]]] = defaultdict(
+        lambda: defaultdict(dict))
+    for r in recs:
+        cell = (r["case"].rpartition("@")[2], int(r["seed"]))
+        runs[r["case"].rpartition("@")[0]][cell][r["solver"]] = run_area(r)
+    out = []
+    for inst in sorted(runs):
+        diffs = [math.fsum(v[s] for s in a) / len(a) - math.fsum(v[s] for s in b) / len(b)
+                 for _, v in sorted(runs[inst].items()) if set(a) | set(b) <= set(v)]
+        if diffs:
+            out.append(diffs)
+    return out
+
+
+def _ranked(recs: list[dict]) -> list[str]:
+    per: dict[str, list[float]] = defaultdict(list)
+    for r in recs:
+        per[r["solver"]].append(run_area(r))
+    mean = {s: math.fsum(v) / len(v) for s, v in per.items()}
+    return sorted(mean, key=lambda s: (-np.nan_to_num(mean[s], nan=-1.0), s))
+
+
+def _diff(track: str, tier: int, what: str, recs: list[dict], a, b):
+    cells = _cells(recs, a, b)
+    seed = group_seed(track, "by-instance", tier, what, ",".join(a), ",".join(b))
+    return len(cells), nested_bootstrap(cells, seed)
+
+
+def _ranking_claim(track, tier, what, recs, ranked, i, j) -> Claim | None:
+    """``ranked[i]`` vs ``ranked[j]``, and without ``ranked[i]`` (the next pair down)."""
+    if len(ranked) <= j:
+        return None
+    a, b = (ranked[i],), (ranked[j],)
+    n, d = _diff(track, tier, what, recs, a, b)
+    rest = ranked[:i] + ranked[i + 1:]
+    if len(rest) <= j:
+        return Claim(track, tier, what, a, b, n, d, ranked[i])
+    wa, wb = (rest[i],), (rest[j],)
+    _, wd = _diff(track, tier, what, [r for r in recs if r["solver"] != ranked[i]], wa, wb)
+    return Claim(track, tier, what, a, b, n, d, ranked[i], wa, wb, wd)
+
+
+def claims(records: list[dict], rank: int = FIFTH, condition: str = "no-prior",
+           scope_of: Callable[[list[str]], Mapping[str, str]] = registered_scopes
+           ) -> list[Claim]:
+    """Every claim of the board by instance (see the module docstring), per track and tier:
+    best vs ``rank``-th and first vs second over the tier's conditions pooled, then global
+    vs local under ``condition`` (where both groups have solvers; scopes from
+    ``scope_of``)."""
+    by: dict[tuple[str, int], list[dict]] = defaultdict(list)
+    for (track, tier, _), recs in groups(records).items():
+        by[(track, tier)] += recs
+    solvers = sorted({r["solver"] for r in records})
+    scopes = scope_of(solvers) if solvers else {}
+    out: list[Claim] = []
+    for (track, tier), recs in by.items():
+        ranked = _ranked(recs)
+        nth = {1: "st", 2: "nd", 3: "rd"}.get(rank, "th")
+        for what, i, j in ((f"best vs {rank}{nth}", 0, rank - 1), ("first vs second", 0, 1)):
+            c = _ranking_claim(track, tier, what, recs, ranked, i, j)
+            if c is not None:
+                out.append(c)
+        nop = [r for r in recs if r["case"].rpartition("@")[2] == condition]
+        glob = tuple(s for s in _ranked(nop) if scopes.get(s) == "global")
+        loc = tuple(s for s in _ranked(nop) if scopes.get(s) == "local")
+        if not glob or not loc:
+            continue
+        what = f"global vs local, {condition}"
+        n, d = _diff(track, tier, what, nop, glob, loc)
+        top = glob[0] if d[0] >= 0 else loc[0]      # the leading group's best solver
+        wa = tuple(s for s in glob if s != top)
+        wb = tuple(s for s in loc if s != top)
+        wd = None
+        if wa and wb:
+            _, wd = _diff(track, tier, what, [r for r in nop if r["solver"] != top], wa, wb)
+        # the claim's side a is the leading group: global if ahead, else local
+        if d[0] >= 0:
+            out.append(Claim(track, tier, what, glob, loc, n, d, top, wa, wb, wd))
+        else:
+            out.append(Claim(track, tier, what.replace("global vs local", "local vs global"),
+                             loc, glob, n, (-d[0], -d[2], -d[1]), top, wb, wa,
+                             None if wd is None else (-wd[0], -wd[2], -wd[1])))
+    return out
+
+
+def _ci(v: tuple[float, float, float] | None) -> str:
+    if v is None:
+        return "-"
+    lo, hi = (f"{x:+.3f}" if math.isfinite(x) else "-" for x in v[1:])
+    return f"{v[0]:+.3f} [{lo}, {hi}]"
+
+
+def claim_rows(cs: list[Claim], track: str) -> list[dict[str, object]]:
+    """The report's table of ``track``'s claims: text cells (solver names, escaped by the
+    table writer) and ``(text, value)`` number cells."""
+    def side(s: Sequence[str]) -> str:
+        return ", ".join(s) if len(s) <= 3 else f"{s[0]} + {len(s) - 1} more"
+    return [{"tier": c.tier, "claim": c.claim, "a": side(c.a), "b": side(c.b),
+             "instances": c.instances,
+             "area a - b [95 % CI over instances]": (_ci(c.diff), c.diff[0]),
+             "left out": c.without,
+             "then a / b": (f"{side(c.without_a)} / {side(c.without_b)}"
+                            if c.without_diff else "-"),
+             "then a - b": (_ci(c.without_diff), None if c.without_diff is None
+                            else c.without_diff[0]),
+             "verdict": c.verdict} for c in cs if c.track == track]
+
+
+def fragile_line(cs: list[Claim], track: str, name: Callable[[str], str] = str) -> str:
+    """One sentence: which of ``track``'s claims hold by instance and which are fragile
+    (``name`` formats a solver's name: :func:`~ema_bench.escape.markdown` for Markdown)."""
+    mine = [c for c in cs if c.track == track]
+    if not mine:
+        return "No claim to resample: fewer than two solvers per tier."
+    held = [f"{c.claim} on tier {c.tier}" for c in mine if not c.fragile]
+    weak = [f"{c.claim} on tier {c.tier} "
+            f"({c.verdict.removeprefix('fragile: ').replace(c.without, name(c.without))})"
+            for c in mine if c.fragile]
+    return ("By instance: " + ("holds: " + "; ".join(held) if held else "no claim holds")
+            + (". FRAGILE: " + "; ".join(weak) if weak else "") + ".")

@@ -1,0 +1,101 @@
+"""The board's claims by instance (ema_bench.leaderboard.by_instance): the nested bootstrap
+against an ordinary bootstrap of instance means, and synthetic boards whose answers are
+known by construction (a claim carried by one instance, one carried by one solver)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from ema_bench.leaderboard import by_instance
+from ema_bench.leaderboard.by_instance import claims, nested_bootstrap
+
+
+def test_nested_bootstrap_is_the_instance_bootstrap_when_runs_agree():
+    """Cells constant within each instance: the two-level bootstrap is an ordinary
+    bootstrap of the instance means (scipy's percentile interval, to Monte Carlo error)."""
+    means = np.random.default_rng(3).normal(0.05, 0.04, 12)
+    est, lo, hi = nested_bootstrap([[m] * 4 for m in means], seed=1, n=20000)
+    ref = stats.bootstrap((means,), np.mean, n_resamples=20000, method="percentile",
+                          rng=np.random.default_rng(2)).confidence_interval
+    assert est == pytest.approx(means.mean(), abs=1e-12)
+    assert lo == pytest.approx(ref.low, abs=0.004) and hi == pytest.approx(ref.high, abs=0.004)
+
+
+def test_one_instance_cannot_carry_a_claim_that_many_runs_would():
+    """Seven instances at 0 and one at +1, 20 runs each: over the 160 runs a bootstrap puts
+    the mean well above 0; over instances the interval reaches 0 (a 1-in-8 chance that
+    every draw misses the instance: (7/8)^8 = 34 %)."""
+    cells = [[0.0] * 20] * 7 + [[1.0] * 20]
+    est, lo, hi = nested_bootstrap(cells, seed=0)
+    assert est == pytest.approx(1 / 8)
+    assert lo == 0.0 and hi > 0.3
+    runs = stats.bootstrap((np.concatenate(cells),), np.mean, method="percentile",
+                           rng=np.random.default_rng(0)).confidence_interval
+    assert runs.low > 0.05
+
+
+def _board(areas: dict[str, list[float]], conds=("prior", "no-prior"), tier=7) -> list[dict]:
+    """Synthetic records of tier ``tier``: solver -> ECDF area per instance (the same in
+    every condition and track, plus a small per-condition offset)."""
+    recs = []
+    for s, per in areas.items():
+        for i, a in enumerate(per):
+            for k, c in enumerate(conds):
+                for track in ("reference", "twin"):
+                    recs.append({"solver": s, "case": f"t{tier}-s{i:02d}@{c}",
+                                 "track": track, "seed": 0, "area": a + 0.001 * k})
+    return recs
+
+
+@pytest.fixture
+def areas_from_records(monkeypatch):
+    monkeypatch.setattr(by_instance, "run_area", lambda r: r["area"])
+
+
+def test_claims_on_a_board_whose_answers_are_known(areas_from_records):
+    """Six solvers on 8 instances: top beats the rest everywhere by 0.2; second and
+    third-to-fifth tie on average but second wins on one instance only; global vs local:
+    the global group leads only through ``top``."""
+    n = 8
+    base = np.linspace(0.2, 0.4, n)
+    areas = {"top": base + 0.3, "second": base + np.r_[0.8, [0.0] * (n - 1)],
+             "third": base + 0.05, "fourth": base + 0.04, "fifth": base + 0.03,
+             "sixth": base + 0.02}
+    scopes = {"top": "global", "second": "global", "third": "local", "fourth": "local",
+              "fifth": "local", "sixth": "global"}
+    cs = claims(_board(areas), scope_of=lambda names: {s: scopes[s] for s in names})
+    by = {(c.track, c.claim): c for c in cs}
+    best5 = by[("twin", "best vs 5th")]
+    assert (best5.a, best5.b, best5.instances) == (("top",), ("fifth",), n)
+    assert best5.diff[0] == pytest.approx(0.27, abs=1e-3) and best5.diff[1] > 0.2
+    # without top: second (mean +0.1, all of it on one instance) vs sixth: fragile
+    assert (best5.without_a, best5.without_b) == (("second",), ("sixth",))
+    assert best5.without_diff[1] <= 0 and best5.fragile
+    assert best5.verdict == "fragile: without top the interval reaches 0"
+    first = by[("twin", "first vs second")]
+    assert (first.a, first.b) == (("top",), ("second",))
+    assert first.diff[0] == pytest.approx(0.2, abs=1e-3) and first.diff[1] <= 0
+    assert first.fragile and "interval over instances" in first.verdict
+    gl = by[("twin", "global vs local, no-prior")]
+    assert gl.a == ("top", "second", "sixth") and gl.without == "top"
+    # by construction: global (0.3 + 0.1 + 0.02) / 3 - local (0.05 + 0.04 + 0.03) / 3
+    assert gl.diff[0] == pytest.approx(0.1, abs=1e-3) and gl.diff[1] > 0
+    assert gl.without_diff[1] <= 0 and gl.fragile
+    line = by_instance.fragile_line(cs, "twin")
+    assert line.startswith("By instance: no claim holds. FRAGILE: best vs 5th on tier 7")
+
+
+def test_a_solid_claim_holds_and_the_report_says_so(areas_from_records):
+    """Every solver ahead of the next by 0.05 on every instance: every claim holds, with and
+    without the top solver."""
+    base = np.linspace(0.1, 0.3, 6)
+    areas = {f"s{k}": base + 0.05 * (6 - k) for k in range(6)}
+    cs = claims(_board(areas), scope_of=lambda names: dict.fromkeys(names, "global"))
+    assert [c.claim for c in cs if c.track == "twin"] == ["best vs 5th", "first vs second"]
+    assert all(c.holds and not c.fragile and c.verdict == "holds" for c in cs)
+    rows = by_instance.claim_rows(cs, "twin")
+    assert rows[0]["a"] == "s0" and rows[0]["b"] == "s4" and rows[0]["instances"] == 6
+    assert by_instance.fragile_line(cs, "twin") == (
+        "By instance: holds: best vs 5th on tier 7; first vs second on tier 7.")

@@ -1,0 +1,209 @@
+"""Suite emafdi-v3 (ema_bench.suites.v3): v2's problems, data and best-known entries under v3
+keys; parameter targets the noise allows (a perfect optimiser reaches them, one that stops
+1 % of range off on a well-conditioned instance does not); the dense fitness ladder; the
+Monte Carlo of the joint probability against closed forms."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from ema_bench import suites
+from ema_bench.leaderboard.derive import derive
+from ema_bench.leaderboard.validate import check_record
+from ema_bench.records import run_record
+from ema_bench.registry import finish
+from ema_bench.seeding import run_seed
+from ema_bench.suites import v2, v3
+from ema_bench.suites.problem import make_problem
+from ema_bench.suites.targets import FITNESS_PRECISIONS, SuiteError
+
+
+def test_every_v3_key_round_trips_through_the_registry():
+    order = v3.SUITE.case_order()
+    # every tier, every instance (20 a tier, + the paper cases on tier 4), every condition
+    assert len(order) == len(v2.SUITE.case_order()) and len(set(order)) == len(order)
+    for case in order:
+        inst = suites.instance(case)
+        assert inst.case == case and inst.suite is v3.SUITE
+        assert suites.suite_of(case).id == "emafdi-v3"
+        base = suites.instance(case.removeprefix(v3.PREFIX))
+        assert base.suite is v2.SUITE and np.array_equal(inst.truth, base.truth)
+        assert inst.names == base.names and inst.budget == base.budget
+        assert inst.group == base.group and inst.prior == base.prior
+    assert suites.instance("v3-t12-s19@surface-current").dim == 12
+    assert suites.find("v3-t12-s20@prior") is None            # tiers hold s00 .. s19
+    with pytest.raises(SuiteError, match="offered on tiers"):
+        suites.find("v3-t12-s00@step-only")
+    assert suites.find("v3-small") is None                     # a v3 key names a condition
+    with pytest.raises(SuiteError, match="v3-t7-s03@no-prior"):
+        suites.instance("v3-nope@prior")
+
+
+def test_v3_reads_v2s_best_known_entries_and_judged_parameters():
+    for case in ("v3-t12-s06@no-prior", "v3-small@step-only", "v3-s03@prior"):
+        inst, base = suites.instance(case), suites.instance(case.removeprefix(v3.PREFIX))
+        for track in ("reference", "twin"):
+            assert inst.best_known(track, 0) == base.best_known(track, 0) is not None
+            a, b = inst.judged(track), base.judged(track)
+            assert (a is None and b is None) or np.array_equal(a, b)
+
+
+def test_make_problem_of_a_v3_case_is_the_v2_problem_data_and_all():
+    p = make_problem("v3-t7-s03@no-prior", track="twin", seed=run_seed(0, 1), budget=None)
+    q = make_problem("t7-s03@no-prior", track="twin", seed=run_seed(0, 1), budget=None)
+    assert p.dim == 7 and p.start is None and p.budget == v2.BUDGET_PER_DIM * 7
+    assert p.label == "v3-t7-s03@no-prior"
+    assert np.array_equal(p.objective.data, q.objective.data)
+    x = suites.instance("v3-t7-s03@prior").truth
+    assert p.objective.evaluate(x[None, :])[0][0] == q.objective.evaluate(x[None, :])[0][0]
+
+
+def _entry(case: str, track: str) -> dict:
+    return v3.shipped_tolerances()["entries"][v3.tolerance_key(case, track)]
+
+
+def _run(case: str, track: str, seed: int, x: np.ndarray) -> dict:
+    """The record of a run that evaluates ``x`` once (an optimiser that stops there)."""
+    p = make_problem(case, track=track, seed=run_seed(0, seed), budget=3)
+    p.evaluate(x[None, :])
+    res = finish(p, "stops-at-x", "budget", time.perf_counter())
+    return run_record(p, res, case=case, track=track, seed=seed, budget=3, root_seed=0,
+                      wall_s=0.0)
+
+
+def _x_star(case: str, track: str, seed: int) -> np.ndarray:
+    inst = suites.instance(case)
+    return np.array([inst.best_known(track, seed)["x_star"][n] for n in inst.names])
+
+
+def test_a_perfect_optimiser_reaches_every_parameter_target_where_v2_denies_it():
+    """t12-s16 (twin, seed 0): the shipped best fit of the noisy data lies more than 1 % of
+    range from the truth on gear stiffness (sigma 1.36 % of range), so v2's 1 % target and
+    success are out of reach of any optimiser; v3's tolerance ``max(1 % of range, z sigma)``
+    (checked here by hand from the table) holds it."""
+    case, track = "v3-t12-s16@prior", "twin"
+    inst, e = suites.instance(case), _entry(case, track)
+    x = _x_star(case, track, 0)
+    err = np.abs(x - inst.truth)
+    assert np.any(err > 0.01 * inst.ranges)
+    assert np.all(err <= np.maximum(0.01 * inst.ranges, e["z"] * np.array(e["sigma"])))
+    rec = _run(case, track, 0, x)
+    assert check_record(rec, reevaluate=False) == []
+    d = derive(rec)
+    assert d.success and d.parameter_hits == {"0.1": 1, "0.03": 1, "0.01": 1}
+    old = derive({**_run(case.removeprefix(v3.PREFIX), track, 0, x)})
+    assert not old.success and old.parameter_hits["0.01"] is None
+
+
+def test_an_optimiser_1_percent_off_on_a_well_conditioned_instance_misses_the_target():
+    """small@prior (tier 4, z = 0: the tolerance is 1 % of range): stopping 1.02 % of range
+    off the truth on the weakest parameter misses the 1 % target and success, reaches 3 %."""
+    case, track = "v3-small@prior", "twin"
+    inst, e = suites.instance(case), _entry(case, track)
+    assert e["z"] == 0.0 and e["p_old"] >= 0.95
+    weakest = int(np.argmax(np.array(e["sigma"]) / inst.ranges))
+    x = inst.truth.copy()
+    x[weakest] += 0.0102 * inst.ranges[weakest]
+    d = derive(_run(case, track, 0, x))
+    assert not d.success and d.parameter_hits == {"0.1": 1, "0.03": 1, "0.01": None}
+
+
+def test_the_shipped_best_fits_lie_inside_the_tolerances_as_often_as_promised():
+    """Every shipped noisy best fit x* (v1's and v2's tables, every seed, both tracks):
+    inside every judged tolerance at least as often as inside 1 % of range, and on at least
+    90 % of them (the table promises >= 95 % per case; the polish is not the exact best fit
+    everywhere); on tier 12 strictly more often than under the 1 % rule."""
+    inside = {"old": [], "new": []}
+    tier12 = {"old": 0, "new": 0}
+    for key, e in v3.shipped_tolerances()["entries"].items():
+        case, track = key.split("|")
+        inst = suites.instance(case)
+        assert e["p_new"] >= v3.COVERAGE and e["p_new"] >= e["p_old"]
+        judged = np.array(e["judged"])
+        tol = np.maximum(0.01 * inst.ranges, e["z"] * np.array(e["sigma"]))
+        for seed in range(v2.TARGET_SEEDS):
+            if inst.best_known(track, seed) is None:
+                continue
+            err = np.abs(_x_star(case, track, seed) - inst.truth)[judged]
+            old = bool(np.all(err <= 0.01 * inst.ranges[judged]))
+            new = bool(np.all(err <= tol[judged]))
+            assert new or not old
+            inside["old"].append(old)
+            inside["new"].append(new)
+            if inst.dim == 12:
+                tier12["old"] += old
+                tier12["new"] += new
+    assert len(inside["new"]) > 400 and np.mean(inside["new"]) >= 0.9
+    assert tier12["new"] > tier12["old"]
+
+
+def test_the_frame_scales_are_the_tolerances_over_the_floor():
+    inst = suites.instance("v3-t12-s06@no-prior")    # no-prior: prior's entry
+    e = _entry("v3-t12-s06@prior", "reference")
+    truth, scale, judged = inst.frame("reference")
+    assert np.allclose(scale * 0.01, np.maximum(0.01 * inst.ranges,
+                                                e["z"] * np.array(e["sigma"])))
+    assert np.array_equal(judged, e["judged"])
+    assert np.array_equal(suites.instance("t12-s06@prior").frame("twin")[1], inst.ranges)
+
+
+def test_joint_probability_matches_closed_forms():
+    # independent coordinates: the product of the marginal probabilities
+    sd, tol = np.array([1.0, 0.5, 2.0]), np.array([1.5, 1.0, 3.0])
+    exact = np.prod(2 * stats.norm.cdf(tol / sd) - 1)
+    assert v3.joint_probability(np.diag(sd ** 2), np.zeros(3), tol) == \
+        pytest.approx(exact, abs=3e-3)
+    # correlated pair with a bias: the rectangle probability of scipy's bivariate normal
+    cov = np.array([[1.0, 0.8], [0.8, 1.0]])
+    bias, t = np.array([0.3, -0.2]), np.array([1.2, 1.0])
+    mvn = stats.multivariate_normal(bias, cov)
+    rect = (mvn.cdf(t) - mvn.cdf([-t[0], t[1]]) - mvn.cdf([t[0], -t[1]]) + mvn.cdf(-t))
+    assert v3.joint_probability(cov, bias, t) == pytest.approx(rect, abs=3e-3)
+
+
+def test_noise_z_is_the_smallest_z_that_reaches_the_coverage():
+    """Two independent parameters, sigma 1 % and 0.3 % of a unit range: z solves
+    ``(2 Phi(z) - 1) (2 Phi(max(1, 0.3 z) / 0.3) - 1) = 0.95`` (to 0.01)."""
+    cov, ranges = np.diag([0.01 ** 2, 0.003 ** 2]), np.ones(2)
+    z, p_old, p_new = v3.noise_z(cov, np.zeros(2), ranges)
+
+    def p(zz):
+        return np.prod([2 * stats.norm.cdf(max(0.01, zz * s) / s) - 1 for s in (0.01, 0.003)])
+    assert p_old == pytest.approx(p(0.0), abs=3e-3) and p_new >= 0.95
+    assert p(z + 0.02) >= 0.95 - 3e-3 and p(z - 0.03) < 0.95
+    assert v3.noise_z(np.diag([0.001 ** 2] * 2), np.zeros(2), ranges)[0] == 0.0
+
+
+def test_the_dense_fitness_ladder_holds_the_old_one_and_reaches_one_in_a_million():
+    ladder = v3.FITNESS_PRECISIONS
+    assert len(ladder) == 21 and ladder[0] == 0.1 and ladder[-1] == 1e-6
+    assert set(FITNESS_PRECISIONS) <= set(ladder)
+    assert np.allclose(np.diff(np.log10(ladder)), -0.25, atol=2e-3)
+    assert suites.instance("v3-t7-s00@prior").fitness_precisions == ladder
+    assert suites.instance("t7-s00@prior").fitness_precisions == FITNESS_PRECISIONS
+
+
+def test_the_ecdfs_of_fitness_and_parameter_targets_count_apart():
+    """A v3 run 1.02 % of range off on small's weakest parameter: its parameter ECDF is 2 of
+    3 targets, its fitness ECDF the share of the 21-target ladder its fitness reaches
+    (counted here from f*, f_nominal and the ladder), and the pooled ECDF weighs both."""
+    from ema_bench.leaderboard.anytime import ecdf_curve
+
+    case, track = "v3-small@prior", "twin"
+    inst = suites.instance(case)
+    x = inst.truth.copy()
+    x[0] += 0.0102 * inst.ranges[0]
+    rec = _run(case, track, 0, x)
+    known = inst.best_known(track, 0)
+    levels = known["f_star"] + np.array(v3.FITNESS_PRECISIONS) * (known["f_nominal"] -
+                                                                   known["f_star"])
+    reached_f = int(np.sum(rec["fitness"] <= levels))
+    assert 0 < reached_f < 21
+    grid = np.array([1, 3])
+    assert np.allclose(ecdf_curve([rec], grid, "p"), 2 / 3)
+    assert np.allclose(ecdf_curve([rec], grid, "f"), reached_f / 21)
+    assert np.allclose(ecdf_curve([rec], grid), (reached_f + 2) / 24)
