@@ -94,7 +94,9 @@ DRAWABLE = tuple(n for n in LIBRARY if math.isfinite(EFFECTS[EFFECT_INDEX[n]].de
 PAIRS: tuple[tuple[str, str], ...] = tuple(itertools.combinations(DRAWABLE, 2))
 #: Every unordered triple of different drawable effects (the three-effect cases cycle them).
 TRIPLES: tuple[tuple[str, str, str], ...] = tuple(itertools.combinations(DRAWABLE, 3))
-ACQUISITION = tuple(decoys.ACQUISITION_DECOYS)
+#: The acquisition decoys the suite's categories draw: the second round's six, so that a suite
+#: drawn before keeps its cases (the stuck channel of the fourth round is not drawn here).
+ACQUISITION = ("lowpass", "mains_hum", "clipping", "time_shift", "drift", "outliers")
 #: The acquisition decoys the workflow's acquisition library holds (clipping it does not).
 ACQUISITION_LIBRARY = tuple(n for n in ACQUISITION if n in acquisition.KINDS)
 #: Categories and their shares of a suite, in percent (largest remainders round them).
