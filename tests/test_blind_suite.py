@@ -78,7 +78,7 @@ def test_shares_at_60_and_64_cases():
 
 def test_every_decoy_appears_at_64_cases():
     acq = [c for c in CASES64 if c.category == "acquisition_decoy"]
-    assert sorted({c.decoy for c in acq}) == sorted(decoys.ACQUISITION_DECOYS)
+    assert sorted({c.decoy for c in acq}) == sorted(blind.ACQUISITION)
     assert all(c.effects == {} for c in acq)
     phys = [c for c in CASES64 if c.category == "physical_decoy"]
     assert {c.decoy for c in phys} == set(DECOYS)
@@ -146,11 +146,35 @@ def lsb(signal: str) -> float:
     return SENSORS[SIGNALS.index(signal)].lsb
 
 
-def test_the_registry_has_six_decoys():
+def test_the_registry_has_seven_decoys():
     assert list(decoys.ACQUISITION_DECOYS) == ["lowpass", "mains_hum", "clipping",
-                                               "time_shift", "drift", "outliers"]
+                                               "time_shift", "drift", "outliers", "stuck"]
+    # the suite's categories draw the second round's six: suites drawn before keep their cases
+    assert blind.ACQUISITION == tuple(decoys.ACQUISITION_DECOYS)[:6]
     for f in decoys.ACQUISITION_DECOYS.values():
         assert "Stands for" in f.__doc__
+
+
+def test_stuck_holds_one_value_from_its_start():
+    """Frozen from 0.1 s: sample 100 (window centre 0.1005 s) on holds its own value in
+    every test, the samples before it untouched; dead from the start: zero (its ADC code)
+    everywhere; a
+    start past a test's end leaves it as it was."""
+    tr = adc_traces()
+    out = decoys.stuck(tr, "omega_m", start=0.1)
+    d = changed(tr, out, "omega_m")
+    for t in tr.tests:
+        y = tr.data[t][:, 2]
+        assert not d[t][:100].any()
+        np.testing.assert_array_equal(out.data[t][100:, 2], np.full(300, y[100]))
+    dead = decoys.stuck(tr, "theta_u", 0.0, 0.0)
+    changed(tr, dead, "theta_u")
+    for t in tr.tests:      # on the ADC code nearest zero
+        np.testing.assert_array_equal(dead.data[t][:, 0], np.full(400, quantise(0.0, SENSORS[0])))
+        assert abs(dead.data[t][0, 0]) <= lsb("theta_u") / 2
+    assert decoys.stuck(tr, "i_eq", start=1.0).allclose(tr)
+    with pytest.raises(ValueError, match="start"):
+        decoys.stuck(tr, "i_eq", start=-0.1)
 
 
 def test_time_shift_delays_one_channel_by_whole_samples():
