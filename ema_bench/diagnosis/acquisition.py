@@ -33,7 +33,7 @@ each record and are fitted on every test, the held-out one included; so are a st
 channel's onset and level in each test (the latest sample from which the record is flat,
 :func:`_fit_stuck`).
 
-Screening.  :func:`screen` fits every kind on every channel at a model's residuals (20
+Screening.  :func:`screen` fits every kind on every channel at a model's residuals (24
 candidates, each a few milliseconds of numpy) and scores it as the drop of the channel's
 whitened sum of squares on the training tests, the chi-square scale of the physical
 effects' score test (:mod:`~.screening`).
