@@ -92,7 +92,7 @@ def measure(instances: int, seed: int) -> dict:
         clean = simulate_reference(x, {}, tests=TESTS, seed=stream(seed, "noise", i))
         out = {t: v[0] for t, v in simulate(x, (), NAMES).items()}
         truth = Fit((), x, 0.0, out, 0, (), out)
-        rng = np.random.default_rng(stream(seed, "draw", i))
+        rng = np.random.default_rng(stream(seed, "acquisition", i))
         for kind, (channels, grid, params) in GRID.items():
             for c in channels:
                 for m in grid:

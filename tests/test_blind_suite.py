@@ -543,6 +543,43 @@ def test_extra_cases_leave_the_suite_drawn_before_as_it_was():
         draw_cases(10, 0, extra=-1)
 
 
+def test_fourth_round_cases_size_the_acquisition_fault_by_its_threshold():
+    """``fourth`` cases of each fourth-round category after the others, which stay as they
+    were; every kind of the acquisition library on a channel it is drawn on, at 1-4x (or
+    1-1.5x) its detection threshold, the decoy's parameters that multiple of it (a time
+    shift rounded to whole samples, at least 1)."""
+    from ema_bench.diagnosis import sized
+    from ema_bench.diagnosis.acquisition import KINDS, NOISE_STD
+
+    both = draw_cases(64, 0, extra=12, fourth=6)
+    assert both[:88] == draw_cases(64, 0, extra=12)
+    new = both[88:]
+    assert [c.index for c in new] == list(range(88, 100))
+    assert Counter(c.category for c in new) == {"effect_acquisition_sized": 6,
+                                                "near_threshold_acquisition": 6}
+    assert {c.decoy for c in new} == set(KINDS) == set(sized.CHANNELS)
+    for c in new:
+        (n, v), = c.effects.items()
+        assert 1.5 - 1e-9 <= detects(n, v) <= 4.0 + 1e-9 or abs(v) == EFFECTS[EFFECT_INDEX[n]].upper
+        p, spec = c.decoy_params, KINDS[c.decoy]
+        lo, hi = blind.ACQ_MULTIPLES[c.category]
+        assert lo <= p["multiple"] <= hi and p["signal"] in sized.CHANNELS[c.decoy]
+        want = min(p["multiple"] * spec.detect, spec.upper)
+        sd = float(NOISE_STD[SIGNALS.index(p["signal"])])
+        got = {"lowpass": lambda: p["tau"], "drift": lambda: abs(p["rate"]) / sd,
+               "mains_hum": lambda: p["amplitude"] / sd,
+               "outliers": lambda: p["size"] / sd * spec.detect / sized.OUTLIER_DETECT_SD,
+               "time_shift": lambda: p["samples"],
+               "stuck": lambda: (max(0.3 - p["start"], 0) + 1.0 - p["start"]) / 1.3}[c.decoy]()
+        if c.decoy == "time_shift":
+            assert got == max(1, round(want))
+        else:
+            assert got == pytest.approx(want, rel=1e-9)
+        assert blind.acquisition_truth(c) == f"{c.decoy}({p['signal']})"
+    with pytest.raises(ValueError, match=">= 0"):
+        draw_cases(10, 0, fourth=-1)
+
+
 def test_scores_of_an_effect_beside_an_acquisition_fault():
     c = BlindCase(0, "effect_acquisition", "effect", {"viscous_friction": 1e-4}, {"Na": 1.0},
                   "mains_hum", {"signal": "i_eq"})

@@ -48,6 +48,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="K more cases of each third-round category (an effect beside an "
                         "acquisition-chain fault, three effects at once), after the --cases "
                         "cases, which they leave as they were (default 0)")
+    p.add_argument("--fourth", type=count(0, 1000), default=0, metavar="K",
+                   help="K more cases of each fourth-round category (an effect beside an "
+                        "acquisition fault sized at 1-4x, and at 1-1.5x, its detection "
+                        "threshold), after the others, which they leave as they were "
+                        "(default 0)")
     p.add_argument("--only", default=None, metavar="CATEGORIES",
                    help="comma-separated categories: run and summarise only their cases of "
                         "the suite drawn (e.g. a rerun of part of a committed suite)")
@@ -69,15 +74,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def default_out(seed: int, cases: int, extra: int = 0) -> str:
+def default_out(seed: int, cases: int, extra: int = 0, fourth: int = 0) -> str:
     """The folder a blind suite writes to without ``--out``: named by what it holds, so the
     same command resumes and another seed or size never mixes in."""
-    return f"ema-bench-blind-seed{seed}-n{cases}" + (f"-x{extra}" if extra else "")
+    return (f"ema-bench-blind-seed{seed}-n{cases}" + (f"-x{extra}" if extra else "")
+            + (f"-f{fourth}" if fourth else ""))
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.cases + args.extra < 1:   # each >= 0 and --workers >= 1 by their types
-        raise CLIError("--cases and --extra must be >= 0 (not both 0), --workers >= 1")
+    if args.cases + args.extra + args.fourth < 1:   # each >= 0, --workers >= 1 by their types
+        raise CLIError("--cases, --extra and --fourth must be >= 0 (not all 0), --workers >= 1")
     only = None
     if args.only is not None:
         from ..diagnosis.blind import KINDS
@@ -105,12 +111,12 @@ def _run(args: argparse.Namespace, only: list[str] | None) -> int:
     from ..sweep.schema import check
 
     # before any work: the suite takes minutes per case
-    out = check_output(args.out or default_out(args.seed, args.cases, args.extra), "--out",
-                       folder=True)
+    out = check_output(args.out or default_out(args.seed, args.cases, args.extra, args.fourth),
+                       "--out", folder=True)
     if args.out is None and not args.quiet:
         print(f"writing to {out}/ (rerun the same command to resume)", file=sys.stderr)
     res = run_blind(args.cases, args.seed, out, quiet=args.quiet, workers=args.workers,
-                    extra=args.extra, only=only)
+                    extra=args.extra, only=only, fourth=args.fourth)
     res["summary"]["interval_calibration"] = source()
     text = dumps({"command": "ema-bench " + " ".join(sys.argv[1:]), **res["summary"]},
                  indent=1)
@@ -126,9 +132,9 @@ def _calibrate(args: argparse.Namespace) -> int:
     from ..interval_calibration_files import inside_package
 
     if args.seed not in (0, ic.CALIBRATION_SEED) or args.calibration or args.extra or \
-            args.only:
+            args.only or args.fourth:
         raise CLIError(f"--calibrate runs the cases of root seed {ic.CALIBRATION_SEED}; drop "
-                       "--seed, --calibration, --extra and --only")
+                       "--seed, --calibration, --extra, --fourth and --only")
     if args.out is None:
         raise CLIError("--calibrate writes OUT/interval_calibration.json: give --out DIR (the "
                        "shipped table is read-only)")
