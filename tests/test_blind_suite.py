@@ -543,6 +543,20 @@ def test_extra_cases_leave_the_suite_drawn_before_as_it_was():
         draw_cases(10, 0, extra=-1)
 
 
+def _sized_value(kind: str, p: dict, sd: float) -> float:
+    """A sized decoy's magnitude in its kind's ``detect`` unit, from its parameters."""
+    from ema_bench.diagnosis import sized
+    from ema_bench.diagnosis.acquisition import KINDS
+
+    if kind == "stuck":          # the frozen share of the 0.3 s step and the 1 s sine
+        return (max(0.3 - p["start"], 0.0) + 1.0 - p["start"]) / 1.3
+    if kind == "outliers":       # spikes sized by height, the kind's detect is a count
+        return p["size"] / sd * KINDS[kind].detect / sized.OUTLIER_DETECT_SD
+    return {"lowpass": p.get("tau"), "time_shift": p.get("samples"),
+            "drift": abs(p.get("rate", 0.0)) / sd, "mains_hum": p.get("amplitude", 0.0) / sd
+            }[kind]
+
+
 def test_fourth_round_cases_size_the_acquisition_fault_by_its_threshold():
     """``fourth`` cases of each fourth-round category after the others, which stay as they
     were; every kind of the acquisition library on a channel it is drawn on, at 1-4x (or
@@ -565,12 +579,7 @@ def test_fourth_round_cases_size_the_acquisition_fault_by_its_threshold():
         lo, hi = blind.ACQ_MULTIPLES[c.category]
         assert lo <= p["multiple"] <= hi and p["signal"] in sized.CHANNELS[c.decoy]
         want = min(p["multiple"] * spec.detect, spec.upper)
-        sd = float(NOISE_STD[SIGNALS.index(p["signal"])])
-        got = {"lowpass": lambda: p["tau"], "drift": lambda: abs(p["rate"]) / sd,
-               "mains_hum": lambda: p["amplitude"] / sd,
-               "outliers": lambda: p["size"] / sd * spec.detect / sized.OUTLIER_DETECT_SD,
-               "time_shift": lambda: p["samples"],
-               "stuck": lambda: (max(0.3 - p["start"], 0) + 1.0 - p["start"]) / 1.3}[c.decoy]()
+        got = _sized_value(c.decoy, p, float(NOISE_STD[SIGNALS.index(p["signal"])]))
         if c.decoy == "time_shift":
             assert got == max(1, round(want))
         else:
