@@ -170,7 +170,9 @@ def _category_line(name: str, b: dict) -> str:
                 f"{b['confident_misnames']}, gap closed "
                 f"{_pct(b['median_heldout_gap_closed'])}, intervals cover "
                 f"{b['interval_coverage'] or '-'}")
-    if name == "effect_acquisition":
+    from ..diagnosis.blind import EFFECT_ACQUISITION
+
+    if name in EFFECT_ACQUISITION:
         return (f"effect named {b['effect_named']}/{n} ({_pct(b['effect_named_rate'])}), "
                 f"acquisition fault named {b['acquisition_named']}/{n}, named or flagged "
                 f"{b['acquisition_named_or_flagged']}/{n} "
@@ -215,7 +217,9 @@ def _truth(r: dict) -> str:
     effects = ",".join(f"{k}={v:.3g}" for k, v in r["effects"].items())
     if r["category"] == "acquisition_decoy":
         return f"{r['decoy']}({r['decoy_params'].get('signal', '')})"
-    if r["category"] == "effect_acquisition":
+    from ..diagnosis.blind import EFFECT_ACQUISITION
+
+    if r["category"] in EFFECT_ACQUISITION:
         return f"{effects}+{r['decoy']}({r['decoy_params'].get('signal', '')})"
     if r["category"] == "monitor_null":
         return "nothing (monitor)"
