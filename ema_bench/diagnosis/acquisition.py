@@ -93,7 +93,11 @@ class AcquisitionKind:
     lower: float
     upper: float
     trivial: float      # |value| below this is negligible
-    detect: float       # |value| the blind draws start at (named reliably above it)
+    # |value| from which it is detected and screened first at the true physics in every
+    # draw (benchmarks/acquisition_thresholds.py), at least twice ``trivial``; outliers:
+    # the spikes a count needs for an interval excluding zero (their height:
+    # :data:`~.sized.OUTLIER_DETECT_SD`)
+    detect: float
     signature: str
     per_sd: bool = False
     additive: bool = False   # adds to the record (else a filter of it, or weights)
@@ -105,20 +109,20 @@ class AcquisitionKind:
 
 
 KINDS: dict[str, AcquisitionKind] = {k.name: k for k in (
-    AcquisitionKind("lowpass", "tau", "s", 0.0, 20e-3, 3e-4, 2e-3,
+    AcquisitionKind("lowpass", "tau", "s", 0.0, 20e-3, 3e-4, 6e-4,
                     "one channel's edges smeared over several samples, lagging its peers"),
-    AcquisitionKind("time_shift", "samples", "samples (1 ms)", -MAX_SHIFT, MAX_SHIFT, 0.5, 3,
+    AcquisitionKind("time_shift", "samples", "samples (1 ms)", -MAX_SHIFT, MAX_SHIFT, 0.5, 1,
                     "one channel's residual is the derivative of the signal times a lag; "
                     "the others fit"),
-    AcquisitionKind("drift", "rate", "unit/s", -200.0, 200.0, 1.0, 10.0,
+    AcquisitionKind("drift", "rate", "unit/s", -200.0, 200.0, 1.0, 2.0,
                     "one channel's residual grows linearly from each test's start",
                     per_sd=True, additive=True),
-    AcquisitionKind("mains_hum", "amplitude", "unit", 0.0, 50.0, 0.5, 4.0,
+    AcquisitionKind("mains_hum", "amplitude", "unit", 0.0, 50.0, 0.5, 2.0,
                     "a pure tone in one channel's residual, its phase set by each test",
                     per_sd=True, additive=True),
     AcquisitionKind("outliers", "spikes", "samples", 0.0, math.inf, 0.5, 4.0,
                     "isolated spikes of tens of noise sd on one channel"),
-    AcquisitionKind("stuck", "share", "share of samples", 0.0, 1.0, 0.01, 0.05,
+    AcquisitionKind("stuck", "share", "share of samples", 0.0, 1.0, 0.01, 0.03,
                     "one channel flat (dead, or frozen at one value) while the model, "
                     "and the other channels, move"),
 )}
