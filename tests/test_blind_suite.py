@@ -704,6 +704,29 @@ def test_run_case_builds_the_third_round_data_and_hides_the_truth(monkeypatch):
             assert not tr.allclose(ref)      # the acquisition fault is on the record
 
 
+def test_run_case_puts_the_sized_fault_on_the_record(monkeypatch):
+    """A fourth-round case's record is the reference record through its sized decoy (the
+    drawn ``multiple`` is kept in the case, not passed to the decoy), and the fault named on
+    its channel scores as named."""
+    seen = []
+
+    def fake_diagnose(tr, settings, seed):
+        seen.append(tr)
+        return SimpleNamespace(verdict="effect", effects=[], acquisition=[
+            acq_finding(blind.acquisition_truth(c), 1.0)], gap={
+                "partial": None, "before": 1.0, "after": 0.0}, message="m", evaluations=1)
+
+    monkeypatch.setattr(blind, "diagnose", fake_diagnose)
+    c = draw_cases(0, 5, fourth=1)[0]
+    assert c.category in blind.FOURTH_CATEGORIES and "multiple" in c.decoy_params
+    rec = run_case(c, 5, blind.Settings())
+    assert rec["acquisition_named"] and rec["decoy_params"] == c.decoy_params
+    ref = blind.simulate_reference(np.array(list(c.faults.values())), c.effects,
+                                   tests=blind.TESTS, seed=stream(run_seed(5, c.index), "noise"))
+    params = {k: v for k, v in c.decoy_params.items() if k != "multiple"}
+    assert seen[0].allclose(decoys.apply(c.decoy, ref, params)) and not seen[0].allclose(ref)
+
+
 COMMITTED_R3 = Path(__file__).resolve().parents[1] / "leaderboards" / "blind_r3"
 
 
