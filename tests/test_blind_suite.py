@@ -754,6 +754,22 @@ def test_the_committed_third_round_suites_are_the_cases_drawn_and_summed(folder,
         json.loads(dumps(summarise(ordered)))
 
 
+def test_the_committed_fourth_round_suite_is_the_cases_drawn_and_summed():
+    """``blind_r4/``: every record is the case root seed 2154 draws with ``--fourth 6``, and
+    the committed summary is :func:`summarise` of the records."""
+    path = COMMITTED_R3.parent / "blind_r4"
+    records = sorted(read_records(path / "blind.jsonl"), key=lambda r: r["index"])
+    drawn = draw_cases(0, 2154, fourth=6)
+    assert [r["index"] for r in records] == [c.index for c in drawn]
+    for r, c in zip(records, drawn):
+        assert r["root_seed"] == 2154 and r["category"] in blind.FOURTH_CATEGORIES
+        assert (r["effects"], r["decoy"], r["decoy_params"]) == (c.effects, c.decoy,
+                                                                 c.decoy_params)
+    summary = json.loads((path / "summary.json").read_text())
+    assert {k: v for k, v in summary.items() if k not in ("command", "interval_calibration")} \
+        == json.loads(dumps(summarise(records)))
+
+
 # slow (about 120 CPU-s): the fast loop builds these cases' data with a stand-in diagnosis
 # (test_run_case_builds_the_third_round_data_...) and scores them by hand
 @pytest.mark.slow
