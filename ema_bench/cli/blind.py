@@ -13,6 +13,10 @@ effect flagged partial (the model with it still leaves the bootstrap envelopes).
 appended to OUT/blind.jsonl as cases finish (--workers N: N processes); rerunning the same
 command resumes (OUT defaults to ema-bench-blind-seed<S>-n<N> in the current folder).
 Progress: a bar in a terminal, one line per finished case otherwise (--quiet: none).
+--extra K and --fourth K add K cases of each third-round category (an effect beside an
+acquisition-chain fault, three effects) and of each fourth-round one (an effect beside an
+acquisition fault sized at 1-4x and at 1-1.5x its measured detection threshold) after the
+N, which they leave as drawn.
 
 --calibrate fits the true effect sets of the effect cases of the suite of root seed 1 (never
 a reported seed) and writes the nonconformity scores of their intervals to
