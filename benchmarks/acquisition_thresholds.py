@@ -18,7 +18,7 @@ a fit that absorbs part of the fault makes the threshold a lower bound of the wo
     python benchmarks/acquisition_thresholds.py --instances 3 \\
         --json benchmarks/results/acquisition_thresholds.json
 
-(3 instances: about 6 CPU-min.)
+(3 instances: 271 CPU-s.)
 """
 
 from __future__ import annotations
@@ -35,42 +35,32 @@ from ema_bench.diagnosis import decoys
 from ema_bench.diagnosis.blind import TESTS
 from ema_bench.diagnosis.fitting import assess, simulate
 from ema_bench.diagnosis.results import TRAIN, Fit, Settings
+from ema_bench.diagnosis.sized import CHANNELS, channel_sd, stuck_start
 from ema_bench.diagnosis.stiction import stick_weights
 from ema_bench.faults import random_faults
 from ema_bench.objective import signal_weights
 from ema_bench.reference import simulate_reference
 from ema_bench.seeding import stream
-from ema_bench.traces import SIGNALS
 
 NAMES = tuple(t.name for t in TESTS)
 
 
-def _stuck_start(share: float) -> float:
-    """The onset (s) that freezes ``share`` of the training samples (0.3 s step, 1 s sine)."""
-    return 1.3 * (1 - share) / 2 if share >= 1 / 1.3 * 0.7 else 1.0 - 1.3 * share
-
-
-#: kind -> (channels drawn, magnitude grid in the kind's detect unit, decoy parameters)
+#: kind -> (magnitude grid in the kind's detect unit, outliers: spike height in noise sd;
+#: decoy parameters), on each channel the blind suite draws the kind on (sized.CHANNELS)
 GRID = {
-    "lowpass": (("i_eq", "omega_m"), (2.5e-4, 5e-4, 7.5e-4, 1e-3, 1.5e-3, 2e-3, 3e-3),
+    "lowpass": ((2.5e-4, 5e-4, 7.5e-4, 1e-3, 1.5e-3, 2e-3, 3e-3),
                 lambda c, m, r: {"signal": c, "tau": m}),
-    "time_shift": (("theta_u", "omega_m", "i_eq"), (1, 2, 3),
-                   lambda c, m, r: {"signal": c, "samples": m}),
-    "drift": (("theta_u", "omega_m", "i_eq"), (1.0, 2.0, 3.0, 5.0, 7.0, 10.0, 15.0),
-              lambda c, m, r: {"signal": c, "rate": m * _sd(c) * r.choice((-1, 1))}),
-    "mains_hum": (("i_eq",), (0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0),
-                  lambda c, m, r: {"signal": c, "amplitude": m * _sd(c), "freq": 400.0,
+    "time_shift": ((1, 2, 3), lambda c, m, r: {"signal": c, "samples": m}),
+    "drift": ((1.0, 2.0, 3.0, 5.0, 7.0, 10.0, 15.0),
+              lambda c, m, r: {"signal": c, "rate": m * channel_sd(c) * r.choice((-1, 1))}),
+    "mains_hum": ((0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0),
+                  lambda c, m, r: {"signal": c, "amplitude": m * channel_sd(c), "freq": 400.0,
                                    "phase": float(r.uniform(0, 2 * np.pi))}),
-    "outliers": (SIGNALS, (6.0, 8.0, 10.0, 12.0, 16.0, 20.0),
-                 lambda c, m, r: {"signal": c, "size": m * _sd(c), "fraction": 0.005,
+    "outliers": ((6.0, 8.0, 10.0, 12.0, 16.0, 20.0),
+                 lambda c, m, r: {"signal": c, "size": m * channel_sd(c), "fraction": 0.005,
                                   "seed": int(r.integers(2**31))}),
-    "stuck": (SIGNALS, (0.03, 0.05, 0.1, 0.2),
-              lambda c, m, r: {"signal": c, "start": _stuck_start(m)}),
+    "stuck": ((0.03, 0.05, 0.1, 0.2), lambda c, m, r: {"signal": c, "start": stuck_start(m)}),
 }
-
-
-def _sd(channel: str) -> float:
-    return float(acq.NOISE_STD[SIGNALS.index(channel)])
 
 
 def found(record, truth: Fit, name: str, settings: Settings) -> tuple[bool, float]:
@@ -93,8 +83,8 @@ def measure(instances: int, seed: int) -> dict:
         out = {t: v[0] for t, v in simulate(x, (), NAMES).items()}
         truth = Fit((), x, 0.0, out, 0, (), out)
         rng = np.random.default_rng(stream(seed, "acquisition", i))
-        for kind, (channels, grid, params) in GRID.items():
-            for c in channels:
+        for kind, (grid, params) in GRID.items():
+            for c in CHANNELS[kind]:
                 for m in grid:
                     rec = decoys.apply(kind, clean, params(c, m, rng))
                     ok, score = found(rec, truth, f"{kind}({c})", settings)
@@ -108,7 +98,7 @@ def thresholds(rows: list[dict]) -> dict[str, float | None]:
     """Per kind: the smallest grid magnitude from which every draw is found (``None``: not
     even the largest)."""
     out = {}
-    for kind, (_, grid, _) in GRID.items():
+    for kind, (grid, _) in GRID.items():
         ok = [all(r["found"] for r in rows if r["kind"] == kind and r["magnitude"] == m)
               for m in grid]
         first = None

@@ -48,7 +48,8 @@ def stuck_start(share: float) -> float:
     return (total - share * total) / 2
 
 
-def _sd(channel: str) -> float:
+def channel_sd(channel: str) -> float:
+    """The noise sd of ``channel`` (its unit)."""
     return float(NOISE_STD[SIGNALS.index(channel)])
 
 
@@ -65,12 +66,12 @@ def draw(kind: str, lo: float, hi: float, rng: np.random.Generator) -> dict[str,
     elif kind == "time_shift":
         params = {"samples": max(1, int(round(value)))}
     elif kind == "drift":
-        params = {"rate": value * _sd(channel) * (1.0 if rng.random() < 0.5 else -1.0)}
+        params = {"rate": value * channel_sd(channel) * (1.0 if rng.random() < 0.5 else -1.0)}
     elif kind == "mains_hum":
-        params = {"amplitude": value * _sd(channel), "freq": 400.0,
+        params = {"amplitude": value * channel_sd(channel), "freq": 400.0,
                   "phase": float(rng.uniform(0.0, 2 * math.pi))}
     elif kind == "outliers":
-        params = {"size": multiple * OUTLIER_DETECT_SD * _sd(channel), "fraction": 0.005,
+        params = {"size": multiple * OUTLIER_DETECT_SD * channel_sd(channel), "fraction": 0.005,
                   "seed": int(rng.integers(2**31))}
     else:
         params = {"start": stuck_start(value)}
