@@ -77,13 +77,51 @@ def test_outliers_are_found_where_the_decoy_put_them(records):
                for t in TESTS)
 
 
+@pytest.mark.parametrize("params, share", [
+    ({"signal": "theta_m", "start": 0.0, "value": 0.0}, 1.0),     # dead: reads zero
+    ({"signal": "i_eq", "start": 0.12}, 1.0 - 2 * 120 / 1300),     # frozen from 0.12 s
+])
+def test_a_stuck_channel_is_found_from_where_it_froze(records, params, share):
+    """A flat channel (dead, or frozen at its value at 0.12 s) is screened first as
+    ``stuck`` on that channel: the frozen span of every test, held-out included, gets
+    weight 0 and the model holds the record's level there; the share of frozen training
+    samples (the step's 180 of 300 and the sine's 880 of 1000) lies in its interval."""
+    clean, noisy = records
+    tr = decoys.apply("stuck", noisy, params)
+    col = acq.SIGNALS.index(params["signal"])
+    best = acq.screen(clean, tr.data, _ones(tr), TRAIN)[0]
+    assert best.fault.name == f"stuck({params['signal']})" and best.score > 10 * MIN_SCORE
+    assert best.fault.value == pytest.approx(share, abs=2e-3)
+    lo, hi = best.interval
+    assert 0.0 < lo <= share <= hi <= 1.0
+    # where the decoy froze the record (its first flat sample in each test)
+    frozen = {t: int(np.searchsorted(noisy.time(t), params["start"])) for t in TESTS}
+    w = acq.weights([best.fault], {t: tr.data[t].shape for t in TESTS})
+    out = acq.carry(clean, [best.fault])
+    for t in TESTS:
+        k = best.fault.detail["onset"][t]
+        assert abs(k - frozen[t]) <= 2
+        assert (w[t][k:, col] == 0).all() and w[t].sum() == w[t].size - (w[t].shape[0] - k)
+        np.testing.assert_allclose(out[t][k:, col], np.mean(tr.data[t][k:, col]))
+        assert np.array_equal(out[t][:k], clean[t][:k])
+
+
+def test_a_settled_record_is_not_a_stuck_channel(records):
+    """A flat stretch where the model is flat too (the step settled) is no frozen span:
+    the noisy record itself scores nothing as ``stuck`` on any channel."""
+    clean, noisy = records
+    for e in acq.screen(clean, noisy.data, _ones(noisy), TRAIN):
+        if e.fault.kind == "stuck":
+            assert e.score == 0.0 and e.fault.value == 0.0 and e.fault.detail["onset"] == {}
+
+
 def test_nothing_scores_on_noise_alone(records):
     """The screen must not buy a fault with noise: every kind on every channel of a clean
     record stays below the score a joint fit needs (the periodogram's best of ~1800 tones
     included)."""
     clean, noisy = records
     ranked = acq.screen(clean, noisy.data, _ones(noisy), TRAIN)
-    assert len(ranked) == len(acq.KINDS) * 4
+    assert len(ranked) == len(acq.KINDS) * 4 == 24
     assert ranked[0].score < MIN_SCORE
 
 
@@ -120,4 +158,4 @@ def test_names_and_bad_names():
     # trivial bands in the channel's unit: the noise sd scales the per-sd kinds
     assert acq.trivial("drift(i_eq)") == pytest.approx(float(acq.NOISE_STD[3]))
     assert acq.trivial("time_shift(i_eq)") == 0.5
-    assert len(acq.all_names()) == 20
+    assert len(acq.all_names()) == 24

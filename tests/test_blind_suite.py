@@ -78,7 +78,7 @@ def test_shares_at_60_and_64_cases():
 
 def test_every_decoy_appears_at_64_cases():
     acq = [c for c in CASES64 if c.category == "acquisition_decoy"]
-    assert sorted({c.decoy for c in acq}) == sorted(decoys.ACQUISITION_DECOYS)
+    assert sorted({c.decoy for c in acq}) == sorted(blind.ACQUISITION)
     assert all(c.effects == {} for c in acq)
     phys = [c for c in CASES64 if c.category == "physical_decoy"]
     assert {c.decoy for c in phys} == set(DECOYS)
@@ -146,11 +146,35 @@ def lsb(signal: str) -> float:
     return SENSORS[SIGNALS.index(signal)].lsb
 
 
-def test_the_registry_has_six_decoys():
+def test_the_registry_has_seven_decoys():
     assert list(decoys.ACQUISITION_DECOYS) == ["lowpass", "mains_hum", "clipping",
-                                               "time_shift", "drift", "outliers"]
+                                               "time_shift", "drift", "outliers", "stuck"]
+    # the suite's categories draw the second round's six: suites drawn before keep their cases
+    assert blind.ACQUISITION == tuple(decoys.ACQUISITION_DECOYS)[:6]
     for f in decoys.ACQUISITION_DECOYS.values():
         assert "Stands for" in f.__doc__
+
+
+def test_stuck_holds_one_value_from_its_start():
+    """Frozen from 0.1 s: sample 100 (window centre 0.1005 s) on holds its own value in
+    every test, the samples before it untouched; dead from the start: zero (its ADC code)
+    everywhere; a
+    start past a test's end leaves it as it was."""
+    tr = adc_traces()
+    out = decoys.stuck(tr, "omega_m", start=0.1)
+    d = changed(tr, out, "omega_m")
+    for t in tr.tests:
+        y = tr.data[t][:, 2]
+        assert not d[t][:100].any()
+        np.testing.assert_array_equal(out.data[t][100:, 2], np.full(300, y[100]))
+    dead = decoys.stuck(tr, "theta_u", 0.0, 0.0)
+    changed(tr, dead, "theta_u")
+    for t in tr.tests:      # on the ADC code nearest zero
+        np.testing.assert_array_equal(dead.data[t][:, 0], np.full(400, quantise(0.0, SENSORS[0])))
+        assert abs(dead.data[t][0, 0]) <= lsb("theta_u") / 2
+    assert decoys.stuck(tr, "i_eq", start=1.0).allclose(tr)
+    with pytest.raises(ValueError, match="start"):
+        decoys.stuck(tr, "i_eq", start=-0.1)
 
 
 def test_time_shift_delays_one_channel_by_whole_samples():
@@ -519,6 +543,52 @@ def test_extra_cases_leave_the_suite_drawn_before_as_it_was():
         draw_cases(10, 0, extra=-1)
 
 
+def _sized_value(kind: str, p: dict, sd: float) -> float:
+    """A sized decoy's magnitude in its kind's ``detect`` unit, from its parameters."""
+    from ema_bench.diagnosis import sized
+    from ema_bench.diagnosis.acquisition import KINDS
+
+    if kind == "stuck":          # the frozen share of the 0.3 s step and the 1 s sine
+        return (max(0.3 - p["start"], 0.0) + 1.0 - p["start"]) / 1.3
+    if kind == "outliers":       # spikes sized by height, the kind's detect is a count
+        return p["size"] / sd * KINDS[kind].detect / sized.OUTLIER_DETECT_SD
+    return {"lowpass": p.get("tau"), "time_shift": p.get("samples"),
+            "drift": abs(p.get("rate", 0.0)) / sd, "mains_hum": p.get("amplitude", 0.0) / sd
+            }[kind]
+
+
+def test_fourth_round_cases_size_the_acquisition_fault_by_its_threshold():
+    """``fourth`` cases of each fourth-round category after the others, which stay as they
+    were; every kind of the acquisition library on a channel it is drawn on, at 1-4x (or
+    1-1.5x) its detection threshold, the decoy's parameters that multiple of it (a time
+    shift rounded to whole samples, at least 1)."""
+    from ema_bench.diagnosis import sized
+    from ema_bench.diagnosis.acquisition import KINDS, NOISE_STD
+
+    both = draw_cases(64, 0, extra=12, fourth=6)
+    assert both[:88] == draw_cases(64, 0, extra=12)
+    new = both[88:]
+    assert [c.index for c in new] == list(range(88, 100))
+    assert Counter(c.category for c in new) == {"effect_acquisition_sized": 6,
+                                                "near_threshold_acquisition": 6}
+    assert {c.decoy for c in new} == set(KINDS) == set(sized.CHANNELS)
+    for c in new:
+        (n, v), = c.effects.items()
+        assert 1.5 - 1e-9 <= detects(n, v) <= 4.0 + 1e-9 or abs(v) == EFFECTS[EFFECT_INDEX[n]].upper
+        p, spec = c.decoy_params, KINDS[c.decoy]
+        lo, hi = blind.ACQ_MULTIPLES[c.category]
+        assert lo <= p["multiple"] <= hi and p["signal"] in sized.CHANNELS[c.decoy]
+        want = min(p["multiple"] * spec.detect, spec.upper)
+        got = _sized_value(c.decoy, p, float(NOISE_STD[SIGNALS.index(p["signal"])]))
+        if c.decoy == "time_shift":
+            assert got == max(1, round(want))
+        else:
+            assert got == pytest.approx(want, rel=1e-9)
+        assert blind.acquisition_truth(c) == f"{c.decoy}({p['signal']})"
+    with pytest.raises(ValueError, match=">= 0"):
+        draw_cases(10, 0, fourth=-1)
+
+
 def test_scores_of_an_effect_beside_an_acquisition_fault():
     c = BlindCase(0, "effect_acquisition", "effect", {"viscous_friction": 1e-4}, {"Na": 1.0},
                   "mains_hum", {"signal": "i_eq"})
@@ -634,6 +704,29 @@ def test_run_case_builds_the_third_round_data_and_hides_the_truth(monkeypatch):
             assert not tr.allclose(ref)      # the acquisition fault is on the record
 
 
+def test_run_case_puts_the_sized_fault_on_the_record(monkeypatch):
+    """A fourth-round case's record is the reference record through its sized decoy (the
+    drawn ``multiple`` is kept in the case, not passed to the decoy), and the fault named on
+    its channel scores as named."""
+    seen = []
+
+    def fake_diagnose(tr, settings, seed):
+        seen.append(tr)
+        return SimpleNamespace(verdict="effect", effects=[], acquisition=[
+            acq_finding(blind.acquisition_truth(c), 1.0)], gap={
+                "partial": None, "before": 1.0, "after": 0.0}, message="m", evaluations=1)
+
+    monkeypatch.setattr(blind, "diagnose", fake_diagnose)
+    c = draw_cases(0, 5, fourth=1)[0]
+    assert c.category in blind.FOURTH_CATEGORIES and "multiple" in c.decoy_params
+    rec = run_case(c, 5, blind.Settings())
+    assert rec["acquisition_named"] and rec["decoy_params"] == c.decoy_params
+    ref = blind.simulate_reference(np.array(list(c.faults.values())), c.effects,
+                                   tests=blind.TESTS, seed=stream(run_seed(5, c.index), "noise"))
+    params = {k: v for k, v in c.decoy_params.items() if k != "multiple"}
+    assert seen[0].allclose(decoys.apply(c.decoy, ref, params)) and not seen[0].allclose(ref)
+
+
 COMMITTED_R3 = Path(__file__).resolve().parents[1] / "leaderboards" / "blind_r3"
 
 
@@ -659,6 +752,22 @@ def test_the_committed_third_round_suites_are_the_cases_drawn_and_summed(folder,
     # as the CLI writes it (jsonio: a NaN rate of an empty category becomes null)
     assert {k: v for k, v in summary.items() if k != "command"} == \
         json.loads(dumps(summarise(ordered)))
+
+
+def test_the_committed_fourth_round_suite_is_the_cases_drawn_and_summed():
+    """``blind_r4/``: every record is the case root seed 2154 draws with ``--fourth 6``, and
+    the committed summary is :func:`summarise` of the records."""
+    path = COMMITTED_R3.parent / "blind_r4"
+    records = sorted(read_records(path / "blind.jsonl"), key=lambda r: r["index"])
+    drawn = draw_cases(0, 2154, fourth=6)
+    assert [r["index"] for r in records] == [c.index for c in drawn]
+    for r, c in zip(records, drawn):
+        assert r["root_seed"] == 2154 and r["category"] in blind.FOURTH_CATEGORIES
+        assert (r["effects"], r["decoy"], r["decoy_params"]) == (c.effects, c.decoy,
+                                                                 c.decoy_params)
+    summary = json.loads((path / "summary.json").read_text())
+    assert {k: v for k, v in summary.items() if k not in ("command", "interval_calibration")} \
+        == json.loads(dumps(summarise(records)))
 
 
 # slow (about 120 CPU-s): the fast loop builds these cases' data with a stand-in diagnosis

@@ -47,10 +47,10 @@ def test_the_published_schemas_are_the_readers_tables(cli, tmp_path):
 @pytest.mark.parametrize(("name", "files"), [
     ("run-record", ["quick/runs.jsonl", "runs.jsonl", "paper-ga-10k/runs.jsonl"]),
     ("track-step", ["campaign/twin/kalman/track.jsonl", "campaign/reference/particle/track.jsonl"]),
-    ("blind-case", ["blind/blind.jsonl"]),
+    ("blind-case", ["blind/blind.jsonl", "blind_r4/blind.jsonl"]),
     ("coverage-record", ["coverage/calibration/twin_laplace.jsonl"]),
     ("leaderboard-summary", ["quick/summary.json", "summary.json"]),
-    ("blind-summary", ["blind/summary.json", "blind_r3/summary.json"]),
+    ("blind-summary", ["blind/summary.json", "blind_r3/summary.json", "blind_r4/summary.json"]),
     ("coverage-summary", [str(p.relative_to(LB)) for p in sorted((LB / "coverage").glob("*_*.json"))
                           if not p.name.startswith("example")]),
 ])

@@ -13,6 +13,10 @@ effect flagged partial (the model with it still leaves the bootstrap envelopes).
 appended to OUT/blind.jsonl as cases finish (--workers N: N processes); rerunning the same
 command resumes (OUT defaults to ema-bench-blind-seed<S>-n<N> in the current folder).
 Progress: a bar in a terminal, one line per finished case otherwise (--quiet: none).
+--extra K and --fourth K add K cases of each third-round category (an effect beside an
+acquisition-chain fault, three effects) and of each fourth-round one (an effect beside an
+acquisition fault sized at 1-4x and at 1-1.5x its measured detection threshold) after the
+N, which they leave as drawn.
 
 --calibrate fits the true effect sets of the effect cases of the suite of root seed 1 (never
 a reported seed) and writes the nonconformity scores of their intervals to
@@ -48,6 +52,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="K more cases of each third-round category (an effect beside an "
                         "acquisition-chain fault, three effects at once), after the --cases "
                         "cases, which they leave as they were (default 0)")
+    p.add_argument("--fourth", type=count(0, 1000), default=0, metavar="K",
+                   help="K more cases of each fourth-round category (an effect beside an "
+                        "acquisition fault sized at 1-4x, and at 1-1.5x, its detection "
+                        "threshold), after the others, which they leave as they were "
+                        "(default 0)")
     p.add_argument("--only", default=None, metavar="CATEGORIES",
                    help="comma-separated categories: run and summarise only their cases of "
                         "the suite drawn (e.g. a rerun of part of a committed suite)")
@@ -69,15 +78,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def default_out(seed: int, cases: int, extra: int = 0) -> str:
+def default_out(seed: int, cases: int, extra: int = 0, fourth: int = 0) -> str:
     """The folder a blind suite writes to without ``--out``: named by what it holds, so the
     same command resumes and another seed or size never mixes in."""
-    return f"ema-bench-blind-seed{seed}-n{cases}" + (f"-x{extra}" if extra else "")
+    return (f"ema-bench-blind-seed{seed}-n{cases}" + (f"-x{extra}" if extra else "")
+            + (f"-f{fourth}" if fourth else ""))
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.cases + args.extra < 1:   # each >= 0 and --workers >= 1 by their types
-        raise CLIError("--cases and --extra must be >= 0 (not both 0), --workers >= 1")
+    if args.cases + args.extra + args.fourth < 1:   # each >= 0, --workers >= 1 by their types
+        raise CLIError("--cases, --extra and --fourth must be >= 0 (not all 0), --workers >= 1")
     only = None
     if args.only is not None:
         from ..diagnosis.blind import KINDS
@@ -105,12 +115,12 @@ def _run(args: argparse.Namespace, only: list[str] | None) -> int:
     from ..sweep.schema import check
 
     # before any work: the suite takes minutes per case
-    out = check_output(args.out or default_out(args.seed, args.cases, args.extra), "--out",
-                       folder=True)
+    out = check_output(args.out or default_out(args.seed, args.cases, args.extra, args.fourth),
+                       "--out", folder=True)
     if args.out is None and not args.quiet:
         print(f"writing to {out}/ (rerun the same command to resume)", file=sys.stderr)
     res = run_blind(args.cases, args.seed, out, quiet=args.quiet, workers=args.workers,
-                    extra=args.extra, only=only)
+                    extra=args.extra, only=only, fourth=args.fourth)
     res["summary"]["interval_calibration"] = source()
     text = dumps({"command": "ema-bench " + " ".join(sys.argv[1:]), **res["summary"]},
                  indent=1)
@@ -126,9 +136,9 @@ def _calibrate(args: argparse.Namespace) -> int:
     from ..interval_calibration_files import inside_package
 
     if args.seed not in (0, ic.CALIBRATION_SEED) or args.calibration or args.extra or \
-            args.only:
+            args.only or args.fourth:
         raise CLIError(f"--calibrate runs the cases of root seed {ic.CALIBRATION_SEED}; drop "
-                       "--seed, --calibration, --extra and --only")
+                       "--seed, --calibration, --extra, --fourth and --only")
     if args.out is None:
         raise CLIError("--calibrate writes OUT/interval_calibration.json: give --out DIR (the "
                        "shipped table is read-only)")
@@ -164,7 +174,9 @@ def _category_line(name: str, b: dict) -> str:
                 f"{b['confident_misnames']}, gap closed "
                 f"{_pct(b['median_heldout_gap_closed'])}, intervals cover "
                 f"{b['interval_coverage'] or '-'}")
-    if name == "effect_acquisition":
+    from ..diagnosis.blind import EFFECT_ACQUISITION
+
+    if name in EFFECT_ACQUISITION:
         return (f"effect named {b['effect_named']}/{n} ({_pct(b['effect_named_rate'])}), "
                 f"acquisition fault named {b['acquisition_named']}/{n}, named or flagged "
                 f"{b['acquisition_named_or_flagged']}/{n} "
@@ -209,7 +221,9 @@ def _truth(r: dict) -> str:
     effects = ",".join(f"{k}={v:.3g}" for k, v in r["effects"].items())
     if r["category"] == "acquisition_decoy":
         return f"{r['decoy']}({r['decoy_params'].get('signal', '')})"
-    if r["category"] == "effect_acquisition":
+    from ..diagnosis.blind import EFFECT_ACQUISITION
+
+    if r["category"] in EFFECT_ACQUISITION:
         return f"{effects}+{r['decoy']}({r['decoy_params'].get('signal', '')})"
     if r["category"] == "monitor_null":
         return "nothing (monitor)"

@@ -14,6 +14,9 @@ drift        rate, channel unit/s (+-200 sd/s)  ``+ rate * t`` from each test's 
 mains_hum    amplitude, channel unit (0-50 sd)  ``+`` a tone at a fitted frequency (40-495
                                                 Hz), its phase per test
 outliers     spikes, count (0-2 % of samples)   isolated spikes; the samples get weight 0
+stuck        share of samples frozen (0-1)      flat from an onset per test (dead from the
+                                                start, or frozen at one value): the model
+                                                holds the record's level; weight 0
 ===========  =================================  ===========================================
 
 (``sd``: the channel's sensor-noise standard deviation, :data:`~.features.NOISE_STD`.)  A
@@ -26,9 +29,11 @@ per test for the hum, a spike detector (a sample more than :data:`SPIKE_SD` nois
 the median of its 5-sample neighbourhood, isolated, at most 2 % of the channel) for
 outliers.  The rate, ``tau``, the shift and the hum's frequency come from the training tests
 alone; the hum's phase and amplitude per test and the spikes' positions are nuisances of
-each record and are fitted on every test, the held-out one included.
+each record and are fitted on every test, the held-out one included; so are a stuck
+channel's onset and level in each test (the latest sample from which the record is flat,
+:func:`_fit_stuck`).
 
-Screening.  :func:`screen` fits every kind on every channel at a model's residuals (20
+Screening.  :func:`screen` fits every kind on every channel at a model's residuals (24
 candidates, each a few milliseconds of numpy) and scores it as the drop of the channel's
 whitened sum of squares on the training tests, the chi-square scale of the physical
 effects' score test (:mod:`~.screening`).
@@ -37,7 +42,8 @@ Intervals (95 %).  From the channel's profile with the residual variance estimat
 fit (at least the sensor noise): ``+-1.96`` standard errors for the linear parameters (the
 drift rate; a common scale of the fitted hum), the values whose sum of squares lies within
 3.84 variances of the best for ``tau`` and the shift, ``n +- 1.96 sqrt(n)`` spikes for
-outliers (so at least 4 spikes exclude zero).
+outliers (so at least 4 spikes exclude zero), the shares of the onsets whose sum of
+squares lies within 3.84 variances of the best for a stuck channel.
 """
 
 from __future__ import annotations
@@ -65,6 +71,13 @@ MAX_SHIFT = 8
 HUM_BAND = (40.0, 495.0)
 HUM_STEP = 0.25        # Hz, the periodogram grid (a 1 s test resolves ~1 Hz)
 CHI2_95 = 3.841        # chi-square quantile, 1 dof
+#: Fewest samples a frozen span holds (shorter flat stretches are a pause, not a fault).
+STUCK_MIN = 30
+#: Noise sd the model's channel must move over a frozen span: a record that is flat where
+#: the model is flat too (a settled step) says nothing about the sensor.
+STUCK_MOVE = 20.0
+#: Noise sd of the chi-square excess a flat span may hold (its spread about its level).
+STUCK_FLAT = 5.0
 
 
 @dataclass(frozen=True)
@@ -80,7 +93,11 @@ class AcquisitionKind:
     lower: float
     upper: float
     trivial: float      # |value| below this is negligible
-    detect: float       # |value| the blind draws start at (named reliably above it)
+    # |value| from which it is detected and screened first at the true physics in every
+    # draw (benchmarks/acquisition_thresholds.py), at least twice ``trivial``; outliers:
+    # the spikes a count needs for an interval excluding zero (their height:
+    # :data:`~.sized.OUTLIER_DETECT_SD`)
+    detect: float
     signature: str
     per_sd: bool = False
     additive: bool = False   # adds to the record (else a filter of it, or weights)
@@ -92,23 +109,28 @@ class AcquisitionKind:
 
 
 KINDS: dict[str, AcquisitionKind] = {k.name: k for k in (
-    AcquisitionKind("lowpass", "tau", "s", 0.0, 20e-3, 3e-4, 2e-3,
+    AcquisitionKind("lowpass", "tau", "s", 0.0, 20e-3, 3e-4, 6e-4,
                     "one channel's edges smeared over several samples, lagging its peers"),
-    AcquisitionKind("time_shift", "samples", "samples (1 ms)", -MAX_SHIFT, MAX_SHIFT, 0.5, 3,
+    AcquisitionKind("time_shift", "samples", "samples (1 ms)", -MAX_SHIFT, MAX_SHIFT, 0.5, 1,
                     "one channel's residual is the derivative of the signal times a lag; "
                     "the others fit"),
-    AcquisitionKind("drift", "rate", "unit/s", -200.0, 200.0, 1.0, 10.0,
+    AcquisitionKind("drift", "rate", "unit/s", -200.0, 200.0, 1.0, 2.0,
                     "one channel's residual grows linearly from each test's start",
                     per_sd=True, additive=True),
-    AcquisitionKind("mains_hum", "amplitude", "unit", 0.0, 50.0, 0.5, 4.0,
+    AcquisitionKind("mains_hum", "amplitude", "unit", 0.0, 50.0, 0.5, 2.0,
                     "a pure tone in one channel's residual, its phase set by each test",
                     per_sd=True, additive=True),
     AcquisitionKind("outliers", "spikes", "samples", 0.0, math.inf, 0.5, 4.0,
                     "isolated spikes of tens of noise sd on one channel"),
+    AcquisitionKind("stuck", "share", "share of samples", 0.0, 1.0, 0.01, 0.03,
+                    "one channel flat (dead, or frozen at one value) while the model, "
+                    "and the other channels, move"),
 )}
 #: Order in which fitted faults act on the model's outputs: filters, then what adds, then
-#: weights (outliers).
-ORDER = ("time_shift", "lowpass", "drift", "mains_hum", "outliers")
+#: weights (outliers), then what replaces the values (a stuck channel's level).
+ORDER = ("time_shift", "lowpass", "drift", "mains_hum", "outliers", "stuck")
+#: The kinds that filter the channel (act before the additive ones).
+FILTERS = ("time_shift", "lowpass")
 
 
 @dataclass(frozen=True)
@@ -223,6 +245,9 @@ def carry(outputs: Mapping[str, np.ndarray], faults: Sequence[Acquisition]
                 col = _lowpass(col, f.value)
             elif KINDS[f.kind].additive:
                 col = col + _added(f, test, col.shape[-1])
+            elif f.kind == "stuck" and test in f.detail["onset"]:
+                col = np.array(col, copy=True)
+                col[..., f.detail["onset"][test]:] = f.detail["level"][test]
             y[..., f.column] = col
         out[test] = y
     return out
@@ -230,13 +255,18 @@ def carry(outputs: Mapping[str, np.ndarray], faults: Sequence[Acquisition]
 
 def weights(faults: Sequence[Acquisition], shapes: Mapping[str, tuple[int, ...]]
             ) -> dict[str, np.ndarray]:
-    """Per test, (n_samples, 4) sample weights: 0 at the outlier model's spikes, 1 else."""
+    """Per test, (n_samples, 4) sample weights: 0 at the outlier model's spikes and over a
+    stuck channel's frozen span, 1 else."""
     out = {t: np.ones(s) for t, s in shapes.items()}
     for f in faults:
         if f.kind == "outliers":
             for t, idx in f.detail["spikes"].items():
                 if t in out:
                     out[t][np.asarray(idx, dtype=int), f.column] = 0.0
+        elif f.kind == "stuck":
+            for t, k in f.detail["onset"].items():
+                if t in out:
+                    out[t][int(k):, f.column] = 0.0
     return out
 
 
@@ -266,7 +296,7 @@ def _channel(raw: Mapping[str, np.ndarray], measured: Mapping[str, np.ndarray],
              others: Sequence[Acquisition], w: Mapping[str, np.ndarray], col: int,
              train: tuple[str, ...]) -> _Channel:
     sd = float(NOISE_STD[col])
-    filters = [f for f in others if not KINDS[f.kind].additive and f.kind != "outliers"]
+    filters = [f for f in others if f.kind in FILTERS]
     pre = carry(raw, filters)
     pred = carry(raw, others)
     ow = weights(others, {t: v.shape for t, v in raw.items()})
@@ -386,9 +416,45 @@ def _fit_outliers(ch: _Channel) -> tuple[float, dict, float, list[float]]:
                                          n + 1.96 * math.sqrt(n)]
 
 
+def _stuck_onsets(ch: _Channel, t: str) -> tuple[np.ndarray, np.ndarray]:
+    """Of one test: each onset ``k`` that may start a frozen span (the record flat from
+    ``k`` on, the model moving there) and the whitened sum of squares of the model with the
+    span frozen from ``k`` (the span's spread about its level counted, so the onset cannot
+    move into live samples for free); the last entry is ``n``, no span."""
+    d, p, w = ch.data[t], ch.pred[t], ch.w[t]
+    n = d.size
+    live = np.r_[0.0, np.cumsum(w * (d - p) ** 2)]            # sum of squares before k
+    m = np.arange(n, 0, -1, dtype=float)                      # samples from k on
+    s1, s2 = np.cumsum(d[::-1])[::-1], np.cumsum((d * d)[::-1])[::-1]
+    spread = np.maximum(s2 - s1 * s1 / m, 0.0)                # about the span's mean
+    # the model's peak-to-peak over each span (from k to the end)
+    ptp = np.maximum.accumulate(p[::-1])[::-1] - np.minimum.accumulate(p[::-1])[::-1]
+    ok = (m >= STUCK_MIN) & (spread <= m + STUCK_FLAT * np.sqrt(2 * m)) & (ptp > STUCK_MOVE)
+    k = np.r_[np.flatnonzero(ok), n]
+    return k, live[k] + np.r_[spread, 0.0][k]
+
+
+def _fit_stuck(ch: _Channel) -> tuple[float, dict, float, list[float]]:
+    onset, level, drop, lo, hi = {}, {}, 0.0, 0.0, 0.0
+    n_train = sum(ch.data[t].size for t in ch.train)
+    for t in ch.pred:
+        k, sse = _stuck_onsets(ch, t)
+        i = int(np.argmin(sse))
+        n = ch.data[t].size
+        if k[i] < n:
+            onset[t], level[t] = int(k[i]), float(np.mean(ch.data[t][k[i]:]))
+        if t in ch.train:
+            drop += float(sse[-1] - sse[i])
+            s2 = max(sse[i] / max(float(np.sum(ch.w[t] > 0)), 1.0), 1.0)
+            near = k[sse <= sse[i] + CHI2_95 * s2]
+            lo, hi = lo + n - near.max(), hi + n - near.min()
+    share = sum(ch.data[t].size - onset[t] for t in ch.train if t in onset) / n_train
+    return share, {"onset": onset, "level": level}, drop, [lo / n_train, hi / n_train]
+
+
 _FITS: dict[str, Callable[[_Channel], tuple[float, dict, float, list[float]]]] = {
     "lowpass": _fit_lowpass, "time_shift": _fit_time_shift, "drift": _fit_drift,
-    "mains_hum": _fit_mains_hum, "outliers": _fit_outliers,
+    "mains_hum": _fit_mains_hum, "outliers": _fit_outliers, "stuck": _fit_stuck,
 }
 
 
@@ -419,11 +485,13 @@ def estimate(name: str, raw: Mapping[str, np.ndarray], measured: Mapping[str, np
                   SIGNALS.index(channel), train)
     value, detail, drop, iv = _FITS[kind](ch)
     lo, hi, _, _ = KINDS[kind].scaled(channel)
-    sd = 1.0 if kind in ("lowpass", "time_shift", "outliers") else float(
-        NOISE_STD[SIGNALS.index(channel)])
+    noise = float(NOISE_STD[SIGNALS.index(channel)])
+    sd = noise if KINDS[kind].per_sd else 1.0
     value = float(np.clip(value * sd, lo, hi))
     if kind == "mains_hum":
         detail = {**detail, "coef": {t: [v * sd for v in c] for t, c in detail["coef"].items()}}
+    if kind == "stuck":         # the levels were fitted on the whitened record
+        detail = {**detail, "level": {t: v * noise for t, v in detail["level"].items()}}
     return Estimate(Acquisition(kind, channel, value, detail), max(float(drop), 0.0),
                     [float(v) * sd for v in iv])
 
@@ -431,11 +499,13 @@ def estimate(name: str, raw: Mapping[str, np.ndarray], measured: Mapping[str, np
 def refit(faults: Sequence[Acquisition], raw: Mapping[str, np.ndarray],
           measured: Mapping[str, np.ndarray], w: Mapping[str, np.ndarray],
           train: tuple[str, ...]) -> tuple[list[Acquisition], dict[str, list[float]]]:
-    """Each fault fitted again in turn at ``raw`` (the others held), outliers first (so
-    their spikes do not pull the least-squares fits); the faults and their intervals."""
+    """Each fault fitted again in turn at ``raw`` (the others held), outliers and stuck
+    channels first (so their samples do not pull the least-squares fits); the faults and
+    their intervals."""
     cur = list(faults)
     ivs = {}
-    for i in sorted(range(len(cur)), key=lambda i: (cur[i].kind != "outliers", i)):
+    for i in sorted(range(len(cur)), key=lambda i: (cur[i].kind not in ("outliers", "stuck"),
+                                                    i)):
         e = estimate(cur[i].name, raw, measured, w, train, cur)
         cur[i] = e.fault
         ivs[e.fault.name] = e.interval
@@ -465,6 +535,8 @@ def describe(f: Acquisition) -> str:
         "mains_hum": f"{f.detail.get('freq', 0.0):.0f} Hz hum of {f.value:.3g} {u} on "
                      f"{f.channel}",
         "outliers": f"{int(f.value)} outlier spikes on {f.channel}",
+        "stuck": f"{f.channel} stuck (flat) over {100 * f.value:.0f} % of its training "
+                 f"samples",
     }
     return text[f.kind]
 

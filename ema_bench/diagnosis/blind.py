@@ -30,6 +30,11 @@ of the suite):
 ``three_effect``
     three different library effects, each at 2-3 times ``detect``, cycling through every
     triple; the workflow should name all three.
+``effect_acquisition_sized``, ``near_threshold_acquisition``
+    (fourth round) one library effect at 1.5-4 times ``detect`` beside an acquisition fault
+    of the workflow's library sized at 1-4 (1-1.5) times its own detection threshold
+    (:mod:`~ema_bench.diagnosis.sized`; a stuck channel and 1-2 sample time shifts among
+    them), scored as ``effect_acquisition``.
 
 A decoy is handled when nothing is named confidently that is not there: the workflow reports
 it unexplained or not at all, names a physical effect only flagged partial, or (an
@@ -85,7 +90,7 @@ from ..sweep.schema import opt, req
 from ..sweep.store import Store, is_current
 from ..trace_cache import MODEL_VERSION
 from ..traces import Traces
-from . import acquisition, decoys
+from . import acquisition, decoys, sized
 from .results import Settings
 from .workflow import diagnose
 
@@ -94,7 +99,9 @@ DRAWABLE = tuple(n for n in LIBRARY if math.isfinite(EFFECTS[EFFECT_INDEX[n]].de
 PAIRS: tuple[tuple[str, str], ...] = tuple(itertools.combinations(DRAWABLE, 2))
 #: Every unordered triple of different drawable effects (the three-effect cases cycle them).
 TRIPLES: tuple[tuple[str, str, str], ...] = tuple(itertools.combinations(DRAWABLE, 3))
-ACQUISITION = tuple(decoys.ACQUISITION_DECOYS)
+#: The acquisition decoys the suite's categories draw: the second round's six, so that a suite
+#: drawn before keeps its cases (the stuck channel of the fourth round is not drawn here).
+ACQUISITION = ("lowpass", "mains_hum", "clipping", "time_shift", "drift", "outliers")
 #: The acquisition decoys the workflow's acquisition library holds (clipping it does not).
 ACQUISITION_LIBRARY = tuple(n for n in ACQUISITION if n in acquisition.KINDS)
 #: Categories and their shares of a suite, in percent (largest remainders round them).
@@ -105,18 +112,28 @@ CATEGORIES: dict[str, int] = {
 #: The third round's categories: ``extra`` cases of each after the ``n`` of the shares (so
 #: the suites drawn before keep their cases, and the interval calibration its own).
 EXTRA_CATEGORIES: tuple[str, ...] = ("effect_acquisition", "three_effect")
+#: The fourth round's categories (``fourth`` cases of each after the extra ones): an effect
+#: beside an acquisition fault sized by its threshold (:mod:`.sized`), 1-4x and 1-1.5x.
+FOURTH_CATEGORIES: tuple[str, ...] = ("effect_acquisition_sized", "near_threshold_acquisition")
+#: Multiples of the acquisition fault's threshold each fourth-round category draws.
+ACQ_MULTIPLES: dict[str, tuple[float, float]] = {
+    "effect_acquisition_sized": (1.0, 4.0), "near_threshold_acquisition": (1.0, 1.5)}
+#: The categories scored on an effect named and an acquisition fault named beside it.
+EFFECT_ACQUISITION = ("effect_acquisition", *FOURTH_CATEGORIES)
 KINDS: dict[str, str] = {
     "single": "effect", "near_threshold": "effect", "two_effect": "effect", "null": "null",
     "monitor_null": "null", "physical_decoy": "decoy", "acquisition_decoy": "decoy",
     "effect_acquisition": "effect", "three_effect": "effect",
+    "effect_acquisition_sized": "effect", "near_threshold_acquisition": "effect",
 }
 #: Magnitude of the hidden effects, as a range of multiples of ``detect`` (log-uniform).
 MAGNITUDES: dict[str, tuple[float, float]] = {
     "single": (1.5, 4.0), "near_threshold": (1.0, 1.5), "two_effect": (1.5, 3.0),
     "physical_decoy": (1.0, 4.0), "effect_acquisition": (1.5, 4.0), "three_effect": (2.0, 3.0),
+    "effect_acquisition_sized": (1.5, 4.0), "near_threshold_acquisition": (1.5, 4.0),
 }
 #: Categories whose data go through an acquisition fault (the case's ``decoy``).
-ACQUIRED = ("acquisition_decoy", "effect_acquisition")
+ACQUIRED = ("acquisition_decoy", *EFFECT_ACQUISITION)
 TESTS = STANDARD_TESTS + HOLDOUT_TESTS
 
 Runner = Callable[["BlindCase", int, Settings], dict]
@@ -201,7 +218,14 @@ def _extra_orders(rng: np.random.Generator) -> dict[str, list[tuple[str, ...]]]:
             "effect_acquisition_fault": [(n,) for n in _perm(rng, ACQUISITION_LIBRARY)]}
 
 
-def draw_cases(n: int, seed: int, extra: int = 0) -> list[BlindCase]:
+def _fourth_orders(rng: np.random.Generator) -> dict[str, list[tuple[str, ...]]]:
+    """The order the fourth round's categories cycle their effects and fault kinds in."""
+    return {"effect_acquisition_sized": [(n,) for n in _perm(rng, DRAWABLE)],
+            "near_threshold_acquisition": [(n,) for n in _perm(rng, DRAWABLE)],
+            "sized_kind": [(n,) for n in _perm(rng, tuple(sized.CHANNELS))]}
+
+
+def draw_cases(n: int, seed: int, extra: int = 0, fourth: int = 0) -> list[BlindCase]:
     """``n`` hidden cases of the suite of root seed ``seed``, laid out in the fixed shares of
     :data:`CATEGORIES`, then ``extra`` cases of each of :data:`EXTRA_CATEGORIES` (indices
     ``n`` on, shuffled); each category cycles through its effects, pairs, triples or decoys
@@ -211,9 +235,11 @@ def draw_cases(n: int, seed: int, extra: int = 0) -> list[BlindCase]:
     (the extra cases' from its ``plan`` stream number 1, so ``extra`` leaves the first ``n``
     cases as they were); case ``i``'s faults from the ``instance`` stream of run ``i``
     (``run_seed(seed, i)``), an acquisition fault's channel and magnitude from its
-    ``acquisition`` stream."""
-    if n < 0 or extra < 0:
-        raise ValueError(f"cases and extra cases must be >= 0, got {n} and {extra}")
+    ``acquisition`` stream.  ``fourth`` cases of each of :data:`FOURTH_CATEGORIES` follow
+    (indices ``n + 2 extra`` on; their layout from ``plan`` stream number 2)."""
+    if n < 0 or extra < 0 or fourth < 0:
+        raise ValueError(f"cases, extra and fourth-round cases must be >= 0, got {n}, {extra} "
+                         f"and {fourth}")
     rng = np.random.default_rng(stream(seed, "plan"))
     layout = [c for c, k in category_counts(n).items() for _ in range(k)]
     rng.shuffle(layout)
@@ -224,6 +250,12 @@ def draw_cases(n: int, seed: int, extra: int = 0) -> list[BlindCase]:
         layout = [c for c in EXTRA_CATEGORIES for _ in range(extra)]
         rng.shuffle(layout)
         cases += _draw(layout, n, seed, rng, _extra_orders(rng), Counter())
+    if fourth:
+        rng = np.random.default_rng(stream(seed, "plan", 2))
+        layout = [c for c in FOURTH_CATEGORIES for _ in range(fourth)]
+        rng.shuffle(layout)
+        cases += _draw(layout, n + len(EXTRA_CATEGORIES) * extra, seed, rng,
+                       _fourth_orders(rng), Counter())
     return cases
 
 
@@ -244,8 +276,14 @@ def _draw(layout: list[str], first: int, seed: int, rng: np.random.Generator,
         if category == "effect_acquisition":
             cycle = orders["effect_acquisition_fault"]
             decoy = cycle[(taken[category] - 1) % len(cycle)][0]
-        params = (decoys.draw(decoy, np.random.default_rng(stream(node, "acquisition")))
-                  if category in ACQUIRED else {})
+        acq_rng = np.random.default_rng(stream(node, "acquisition"))
+        if category in FOURTH_CATEGORIES:
+            cycle = orders["sized_kind"]
+            decoy = cycle[(taken["sized"]) % len(cycle)][0]
+            taken["sized"] += 1
+            params = sized.draw(decoy, *ACQ_MULTIPLES[category], acq_rng)
+        else:
+            params = decoys.draw(decoy, acq_rng) if category in ACQUIRED else {}
         cases.append(BlindCase(i, category, KINDS[category], effects, faults, decoy, params))
     return cases
 
@@ -272,7 +310,7 @@ def measured_traces(case: BlindCase, seed: int) -> Traces:
         return tr.with_meta(model=None)
     tr = simulate_reference(x, case.effects, tests=TESTS, seed=stream(node, "noise"))
     if case.category in ACQUIRED:
-        tr = decoys.apply(case.decoy, tr, case.decoy_params)
+        tr = decoys.apply(case.decoy, tr, sized.decoy_params(case.decoy_params))
     return tr
 
 
@@ -319,7 +357,7 @@ def score(case: BlindCase, d: Any) -> dict:
     elif case.category == "three_effect":
         found = [n for n in truth if n in named]
         rec.update(all_named=set(truth) <= set(named), n_named=len(found))
-    elif case.category == "effect_acquisition":
+    elif case.category in EFFECT_ACQUISITION:
         found = [n for n in truth if n in named]
         acq_named = fault in [a.name for a in getattr(d, "acquisition", [])]
         rec.update(effect_named=bool(found), acquisition_named=acq_named,
@@ -334,7 +372,7 @@ def score(case: BlindCase, d: Any) -> dict:
 def acquisition_truth(case: BlindCase) -> str | None:
     """The acquisition fault a case hides, as the workflow names it (``kind(channel)``), or
     ``None`` (also for a fault its library does not hold, e.g. clipping)."""
-    if case.category not in ACQUIRED or case.decoy not in ACQUISITION_LIBRARY:
+    if case.category not in ACQUIRED or case.decoy not in acquisition.KINDS:
         return None
     return f"{case.decoy}({case.decoy_params.get('signal')})"
 
@@ -381,7 +419,7 @@ def _tally(pairs: Sequence[tuple[str, bool]]) -> dict[str, str]:
 
 #: The record field that says an effect case's truth was found, by category.
 FOUND = {"single": "correct", "near_threshold": "correct", "two_effect": "both_named",
-         "three_effect": "all_named", "effect_acquisition": "effect_named"}
+         "three_effect": "all_named", **{c: "effect_named" for c in EFFECT_ACQUISITION}}
 
 
 def _found(r: dict) -> bool:
@@ -474,6 +512,7 @@ _BLOCKS: dict[str, Callable[[list[dict]], dict[str, object]]] = {
     "null": _null_block, "monitor_null": _null_block, "physical_decoy": _decoy_block,
     "acquisition_decoy": _decoy_block, "effect_acquisition": _effect_acquisition_block,
     "three_effect": _triple_block,
+    **{c: _effect_acquisition_block for c in FOURTH_CATEGORIES},
 }
 
 
@@ -502,10 +541,11 @@ def summarise(records: list[dict]) -> dict[str, object]:
     # the third round's categories appear when the suite has them
     present = {r["category"] for r in records}
     by = {c: [r for r in records if r["category"] == c]
-          for c in (*CATEGORIES, *(c for c in EXTRA_CATEGORIES if c in present))}
+          for c in (*CATEGORIES, *(c for c in EXTRA_CATEGORIES + FOURTH_CATEGORIES
+                                   if c in present))}
     named = by["single"] + by["near_threshold"]
-    effect = named + by["two_effect"] + by.get("three_effect", []) + by.get(
-        "effect_acquisition", [])
+    effect = named + by["two_effect"] + by.get("three_effect", []) + [
+        r for c in EFFECT_ACQUISITION for r in by.get(c, [])]
     null = by["null"] + by["monitor_null"]
     dec = by["physical_decoy"] + by["acquisition_decoy"]
     return {
@@ -542,7 +582,7 @@ def _run_task(runner: Runner, seed: int, settings: Settings, job: Job) -> dict:
 def run_blind(n: int, seed: int, out: str | Path | None = None,
               settings: Settings | None = None, quiet: bool = True, workers: int = 1,
               runner: Runner | None = None, extra: int = 0,
-              only: Sequence[str] | None = None) -> dict[str, object]:
+              only: Sequence[str] | None = None, fourth: int = 0) -> dict[str, object]:
     """Run (or resume, with ``out``) a blind suite of ``n`` cases (and ``extra`` of each
     third-round category, :func:`draw_cases`) and summarise it; progress as
     :func:`~ema_bench.progress.progress` shows it unless ``quiet``.  ``only``: run and
@@ -554,7 +594,7 @@ def run_blind(n: int, seed: int, out: str | Path | None = None,
     runs exactly the cases missing, and the records come back in case order.  ``runner``
     replaces :func:`run_case` (a module-level function, for the processes)."""
     settings = settings or Settings()
-    cases = draw_cases(n, seed, extra)
+    cases = draw_cases(n, seed, extra, fourth)
     if only is not None:
         unknown = sorted(set(only) - set(KINDS))
         if unknown:

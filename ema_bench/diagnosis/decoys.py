@@ -230,9 +230,43 @@ def outliers(tr: Traces, signal: str, size: float, fraction: float = 0.005,
     return _map_channel(tr, signal, spikes)
 
 
+def stuck(tr: Traces, signal: str, start: float = 0.0, value: float | None = None) -> Traces:
+    """One channel flat from ``start`` (s) in every test: dead, or frozen at one value.
+
+    Stands for a sensor or an acquisition channel that stops updating (a broken resolver
+    cable reading a constant, a frozen serial link repeating its last word, a dead channel
+    reading zero).  From the first sample at or after ``start`` the channel holds ``value``
+    (default: the value recorded at that sample), on its ADC code; a test shorter than
+    ``start`` is left as it was.
+
+    Parameters
+    ----------
+    tr : Traces
+        Measured traces.
+    signal : str
+        The channel.
+    start : float
+        Time from which the channel is flat, s (>= 0; 0: the whole record).
+    value : float, optional
+        The level it holds, in the channel's unit (``None``: frozen at its value at
+        ``start``).
+    """
+    if not start >= 0.0:
+        raise ValueError(f"start must be >= 0 s, got {start!r}")
+
+    def freeze(y: np.ndarray, t: np.ndarray) -> np.ndarray:
+        k = int(np.searchsorted(t, start))
+        out = y.copy()
+        if k < y.size:
+            out[k:] = y[k] if value is None else value
+        return out
+
+    return _map_channel(tr, signal, freeze)
+
+
 #: The acquisition-chain decoys, by name (their function's).
 ACQUISITION_DECOYS: dict[str, Callable[..., Traces]] = {
-    f.__name__: f for f in (lowpass, mains_hum, clipping, time_shift, drift, outliers)}
+    f.__name__: f for f in (lowpass, mains_hum, clipping, time_shift, drift, outliers, stuck)}
 
 
 def _noise(signal: str) -> float:
@@ -279,11 +313,19 @@ def _draw_outliers(rng: np.random.Generator) -> dict[str, Any]:
             "fraction": 0.005, "seed": int(rng.integers(2**31))}
 
 
+def _draw_stuck(rng: np.random.Generator) -> dict[str, Any]:
+    # dead from the start (reading zero) or frozen from 0.05-0.25 s (inside the 0.3 s step)
+    signal = _pick(rng, SIGNALS)
+    if rng.random() < 0.5:
+        return {"signal": signal, "start": 0.0, "value": 0.0}
+    return {"signal": signal, "start": float(rng.uniform(0.05, 0.25))}
+
+
 #: Each decoy's draw of its keyword arguments (``_draw_<name>``).
 _DRAWS: dict[str, Callable[[np.random.Generator], dict[str, Any]]] = {
     f.__name__.removeprefix("_draw_"): f for f in (
         _draw_lowpass, _draw_mains_hum, _draw_clipping, _draw_time_shift, _draw_drift,
-        _draw_outliers)}
+        _draw_outliers, _draw_stuck)}
 
 
 def draw(name: str, rng: np.random.Generator) -> dict[str, Any]:
