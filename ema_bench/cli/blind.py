@@ -109,7 +109,8 @@ def run(args: argparse.Namespace) -> int:
 def _run(args: argparse.Namespace, only: list[str] | None) -> int:
     from pathlib import Path
 
-    from ..diagnosis.blind import SUMMARY_SCHEMA, run_blind
+    from ..diagnosis.blind import run_blind
+    from ..diagnosis.blind_summary import SUMMARY_SCHEMA
     from ..diagnosis.interval_table import source
     from ..jsonio import dumps
     from ..sweep.schema import check

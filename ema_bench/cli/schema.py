@@ -70,7 +70,7 @@ SCHEMAS: dict[str, SchemaFile] = {
         "ema-bench blind-suite summary",
         "OUT/summary.json of ema-bench blind: naming accuracy, false alarms, decoys, gap "
         "closed, parameter error and interval coverage, overall and per category.",
-        ("ema_bench.diagnosis.blind:SUMMARY_SCHEMA",)),
+        ("ema_bench.diagnosis.blind_summary:SUMMARY_SCHEMA",)),
     "coverage-summary": SchemaFile(
         "ema-bench coverage summary",
         "OUT/TRACK_METHOD.json of ema-bench coverage: each fault's interval coverage and "

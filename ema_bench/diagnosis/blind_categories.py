@@ -1,0 +1,35 @@
+"""The blind suite's categories: their shares, their magnitudes, and which are scored how
+(:mod:`ema_bench.diagnosis.blind` draws and runs them, :mod:`.blind_summary` scores them)."""
+
+from __future__ import annotations
+
+#: Categories and their shares of a suite, in percent (largest remainders round them).
+CATEGORIES: dict[str, int] = {
+    "single": 25, "near_threshold": 14, "two_effect": 19, "null": 9, "monitor_null": 8,
+    "physical_decoy": 6, "acquisition_decoy": 19,
+}
+#: The third round's categories: ``extra`` cases of each after the ``n`` of the shares (so
+#: the suites drawn before keep their cases, and the interval calibration its own).
+EXTRA_CATEGORIES: tuple[str, ...] = ("effect_acquisition", "three_effect")
+#: The fourth round's categories (``fourth`` cases of each after the extra ones): an effect
+#: beside an acquisition fault sized by its threshold (:mod:`.sized`), 1-4x and 1-1.5x.
+FOURTH_CATEGORIES: tuple[str, ...] = ("effect_acquisition_sized", "near_threshold_acquisition")
+#: Multiples of the acquisition fault's threshold each fourth-round category draws.
+ACQ_MULTIPLES: dict[str, tuple[float, float]] = {
+    "effect_acquisition_sized": (1.0, 4.0), "near_threshold_acquisition": (1.0, 1.5)}
+#: The categories scored on an effect named and an acquisition fault named beside it.
+EFFECT_ACQUISITION = ("effect_acquisition", *FOURTH_CATEGORIES)
+KINDS: dict[str, str] = {
+    "single": "effect", "near_threshold": "effect", "two_effect": "effect", "null": "null",
+    "monitor_null": "null", "physical_decoy": "decoy", "acquisition_decoy": "decoy",
+    "effect_acquisition": "effect", "three_effect": "effect",
+    "effect_acquisition_sized": "effect", "near_threshold_acquisition": "effect",
+}
+#: Magnitude of the hidden effects, as a range of multiples of ``detect`` (log-uniform).
+MAGNITUDES: dict[str, tuple[float, float]] = {
+    "single": (1.5, 4.0), "near_threshold": (1.0, 1.5), "two_effect": (1.5, 3.0),
+    "physical_decoy": (1.0, 4.0), "effect_acquisition": (1.5, 4.0), "three_effect": (2.0, 3.0),
+    "effect_acquisition_sized": (1.5, 4.0), "near_threshold_acquisition": (1.5, 4.0),
+}
+#: Categories whose data go through an acquisition fault (the case's ``decoy``).
+ACQUIRED = ("acquisition_decoy", *EFFECT_ACQUISITION)
