@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from types import SimpleNamespace
 
+from ..grandfather import accepted_track
 from ..sampling import escape_chance, sample_indices, sample_seed
 from .campaign import load_campaign
 from .tracking import (
@@ -116,13 +117,20 @@ def replay_track(run: Path | str, k: int = 2, units: list[str] | None = None,
         raise TrackerError(f"{run}: no tracked unit {unknown[0]!r}; tracked: "
                            f"{', '.join(tracked[:5])}{', ...' if len(tracked) > 5 else ''}")
     report = TrackReplay(str(run), info.name, list(units), len(tracked), seed=seed)
+    if not accepted_track(run):
+        report.findings.append("seed scheme 1 (the tracker's seed spawned from its run node, "
+                               "which gives the node away) is accepted for the committed "
+                               "campaign runs only: track again with this version "
+                               "(seed_scheme 2)")
+        return report
     if dict(info.config) != m.get("config", {}):
         report.findings.append(f"the run's tracker config {m.get('config')} is not the "
                                f"registered {info.name!r}'s {dict(info.config)}")
         return report
     for unit in units:
         rows: list[dict] = []
-        track_unit(camp, info, unit, unit_seed(int(m["seed"]), order.index(unit)),
+        track_unit(camp, info, unit, unit_seed(int(m["seed"]), order.index(unit),
+                                               int(m.get("seed_scheme", 1))),
                    SimpleNamespace(append=rows.append))
         steps, failed = regroup(rows)
         want = {"steps": log.steps.get(unit, []), "failed": log.failed.get(unit)}

@@ -43,7 +43,7 @@ import numpy as np
 from ..faults import FAULT_NAMES
 from ..jsonio import plain, write_atomic
 from ..plugins import PluginRegistry
-from ..seeding import run_seed, stream
+from ..seeding import SEED_SCHEME, run_seed, solver_seed
 from ..sweep.executors import Job
 from ..sweep.schema import opt, req
 from ..traces import Traces
@@ -348,11 +348,12 @@ def _unit_done(campaign: Campaign):
 
 # --- running a tracker over a campaign -------------------------------------------------------
 
-def unit_seed(seed: int, k: int) -> np.random.SeedSequence:
-    """The tracker's seed for the ``k``-th unit of the manifest: the ``solver`` stream of run
-    node ``(seed, k)`` (a tracker is that unit's solver), as the campaign's unit ``k`` is run
-    ``k`` of its own root seed."""
-    return stream(run_seed(seed, k), "solver")
+def unit_seed(seed: int, k: int, scheme: int = SEED_SCHEME) -> np.random.SeedSequence:
+    """The tracker's seed for the ``k``-th unit of the manifest: the solver seed
+    (:func:`~ema_bench.seeding.solver_seed`, a one-way hash in ``scheme`` 2) of run node
+    ``(seed, k)`` (a tracker is that unit's solver), as the campaign's unit ``k`` is run
+    ``k`` of its own root seed.  Scheme 1 (the spawned stream) replays the committed runs."""
+    return solver_seed(run_seed(seed, k), scheme)
 
 
 def _manifest(campaign: Campaign, info: TrackerInfo, seed: int, out: Path) -> dict:
@@ -362,7 +363,7 @@ def _manifest(campaign: Campaign, info: TrackerInfo, seed: int, out: Path) -> di
 
     return {"format": FORMAT, "version": VERSION, "tracker": info.name,
             "description": info.description, "config": plain(info.config, default=str),
-            "seed": seed,
+            "seed": seed, "seed_scheme": SEED_SCHEME,
             # relative to the run folder: the two move together (a committed leaderboard)
             "campaign": os.path.relpath(Path(campaign.root).resolve(), Path(out).resolve()),
             "campaign_name": campaign.name, "track": campaign.track, "split": campaign.split,
@@ -370,8 +371,8 @@ def _manifest(campaign: Campaign, info: TrackerInfo, seed: int, out: Path) -> di
             "package_version": __version__, "versions": library_versions("scipy", "cma")}
 
 
-_SAME_RUN = ("format", "tracker", "config", "seed", "campaign", "campaign_name", "track",
-             "split", "campaign_seed")
+_SAME_RUN = ("format", "tracker", "config", "seed", "seed_scheme", "campaign", "campaign_name",
+             "track", "split", "campaign_seed")
 
 
 def _prepare(out: Path, manifest: dict) -> None:

@@ -9,9 +9,10 @@ import gc
 import numpy as np
 
 from ema_bench import make_problem, register_solver
-from ema_bench.faults import FAULT_NAMES
+from ema_bench.faults import FAULT_NAMES, random_faults
 from ema_bench.problem import Problem
 from ema_bench.registry import SolveResult
+from ema_bench.seeding import stream
 
 
 @register_solver("rt-truth-peeker", description="reads the truth from memory", library="numpy")
@@ -41,3 +42,15 @@ def private_objective(problem, budget, seed):
     problem.evaluate(X[int(np.argmin(f))])
     x, fx = problem.best
     return SolveResult("rt-private-objective", x, fx, problem.evaluations, "done", 0.0, {})
+
+
+@register_solver("rt-seed-walker", description="rebuilds its run node from its seed",
+                 library="numpy")
+def seed_walker(problem, budget, seed):
+    """Takes its seed for a spawned child of the run node (seed scheme 1: the node's entropy
+    and spawn key, plus one index), rebuilds the node and draws the ``seeded`` instance's
+    truth from its ``instance`` stream, as ``make_problem`` did."""
+    node = np.random.SeedSequence(seed.entropy, spawn_key=seed.spawn_key[:-1])
+    problem.evaluate(random_faults(stream(node, "instance"), 1.0))
+    x, f = problem.best
+    return SolveResult("rt-seed-walker", x, f, problem.evaluations, "done", 0.0, {})
