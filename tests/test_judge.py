@@ -237,6 +237,16 @@ def test_a_record_claiming_the_old_seed_scheme_is_refused_unless_committed(legac
     assert str(f).endswith("seed scheme 3, expected one of [1, 2]")
 
 
+def test_committed_records_replay_under_their_own_seed_scheme(legacy):
+    """A committed run of a stochastic solver (scheme 1) replays as recorded; read as scheme 2
+    it does not: replay derives the solver's seed by the record's scheme."""
+    r = next(x for x in legacy if x["solver"] == "random" and x["track"] == "twin")
+    assert "seed_scheme" not in r
+    ok, other = replay([r, {**r, "seed_scheme": 2, "key": r["key"] + "|2"}], None, 0)
+    assert ok.finding is None
+    assert other.finding is not None and other.finding.startswith("trace at evaluation")
+
+
 def test_the_grandfathered_list_is_the_committed_files():
     """The shipped list of seed-scheme-1 digests is exactly what the committed files give
     (a committed record edited, or a list edited by hand, fails here)."""
