@@ -140,8 +140,12 @@ def _run_track(args: argparse.Namespace) -> int:
     import time
 
     from ..prognostics.campaign import load_campaign
-    from ..prognostics.track_worker import tracker_spec
-    from ..prognostics.tracking import available_trackers, read_track, track_campaign
+    from ..prognostics.tracking import (
+        available_trackers,
+        read_track,
+        track_campaign,
+        tracker_spec,
+    )
 
     if args.list:
         trackers = available_trackers()

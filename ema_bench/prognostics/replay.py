@@ -26,8 +26,15 @@ from ..sampling import escape_chance, sample_indices, sample_seed
 from ..seeding import SEED_SCHEMES
 from ..sweep.executors import execute
 from .campaign import load_campaign
-from .track_worker import tracker_spec, unit_job
-from .tracking import TrackerError, campaign_path, read_track, regroup, unit_jobs
+from .tracking import (
+    TrackerError,
+    campaign_path,
+    read_track,
+    regroup,
+    tracker_spec,
+    unit_job,
+    unit_jobs,
+)
 
 #: Relative agreement of a replayed number with the recorded one (the trackers are
 #: deterministic; this leaves room for another CPU's floating-point rounding only, as the

@@ -30,6 +30,7 @@ per unit and inspection, appended as each finishes; rerunning resumes) and
 from __future__ import annotations
 
 import functools
+import importlib
 import json
 import logging
 import math
@@ -49,11 +50,11 @@ from ..seeding import SEED_SCHEME, run_seed, solver_seed
 from ..sweep.executors import Job
 from ..sweep.schema import opt, req
 from ..traces import Traces
+from .track_worker import TrackerSpec, UnitInput, UnitSource
 
 if TYPE_CHECKING:
     from ..problem import Problem
     from .campaign import Campaign
-    from .track_worker import TrackerSpec
 
 log = logging.getLogger("ema_bench")
 
@@ -424,16 +425,77 @@ def run_unit(info: TrackerInfo, settings: Mapping, unit: str, inspections: list[
     return rows, "replaced" if replaced else "tracked"
 
 
-def unit_jobs(campaign: Campaign, info: TrackerSpec, units: list[str], seed: int,
-              scheme: int = SEED_SCHEME) -> list[Job]:
-    """One job per unit of ``units`` for :func:`~.track_worker.unit_job`: its inputs read
-    from ``campaign`` only when sent to its worker, its seed :func:`unit_seed` ``(seed, k)``
-    (``k``: the unit's place in the manifest)."""
-    from .track_worker import UnitSource
+# --- one unit in a worker process of its own (:mod:`.track_worker`) ----------------------------
 
+def _unit_inputs(campaign: Campaign, unit: str) -> tuple[dict, list[Inspection]]:
+    """The published settings and the unit's inspections (traces read): what its worker
+    gets, read in the process that holds the campaign."""
+    return campaign.info(), [
+        Inspection(unit=unit, index=rec.index, flight=rec.flight, traces=campaign.traces(rec),
+                   conditions=json.loads(json.dumps(rec.conditions)),
+                   thresholds=dict(campaign.thresholds),
+                   inspection_every=campaign.inspection_every)
+        for rec in campaign.units[unit]]
+
+
+def unit_jobs(campaign: Campaign, spec: TrackerSpec, units: list[str], seed: int,
+              scheme: int = SEED_SCHEME) -> list[Job]:
+    """One job per unit of ``units`` for :func:`unit_job`: its inputs read from ``campaign``
+    only when sent to its worker, its seed :func:`unit_seed` ``(seed, k)`` (``k``: the unit's
+    place in the manifest)."""
     order = list(campaign.units)
-    return [Job(u, u, UnitSource(campaign, info, u,
-                                 unit_seed(seed, order.index(u), scheme))) for u in units]
+    return [Job(u, u, UnitSource(spec, u, unit_seed(seed, order.index(u), scheme),
+                                 functools.partial(_unit_inputs, campaign, u)))
+            for u in units]
+
+
+def _spec(info: TrackerInfo) -> TrackerSpec:
+    return TrackerSpec(info.name, info.factory.__module__, info.factory.__qualname__,
+                       info.description, dict(info.config))
+
+
+def registered(spec: TrackerSpec) -> TrackerInfo:
+    """The tracker of ``spec`` (in a worker): its module imported by name, else its factory
+    registered again under its name and configuration (a variant registered in a function)."""
+    if spec.name not in _TRACKERS.entries:
+        try:
+            factory = functools.reduce(getattr, spec.factory.split("."),
+                                       importlib.import_module(spec.module))
+        except (ImportError, AttributeError):
+            factory = None   # an entry point's tracker: get_tracker finds it
+        if spec.name not in _TRACKERS.entries and callable(factory):
+            register_tracker(spec.name, description=spec.description, **spec.config)(factory)
+    return get_tracker(spec.name)
+
+
+def unit_job(job: Job) -> list[dict]:
+    """Track one unit in a worker process (``job.data``: a
+    :class:`~.track_worker.UnitInput`): its lines, and its error line if the tracker failed."""
+    inp: UnitInput = job.data
+    return run_unit(registered(inp.tracker), inp.settings, inp.unit, inp.inspections,
+                    inp.seed)[0]
+
+
+def spec_job(job: Job) -> dict:
+    """The :class:`~.track_worker.TrackerSpec` of tracker ``job.data``, as a dict (in a
+    worker: its plugin is imported there)."""
+    return asdict(_spec(get_tracker(job.data)))
+
+
+def tracker_spec(name: str) -> TrackerSpec:
+    """The tracker ``name``: from this process's registry when something here registered it
+    already (a script's or a test's own tracker), else looked up in a worker process, so that
+    an entry point's plugin is never imported beside the campaign.  TrackerError (one line)
+    for an unknown or broken tracker."""
+    from ..sweep.executors import execute
+
+    if name in _TRACKERS.entries:
+        return _spec(_TRACKERS.entries[name])
+    (o,) = list(execute([Job(name, name, name)], spec_job, "isolated", 1))
+    if o.failure is not None:
+        raise TrackerError(o.failure.error if o.failure.error_type == "TrackerError"
+                           else o.failure.line())
+    return TrackerSpec(**o.records[0])
 
 
 def track_campaign(campaign: Campaign | Path | str, tracker: str, out: Path | str,
@@ -473,8 +535,6 @@ def track_campaign(campaign: Campaign | Path | str, tracker: str, out: Path | st
     from ..sweep.loop import run_sweep
     from ..sweep.store import Store
     from .campaign import load_campaign
-    from .track_worker import tracker_spec, unit_job
-
     info = tracker_spec(tracker)   # its plugin is not imported here
     if isinstance(seed, bool) or int(seed) != seed or seed < 0:
         raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
