@@ -68,9 +68,9 @@ def test_the_logs_find_a_small_seed_but_not_a_secret_one(secret, tmp_path):
 def test_a_tracker_holds_neither_campaign_nor_folder_nor_seed(secret, tmp_path):
     """The red-team tracker looks through its process (the garbage collector's objects, the
     callers' frames) for the campaign, a folder holding a manifest and the seed; it finds
-    nothing, and runs in a child of the campaign's process, one per unit; the campaign's
-    process (``campaign track``, then ``campaign score --replay``) imports no tracker plugin.
-    Its lines replay."""
+    nothing, and runs in a child of the campaign's process; the campaign's process
+    (``campaign track``, then ``campaign score --replay``, which re-tracks a unit in a fresh
+    process) imports no tracker plugin.  Its lines replay."""
     truth = json.loads((secret / "truth.json").read_text())
     run = tmp_path / "run"
     code = ("import os, sys\nfrom ema_bench.cli import main\n"
@@ -90,8 +90,7 @@ def test_a_tracker_holds_neither_campaign_nor_folder_nor_seed(secret, tmp_path):
     seen = {u: rows[0]["extra"] for u, rows in log.steps.items()}
     assert len(seen) == 2 and not log.failed
     for e in seen.values():
-        # a child of the campaign's process, tracking one unit only
-        assert e["found"] == {"parent": int(pid), "units_here": 1, "objects": [],
-                              "folders": [], "frames": []}
+        # a child of the campaign's process, holding nothing of the campaign
+        assert e["found"] == {"parent": int(pid), "objects": [], "folders": [], "frames": []}
         assert "seed" not in e["settings"] and str(truth["secret_seed"]) not in json.dumps(e)
         assert e["seed"] not in ("3", str(truth["secret_seed"]))   # a hash, not the root

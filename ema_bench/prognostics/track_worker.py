@@ -1,9 +1,11 @@
 """What a tracker's worker process receives: one unit's inputs, and nothing that leads to the
 campaign.
 
-``ema-bench campaign track`` and ``campaign score --replay`` send each unit to a fresh worker
-process (the sweep engine's ``isolated`` executor: one unit per process, so no memory crosses
-units; the worker runs :func:`~.tracking.unit_job`).  The worker receives a
+``ema-bench campaign track`` sends each unit to a worker process (the sweep engine's
+``processes`` executor, ``--workers`` of them, as a leaderboard sweep runs solvers) and
+``campaign score --replay`` each replayed unit to a fresh one (``isolated``: one unit per
+process, as replay runs solvers, so a tracker that carries state from one unit to the next
+does not replay); the worker runs :func:`~.tracking.unit_job`.  The worker receives a
 :class:`UnitInput`: the tracker (:class:`TrackerSpec`), the campaign's published settings
 (:meth:`~.campaign.Campaign.info`: no folder, no seed), the unit's inspections with their
 traces already read, and the unit's one-way seed (:func:`~.tracking.unit_seed`, which gives

@@ -14,10 +14,11 @@ folder in it; ``seed``: the unit's ``SeedSequence``) and returns a closure
 :class:`Inspection` objects (traces already read, logged conditions) in flight order, every
 one of them up to the unit's last inspection (the cut), also after the tracker has called for
 replacement: the call is recorded and scored as a maintenance decision, and the RUL headline
-is judged at the cut for every tracker alike.  A tracker runs in a process of its own, one
-unit per process (:mod:`.track_worker`), which receives those settings, the unit's
-inspections and its one-way seed only: never the :class:`~.campaign.Campaign`, its folder or
-the campaign's seed (``campaign track`` runs on a folder without the truth).  The baselines
+is judged at the cut for every tracker alike.  A tracker runs in worker processes
+(:mod:`.track_worker`), which receive per unit those settings, the unit's inspections and its
+one-way seed only: never the :class:`~.campaign.Campaign`, its folder or the campaign's seed
+(``campaign track`` runs on a folder without the truth); replay re-tracks each unit in a
+fresh process of its own.  The baselines
 live in the
 top-level ``trackers/`` folder (installed as ``ema_bench_trackers``) and register through
 ema-bench's own entry points.
@@ -515,7 +516,7 @@ def track_campaign(campaign: Campaign | Path | str, tracker: str, out: Path | st
     seed : int
         Root seed: unit ``k`` of the manifest gets :func:`unit_seed` ``(seed, k)``.
     workers : int
-        Units tracked at once (each unit in a fresh worker process of its own).
+        Worker processes (units tracked at once); the tracker never runs in this process.
     quiet : bool
         No progress bar or lines.
 
@@ -547,8 +548,9 @@ def track_campaign(campaign: Campaign | Path | str, tracker: str, out: Path | st
     t0 = time.perf_counter()
     with Store(out / TRACK_FILE, task_of=_unit_done(camp), schema=_schema,
                retry_errors=False) as store:
-        # the tracker never runs here: each unit in a fresh process (no memory crosses units)
-        report = run_sweep(tasks, unit_job, [store], executor="isolated",
+        # the tracker never runs here: in worker processes, each unit's inputs sent alone
+        # (replay re-tracks a unit in a fresh process: state carried across units shows)
+        report = run_sweep(tasks, unit_job, [store], executor="processes",
                            workers=int(workers), label=f"track {tracker}", unit="unit",
                            quiet=quiet, describe=functools.partial(_status, info.name))
     log.debug("tracked %d unit(s) in %.1f s", report.ran, time.perf_counter() - t0)

@@ -57,20 +57,15 @@ def seed_walker(problem, budget, seed):
     return SolveResult("rt-seed-walker", x, f, problem.evaluations, "done", 0.0, {})
 
 
-_UNITS: list = []
-
-
 @register_tracker("rt-campaign-peeker", description="looks for the campaign from its process")
 def campaign_peeker(campaign_info, seed):
     """Looks through its process for what a tracker must not reach: the campaign object, its
-    folder (a path holding a manifest.json), the callers' frames, other units' memory;
-    reports what it found (and its parent process)."""
+    folder (a path holding a manifest.json), the callers' frames; reports what it found
+    (and its parent process)."""
     import os
     import sys
 
-    _UNITS.append(campaign_info)   # memory of the units this process tracked
-    found = {"parent": os.getppid(), "units_here": len(_UNITS), "objects": set(),
-             "folders": set(), "frames": set()}
+    found = {"parent": os.getppid(), "objects": set(), "folders": set(), "frames": set()}
     for obj in gc.get_objects():
         if type(obj).__name__ in ("Campaign", "UnitSource", "InspectionRecord"):
             found["objects"].add(type(obj).__name__)
