@@ -237,8 +237,8 @@ def test_workers_track_units_in_parallel(synthetic, tmp_path):
 
 @pytest.mark.parametrize("name", BASELINES)
 def test_baseline_follows_a_linear_friction_rise(synthetic, name, tmp_path):
-    """Through the public path: ``campaign track``, each unit in a worker process."""
-    out = track_campaign(synthetic, name, tmp_path / "run", workers=2)
+    """Through the public path: ``track_campaign``, the tracker in a worker process."""
+    out = track_campaign(synthetic, name, tmp_path / "run")
     rows = {u: sorted((r for r in lines(out) if r["unit"] == u), key=lambda r: r["index"])
             for u in ("u000", "u001")}
     assert all(len(v) == len(FLIGHTS) and "status" not in v[-1] for v in rows.values())
