@@ -18,6 +18,7 @@ from pathlib import Path
 
 import pytest
 
+from ema_bench.cli import main
 from ema_bench.prognostics.campaign import _conditions, get_spec, make_campaign
 from ema_bench.prognostics.laws import unit_history
 from ema_bench.prognostics.tracking import read_track
@@ -28,10 +29,18 @@ PLUGIN = Path(__file__).resolve().parent / "redteam"
 
 @pytest.fixture(scope="module")
 def secret(tmp_path_factory) -> Path:
-    """A 2-unit campaign with a secret seed."""
+    """A 2-unit campaign with a secret seed, made by the command."""
     out = tmp_path_factory.mktemp("secret") / "c"
-    make_campaign(units=2, seed=None, inspection_every=50, out=out)
+    assert main(["campaign", "make", "fleet-v1", "--units", "2", "--every", "50",
+                 "--secret-seed", "--out", str(out), "--quiet"]) == 0
     return out
+
+
+def test_a_secret_seed_is_not_given_with_a_seed(tmp_path, capsys):
+    assert main(["campaign", "make", "fleet-v1", "--seed", "3", "--secret-seed", "--out",
+                 str(tmp_path / "c")]) == 2
+    assert "give --seed or --secret-seed, not both" in capsys.readouterr().err
+    assert not (tmp_path / "c").exists()
 
 
 def search(manifest: dict, candidates: range) -> int | None:
