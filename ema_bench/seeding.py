@@ -32,7 +32,9 @@ instances needs a secret root seed drawn from a large space (``secrets.randbits(
 Seed schemes (:data:`SEED_SCHEMES`): records and tracking runs carry ``seed_scheme``
 (:data:`SEED_SCHEME`, 2, the hash); 1 (absent in a file) is the earlier spawn, which made the
 committed boards and campaigns: their replay derives the seeds that way, and
-:mod:`ema_bench.grandfather` accepts scheme 1 for their records only.
+:mod:`ema_bench.grandfather` accepts scheme 1 for their records only.  The shipped
+calibration tables and the committed blind suites were made under scheme 1 too (the
+diagnosis's ``Settings(seed_scheme=1)`` reproduces them).
 
 ``ema-bench solve --root-seed R --seed k`` builds the same node as the leaderboard's row
 ``k`` of root seed ``R``, so it replays that row bit for bit; the Gymnasium environment's
