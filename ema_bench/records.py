@@ -21,7 +21,9 @@ before each ``best_at`` checkpoint, the first and the last improvement).  ``ema-
 validate`` re-evaluates every trajectory vector and recomputes every figure from it and the
 instance's truth (:mod:`~ema_bench.leaderboard.derive`); scores are computed from that
 re-derivation, never from the claims.  Records without ``schema`` are *legacy* (schema 1):
-no vectors but the final one.
+no vectors but the final one.  ``seed_scheme`` says how the solver's seed came from the run
+node (:data:`~ema_bench.seeding.SEED_SCHEMES`; absent: 1, the committed boards' spawn),
+which replay needs to run the solver again.
 """
 
 from __future__ import annotations
@@ -34,6 +36,7 @@ import numpy as np
 from .faults import N_FAULTS, faults_to_dict
 from .manifest import manifest
 from .scoring import SUCCESS_RANGE_ERROR, first_hits, improvements, range_error
+from .seeding import SEED_SCHEME
 from .suites import find, suite_of
 from .suites.targets import (
     BUDGET_CHECKPOINTS,
@@ -61,6 +64,13 @@ MAX_TRAJECTORY_POINTS = 48
 def schema(record: dict) -> int:
     """The record's schema version: 1 for legacy records (written before versions)."""
     return int(record.get("schema", 1))
+
+
+def seed_scheme(record: dict) -> object:
+    """The seed scheme the record's solver seed was derived with
+    (:data:`~ema_bench.seeding.SEED_SCHEMES`): 1, the spawn, for records written before
+    schemes were recorded (the committed boards)."""
+    return record.get("seed_scheme", 1)
 
 
 def trajectory_indices(X: np.ndarray, f: np.ndarray, truth: np.ndarray | None,
@@ -116,6 +126,7 @@ def run_record(problem: Problem, result: SolveResult, *, case: str, track: str, 
         "stop_reason": result.stop_reason,
         "failures": problem.failures,
         "schema": RECORD_SCHEMA,
+        "seed_scheme": SEED_SCHEME,
         "wall_s": wall_s,
         "solver_wall_s": result.wall_s,
         "library": result.library,

@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .plugins import PluginRegistry
-from .seeding import SeedLike, as_seed_sequence, stream
+from .seeding import SEED_SCHEME, SeedLike, solver_seed
 
 if TYPE_CHECKING:
     from .problem import Problem
@@ -125,8 +125,13 @@ def finish(problem: Problem, solver: str, stop_reason: str, t0: float,
 
 
 def run_solver(name: str, problem: Problem, budget: int | None = None,
-               seed: SeedLike = 0) -> SolveResult:
+               seed: SeedLike = 0, seed_scheme: int = SEED_SCHEME) -> SolveResult:
     """Run a registered solver on ``problem`` and return its result.
+
+    The solver's seed is :func:`~ema_bench.seeding.solver_seed` ``(seed, seed_scheme)``: a
+    one-way hash of the run node ``seed`` (scheme 2), from which the solver cannot rebuild the
+    node nor draw the instance and noise streams; scheme 1 (the spawned stream) replays the
+    committed records made with it.
 
     The budget is the smaller of ``budget`` and what the problem has left; the problem's
     own counter enforces it, so a solver that overshoots is stopped, not trusted.  The
@@ -143,11 +148,10 @@ def run_solver(name: str, problem: Problem, budget: int | None = None,
     problem.limit(budget)
     t0 = time.perf_counter()
     try:
-        # the solver's own stream of the run node: disjoint from the streams that drew the
-        # instance and the noise, for every solver, plugins included
-        # the solver gets the view (budget, log, space, data), never the problem and its truth
+        # the solver gets a one-way seed of the run node (nothing of the node's instance and
+        # noise streams) and the view (budget, log, space, data), never the problem's truth
         with blas_single_thread():   # small linear algebra: idle BLAS threads only spin
-            res = info.func(problem.view(), budget, stream(as_seed_sequence(seed), "solver"),
+            res = info.func(problem.view(), budget, solver_seed(seed, seed_scheme),
                             **info.config)
         stop, extra, lib = res.stop_reason, res.extra, res.library
     except BudgetExhausted:

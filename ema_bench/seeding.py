@@ -6,7 +6,8 @@ The tree (the README has it as a table)::
     ├── run node  run_seed(R, k) = SeedSequence(R, spawn_key=(k,))      leaderboard row k
     │   ├── instance   child 0   random fault vector ("seeded" case)
     │   ├── noise      child 1   sensor noise, one child per test
-    │   ├── solver     child 2   the solver's seed (derived by run_solver)
+    │   ├── solver     one_way(node, "solver")   the solver's (and a tracker's) seed: a hash
+    │   │                                         of the node, not a child (run_solver)
     │   ├── diagnosis  child 3   the missing-physics workflow on this run's traces
     │   │   ├── fit        child (4, round, candidate)   each fit (its solver: run_solver)
     │   │   └── bootstrap  child (5, round)              the bootstrap envelopes of a round
@@ -15,12 +16,25 @@ The tree (the README has it as a table)::
     └── plan  child 6 of R   the layout of a suite of runs (the blind suite's categories,
                              effects and magnitudes)
 
-``make_problem(seed=node)`` draws the instance and the noise, ``run_solver(..., seed=node)``
-gives the solver ``stream(node, "solver")``: disjoint from the problem's streams, but not
-secret from the solver: a ``SeedSequence`` child carries its parent's entropy (the root seed)
-and spawn key (the run number), so a solver can rebuild the node and draw the instance and
-noise streams (a ``seeded`` case's truth) from it.  A one-way derivation is open work
-(issue 48); replay does not catch a solver that does this.
+``make_problem(seed=node)`` draws the instance and the noise from the node's streams.  Code
+that is not the package's own (a solver, a tracker: a plugin) never gets a stream of the node:
+``run_solver(..., seed=node)`` gives the solver :func:`solver_seed` ``(node)``, a
+``SeedSequence`` whose entropy is a SHA-256 hash of the node's entropy and spawn key
+(:func:`one_way`), with no spawn key.  A child carries its parent's entropy (the root seed)
+and spawn key (the run number), so a spawned stream would let a solver rebuild the node and
+draw the instance and noise streams (a ``seeded`` case's truth) from it; the hash cannot be
+walked back, and it is reproducible, so replay gives the solver the same seed.  What it does
+not hide is a node anyone can name: with a public root seed (0, the committed boards') a
+solver may hash the nodes ``(R, k)`` of small ``R`` and ``k`` until one matches and learn its
+run number, which a public suite publishes anyway; a suite or campaign that hides its
+instances needs a secret root seed drawn from a large space (``secrets.randbits(63)``).
+
+Seed schemes (:data:`SEED_SCHEMES`): records and tracking runs carry ``seed_scheme``
+(:data:`SEED_SCHEME`, 2, the hash); 1 (absent in a file) is the earlier spawn, which made the
+committed boards and campaigns: their replay derives the seeds that way, and
+:mod:`ema_bench.grandfather` accepts scheme 1 for their records only.  The shipped
+calibration tables and the committed blind suites were made under scheme 1 too (the
+diagnosis's ``Settings(seed_scheme=1)`` reproduces them).
 
 ``ema-bench solve --root-seed R --seed k`` builds the same node as the leaderboard's row
 ``k`` of root seed ``R``, so it replays that row bit for bit; the Gymnasium environment's
@@ -32,6 +46,9 @@ is then applied with the draws of its ``acquisition`` stream) and its diagnosis 
 """
 
 from __future__ import annotations
+
+import hashlib
+import json
 
 import numpy as np
 
@@ -73,7 +90,7 @@ def children(seed: SeedLike, n: int) -> list[np.random.SeedSequence]:
 STREAMS: dict[str, int] = {
     "instance": 0,    # the fault vector of a random ("seeded") case
     "noise": 1,       # sensor noise of the measured traces (one child per test)
-    "solver": 2,      # the solver (run_solver derives it: every solver, plugins included)
+    "solver": 2,      # seed scheme 1 only (the committed boards): the solver's spawned stream
     "diagnosis": 3,   # the missing-physics workflow run on the traces of this run
     "fit": 4,         # (of a diagnosis) one fit, indexed by (round, candidate)
     "bootstrap": 5,   # (of a diagnosis) the bootstrap of a round, indexed by round
@@ -101,3 +118,37 @@ def stream(seed: SeedLike, name: str, *index: int) -> np.random.SeedSequence:
     for i in index:
         ss = child(ss, i)
     return ss
+
+
+# --- what code outside the package gets: one-way seeds ---------------------------------------
+#: The seed schemes of a solver's (and a tracker's) seed, by the number records carry.
+SEED_SCHEMES: dict[int, str] = {
+    1: "spawn: the node's 'solver' stream, a child that carries the root seed and run number "
+       "(the committed boards and campaigns only)",
+    2: "hash: SHA-256 of the node's entropy and spawn key, which gives nothing of the node away",
+}
+#: The scheme of every new run.
+SEED_SCHEME = 2
+
+
+def one_way(seed: SeedLike, name: str) -> np.random.SeedSequence:
+    """A ``SeedSequence`` derived from the node ``seed`` by a hash: its entropy is the SHA-256
+    of the node's entropy, spawn key and pool size and ``name``, and it has no spawn key, so
+    whoever holds it cannot rebuild the node or draw any of its streams (:func:`stream`).
+    The same node and name give the same seed."""
+    ss = as_seed_sequence(seed)
+    entropy = ss.entropy if isinstance(ss.entropy, int) else [int(e) for e in ss.entropy]
+    text = json.dumps(["ema-bench one-way seed", name, entropy,
+                       [int(k) for k in ss.spawn_key], int(ss.pool_size)])
+    return np.random.SeedSequence(int.from_bytes(hashlib.sha256(text.encode()).digest(), "big"))
+
+
+def solver_seed(node: SeedLike, scheme: int = SEED_SCHEME) -> np.random.SeedSequence:
+    """The seed a solver (or a tracker) is given at run node ``node``: :func:`one_way`
+    ``(node, "solver")`` in scheme 2, the spawned ``stream(node, "solver")`` in scheme 1
+    (to replay the committed records made with it)."""
+    if scheme == 2:
+        return one_way(node, "solver")
+    if scheme == 1:
+        return stream(node, "solver")
+    raise ValueError(f"unknown seed scheme {scheme!r}; known: {sorted(SEED_SCHEMES)}")

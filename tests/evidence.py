@@ -14,6 +14,7 @@ from ema_bench.faults import FAULT_NAMES, LOWER, UPPER, faults_to_dict
 from ema_bench.leaderboard.derive import derive
 from ema_bench.manifest import manifest
 from ema_bench.records import RECORD_SCHEMA
+from ema_bench.seeding import SEED_SCHEME
 from ema_bench.suites.v1 import SUITE_ID, best_known, instance_faults
 from ema_bench.trace_cache import MODEL_VERSION
 
@@ -48,7 +49,7 @@ def record(points, solver: str = "a", case: str = "small", track: str = "twin",
         return {**base, "status": status, "error_type": "RuntimeError", "error": "boom",
                 "wall_s": 0.0}
     pts = [[int(e), float(f), [float(v) for v in x]] for e, f, x in points]
-    r = {**base, "schema": RECORD_SCHEMA, "manifest": manifest([]),
+    r = {**base, "schema": RECORD_SCHEMA, "seed_scheme": SEED_SCHEME, "manifest": manifest([]),
          "evaluations": evaluations or budget, "trajectory": pts,
          "trace": [[p[0], p[1]] for p in pts], "fitness": pts[-1][1],
          "x": faults_to_dict(np.array(pts[-1][2])), "wall_s": 1.0, "stop_reason": "budget"}

@@ -783,7 +783,8 @@ def test_the_third_round_categories_end_to_end_reproduce_the_committed_verdicts(
     committed = {r["index"]: r for r in read_records(COMMITTED_R3 / "blind.jsonl")}
     drawn = {c.index: c for c in draw_cases(0, 2034, 10)}
     for i, category in ((8, "effect_acquisition"), (14, "three_effect")):
-        r, c = run_case(drawn[i], 2034, Settings()), committed[i]
+        # the committed suite was made under seed scheme 1 (the fits' solver seeds spawned)
+        r, c = run_case(drawn[i], 2034, Settings(seed_scheme=1)), committed[i]
         assert r["category"] == c["category"] == category
         assert (r["verdict"], sorted(r["named"]), r["partial"]) == \
             (c["verdict"], sorted(c["named"]), c["partial"])

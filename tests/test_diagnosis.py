@@ -70,7 +70,8 @@ def test_workflow_needs_a_held_out_test():
 
 # three cases of the committed 60-case suite (leaderboards/blind, root seed 9672): a pair of
 # effects, data made by the monitor itself, and a single effect at heavy stiction, run blind
-# with the default settings
+# with the default settings and the seed scheme the suite was made with (1: the fits'
+# solver seeds spawned; under the one-way scheme 2 the pair case 11 is named partial)
 SEED, N_CASES = 9672, 60
 PAIR, MONITOR_NULL, SINGLE = 11, 4, 43
 BLIND = [draw_cases(N_CASES, SEED)[i] for i in (PAIR, MONITOR_NULL, SINGLE)]
@@ -79,7 +80,7 @@ COMMITTED = Path(__file__).resolve().parents[1] / "leaderboards" / "blind" / "bl
 
 @pytest.fixture(scope="module")
 def blind_records():
-    return [run_case(c, SEED, Settings()) for c in BLIND]
+    return [run_case(c, SEED, Settings(seed_scheme=1)) for c in BLIND]
 
 
 # slow: three cases run blind with the default settings (about 80 CPU-s); the fast loop builds

@@ -176,6 +176,86 @@ def test_replay_counts_a_private_copy_of_the_objective(redteam):
                            "solver that evaluates the model outside its budget")
 
 
+# --- attack 7: the solver's seed gives its run node away -----------------------------------------
+def test_a_solver_cannot_rebuild_a_seeded_instance_from_its_seed(redteam):
+    """Under seed scheme 1 the seed walker draws the truth from its seed and hits it at
+    evaluation 1 (replay, which derives the same seed, reproduces the cheat); under the
+    one-way scheme of every new run it draws another vector."""
+    from ema_bench.registry import run_solver
+    from ema_bench.seeding import run_seed
+    from ema_bench.suites.problem import make_problem
+
+    def walk(**scheme) -> float:
+        p = make_problem("seeded", track="twin", seed=run_seed(0, 5), budget=1)
+        run_solver("rt-seed-walker", p, 1, seed=run_seed(0, 5), **scheme)
+        return max(p.score(p.best[0]).range_error.values())
+
+    assert walk(seed_scheme=1) == 0.0           # the attack is real: the truth exactly
+    assert walk() > 0.05 and walk(seed_scheme=2) == walk()
+    rec = run_task(Task("rt-seed-walker", "seeded", "twin", 5, 1))
+    assert rec["seed_scheme"] == 2 and not rec["success"]
+    assert replay([rec], None, 0)[0].finding is None     # a new run replays as it ran
+
+
+def test_the_solver_seed_is_the_documented_hash_of_the_node():
+    """Computed here from the recipe (SHA-256 of the node's entropy, spawn key, pool size),
+    not by the package: no spawn key, no root seed, the same on every call."""
+    import hashlib
+
+    import numpy as np
+
+    from ema_bench.seeding import run_seed, solver_seed
+
+    text = json.dumps(["ema-bench one-way seed", "solver", 7, [3], 4])
+    want = int.from_bytes(hashlib.sha256(text.encode()).digest(), "big")
+    got = solver_seed(run_seed(7, 3))
+    assert got.entropy == want and got.spawn_key == ()
+    assert (np.random.default_rng(got).random(3) ==
+            np.random.default_rng(solver_seed(run_seed(7, 3))).random(3)).all()
+    assert solver_seed(run_seed(7, 3), 1).spawn_key == (3, 2)      # the old one: a child
+    with pytest.raises(ValueError, match="unknown seed scheme 3"):
+        solver_seed(run_seed(7, 3), 3)
+
+
+def test_a_record_claiming_the_old_seed_scheme_is_refused_unless_committed(legacy, fresh):
+    """Seed scheme 1 is accepted for the committed boards' records only: leaving the field
+    out of a new record, writing 1, or editing any field of a committed record (its solver:
+    a run filed under another) is refused; the committed records themselves are not."""
+    assert fresh["seed_scheme"] == 2
+    old = copy.deepcopy(fresh)
+    del old["seed_scheme"]
+    claimed = {**fresh, "seed_scheme": 1}
+    moved = {**legacy[0], "solver": "random", "key": "random|s00|reference|0"}
+    for r in (old, claimed, moved):
+        found = [str(f) for f in judge([r], reevaluate=False, complete=False,
+                                       legacy=True).findings]
+        assert found == [f"{r['key']}: seed scheme 1 (the solver seed spawned from the run node, "
+                         "which gives the node away) is accepted for the committed boards' "
+                         "records only: rerun with this version (seed_scheme 2)"], found
+    assert judge(legacy, reevaluate=False, complete=False, legacy=True).findings == []
+    (f,) = judge([{**fresh, "seed_scheme": 3}], reevaluate=False, complete=False).findings
+    assert str(f).endswith("seed scheme 3, expected one of [1, 2]")
+
+
+def test_committed_records_replay_under_their_own_seed_scheme(legacy):
+    """A committed run of a stochastic solver (scheme 1) replays as recorded; read as scheme 2
+    it does not: replay derives the solver's seed by the record's scheme."""
+    r = next(x for x in legacy if x["solver"] == "random" and x["track"] == "twin")
+    assert "seed_scheme" not in r
+    ok, other = replay([r, {**r, "seed_scheme": 2, "key": r["key"] + "|2"}], None, 0)
+    assert ok.finding is None
+    assert other.finding is not None and other.finding.startswith("trace at evaluation")
+
+
+def test_the_grandfathered_list_is_the_committed_files():
+    """The shipped list of seed-scheme-1 digests is exactly what the committed files give
+    (a committed record edited, or a list edited by hand, fails here)."""
+    out = subprocess.run([sys.executable, "-m", "ema_bench.grandfather", "--check"],
+                         capture_output=True, text=True, cwd=ROOT)
+    assert out.returncode == 0, out.stdout + out.stderr
+    assert "matches the committed files (3056 records, 14 tracking runs)" in out.stdout
+
+
 def test_an_honest_run_replays_with_as_many_model_evaluations_as_it_declares(fresh):
     (res,) = replay([fresh], None, 0)
     assert res.finding is None

@@ -424,22 +424,20 @@ def _walk(obj, seen=None):
             yield from _walk(getattr(obj, n), seen)
 
 
-CHEATER_FOUND: list = []
-
-
 @register_tracker("cheater-scoring-test", description="test: hunts for the truth in what it "
                   "is given")
 def _cheater(campaign_info, seed):
-    CHEATER_FOUND.append(("info", sorted(campaign_info)))
-    for x in _walk(campaign_info):
-        CHEATER_FOUND.append(("leak", x))
+    """Reports what it found in its steps' ``extra`` (it runs in a worker process)."""
+    found = [("info", sorted(campaign_info))] + [("leak", str(x)) for x in _walk(campaign_info)]
 
     def step(insp):
         for x in _walk(insp):
             if isinstance(x, os.PathLike) or (isinstance(x, str) and (
                     "truth" in x.lower() or ("/" in x and os.path.exists(x)))):
-                CHEATER_FOUND.append(("leak", x))
-        return _constant(campaign_info, seed)(insp)
+                found.append(("leak", str(x)))
+        s = _constant(campaign_info, seed)(insp)
+        s.extra = {"found": found}
+        return s
     return step
 
 
@@ -483,7 +481,6 @@ def test_a_campaign_without_its_truth_tracks_and_scores_as_computed_from_its_tru
 
 def test_a_tracker_cannot_reach_the_truth_through_what_it_is_given(real, tmp_path):
     *_, root = real
-    CHEATER_FOUND.clear()
     (tmp_path / "camp").symlink_to(root / "camp")
     # the truth file back in the folder: still nothing given to the tracker leads there
     import shutil
@@ -492,10 +489,12 @@ def test_a_tracker_cannot_reach_the_truth_through_what_it_is_given(real, tmp_pat
         track_campaign(root / "camp", "cheater-scoring-test", tmp_path / "run", quiet=True)
     finally:
         (root / "camp" / "truth.json").unlink()
-    info = [x for k, x in CHEATER_FOUND if k == "info"]
+    rows = [json.loads(x) for x in (tmp_path / "run" / "track.jsonl").read_text().splitlines()]
+    last = {r["unit"]: r for r in sorted(rows, key=lambda r: r["index"])}   # holds it all
+    found = [tuple(f) for r in last.values() for f in r["extra"]["found"]]
+    info = [x for k, x in found if k == "info"]
     assert len(info) == 4 and "root" not in info[0]
-    leaks = [x for k, x in CHEATER_FOUND if k == "leak"
-             and (isinstance(x, os.PathLike) or "/" in str(x) or "truth" in str(x).lower())]
+    leaks = [x for k, x in found if k == "leak" and ("/" in str(x) or "truth" in str(x).lower())]
     assert leaks == []
     # the walk does find a path where there is one (catches a walker that sees nothing)
     assert [x for x in _walk({"a": [{"b": root / "camp"}]})] == ["a", "b", root / "camp"]

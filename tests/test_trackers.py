@@ -12,6 +12,7 @@ from __future__ import annotations
 import importlib.metadata
 import json
 import math
+import os
 import shutil
 from pathlib import Path
 
@@ -22,7 +23,6 @@ from ema_bench.cli import main
 from ema_bench.effects import N_EFFECTS
 from ema_bench.faults import FAULT_NAMES, NOMINAL
 from ema_bench.instances import twin_traces
-from ema_bench.prognostics.campaign import load_campaign
 from ema_bench.prognostics.laws import THRESHOLDS
 from ema_bench.prognostics.tracking import (
     ENTRY_POINT_GROUP,
@@ -35,11 +35,11 @@ from ema_bench.prognostics.tracking import (
     read_track,
     register_tracker,
     track_campaign,
-    track_unit,
     unit_seed,
 )
 from ema_bench.protocol import STANDARD_TESTS
 from ema_bench.seeding import child
+from ema_bench.sweep.loop import TaskFailed
 
 BASELINES = ("refit-trend", "kalman", "particle", "fleet-bayes")
 FLIGHTS = [0, 10, 20, 30, 40, 50]
@@ -81,9 +81,14 @@ def synthetic(tmp_path_factory) -> Path:
 
 
 # --- a cheap third-party tracker, registered by decorator --------------------------------------
+# It runs in worker processes (one per unit), which import this module by name: what a test
+# tells it goes through the environment, what it did comes back in a file.
+CALLS, INTERRUPT = "EMA_TEST_TRACKER_CALLS", "EMA_TEST_TRACKER_INTERRUPT"
 
-CALLS: list[tuple[str, int]] = []
-INTERRUPT: dict[str, object] = {}
+
+def calls(path: Path) -> list[str]:
+    """The (unit/inspection) steps the tracker was asked for, as its workers logged them."""
+    return path.read_text().split() if path.exists() else []
 
 
 def _step(insp: Inspection, rul: float, seed_value: float) -> TrackStep:
@@ -99,8 +104,10 @@ def countdown(campaign_info, seed):
     value = float(np.random.default_rng(seed).random())
 
     def step(insp: Inspection) -> TrackStep:
-        CALLS.append((insp.unit, insp.index))
-        if INTERRUPT.get("at") == (insp.unit, insp.index):
+        if os.environ.get(CALLS):
+            with open(os.environ[CALLS], "a") as fh:
+                fh.write(f"{insp.unit}/{insp.index}\n")
+        if os.environ.get(INTERRUPT) == f"{insp.unit}/{insp.index}":
             raise KeyboardInterrupt
         return _step(insp, 100.0 - insp.flight, value)
     return step
@@ -175,7 +182,7 @@ def test_third_party_tracker_end_to_end(synthetic, tmp_path, capsys):
     row = log.steps["u001"][3]
     assert row["rul"] == 70.0 and row["rul_high"] == math.inf and row["flight"] == 30
     assert set(row["estimate"]) == set(FAULT_NAMES)
-    # each unit its own seed: the solver stream of run node (seed, k)
+    # each unit its own seed: the one-way solver seed of run node (seed, k)
     for k, unit in enumerate(("u000", "u001")):
         expect = float(np.random.default_rng(unit_seed(3, k)).random())
         assert log.steps[unit][0]["extra"]["seed"] == expect
@@ -197,23 +204,25 @@ def test_failures_are_recorded_not_fatal(synthetic, tmp_path, caplog):
     assert len(lines(out)) == n
 
 
-def test_resume_after_interruption_writes_no_duplicates(synthetic, tmp_path):
-    out = tmp_path / "run"
-    CALLS.clear()
-    INTERRUPT["at"] = ("u001", 2)
-    with pytest.raises(KeyboardInterrupt):
+def test_resume_after_interruption_writes_no_duplicates(synthetic, tmp_path, monkeypatch):
+    out, log = tmp_path / "run", tmp_path / "calls"
+    monkeypatch.setenv(CALLS, str(log))
+    monkeypatch.setenv(INTERRUPT, "u001/2")
+    # the unit interrupted is not recorded (a unit's lines go in one piece), the other is
+    with pytest.raises(TaskFailed, match=r"1 unit\(s\) failed \(u001: KeyboardInterrupt"):
         track_campaign(synthetic, "test-countdown", out)
-    INTERRUPT.clear()
+    assert {r["unit"] for r in lines(out)} == {"u000"}
+    monkeypatch.delenv(INTERRUPT)
     with open(out / TRACK_FILE, "a") as fh:              # a write torn by the kill
         fh.write('{"key": "u001/0')
-    CALLS.clear()
+    log.unlink()
     track_campaign(synthetic, "test-countdown", out)
-    assert {u for u, _ in CALLS} == {"u001"}              # u000 was complete: skipped
+    assert {c.split("/")[0] for c in calls(log)} == {"u001"}   # u000 was complete: skipped
     keys = [(r["unit"], r["index"]) for r in lines(out)]
     assert len(keys) == len(set(keys)) == 12
-    CALLS.clear()
+    log.unlink()
     track_campaign(synthetic, "test-countdown", out)     # all complete: nothing to do
-    assert CALLS == []
+    assert calls(log) == []
     with pytest.raises(TrackerError, match="another tracking run"):
         track_campaign(synthetic, "test-broken", out)
 
@@ -226,23 +235,13 @@ def test_workers_track_units_in_parallel(synthetic, tmp_path):
 
 # --- the baselines on a short synthetic degradation ------------------------------------------
 
-class Store:
-    def __init__(self) -> None:
-        self.rows: list[dict] = []
-
-    def append(self, record: dict) -> None:
-        self.rows.append(record)
-
-
 @pytest.mark.parametrize("name", BASELINES)
-def test_baseline_follows_a_linear_friction_rise(synthetic, name):
-    camp = load_campaign(synthetic)
-    info = get_tracker(name)
-    rows = {}
-    for k, unit in enumerate(camp.units):
-        store = Store()
-        assert track_unit(camp, info, unit, unit_seed(0, k), store) == "tracked"
-        rows[unit] = store.rows
+def test_baseline_follows_a_linear_friction_rise(synthetic, name, tmp_path):
+    """Through the public path: ``track_campaign``, the tracker in a worker process."""
+    out = track_campaign(synthetic, name, tmp_path / "run")
+    rows = {u: sorted((r for r in lines(out) if r["unit"] == u), key=lambda r: r["index"])
+            for u in ("u000", "u001")}
+    assert all(len(v) == len(FLIGHTS) and "status" not in v[-1] for v in rows.values())
     covered = [sum(r["low"][n] <= v <= r["high"][n] for n, v in zip(FAULT_NAMES, truth(
         "u000", r["flight"]))) for r in rows["u000"]]
     assert sum(covered) >= 0.9 * 4 * len(FLIGHTS), covered     # intervals hold the truth

@@ -20,7 +20,7 @@ from ..leaderboard.tasks import Task
 from ..problem import Problem, SolverView
 from ..records import run_record
 from ..registry import finish
-from ..seeding import stream
+from ..seeding import solver_seed
 
 
 @dataclass
@@ -77,9 +77,10 @@ class AdapterRun:
         return self._task.node()
 
     def solver_seed(self) -> int:
-        """A 32-bit seed for the library's own generator: the run node's ``solver`` stream,
-        as every registered solver gets (disjoint from the instance and noise streams)."""
-        return int(stream(self.node(), "solver").generate_state(1)[0])
+        """A 32-bit seed for the library's own generator, from the seed every registered
+        solver gets (:func:`~ema_bench.seeding.solver_seed`: a one-way hash of the run node,
+        which gives nothing of its instance and noise streams away)."""
+        return int(solver_seed(self.node()).generate_state(1)[0])
 
     def run_registered(self, name: str) -> Any:
         """Run the registered solver ``name`` on this instance as the leaderboard does

@@ -56,7 +56,11 @@ def _register_make(actions: argparse._SubParsersAction) -> None:
     p.add_argument("--track", choices=("twin", "reference"), default="twin",
                    help="inspection traces from the monitor model plus noise (twin, default) "
                         "or from the reference model (about 0.18 s per inspection)")
-    p.add_argument("--seed", type=seed_number, default=0, help="root seed (default 0)")
+    p.add_argument("--seed", type=seed_number, default=None, help="root seed (default 0)")
+    p.add_argument("--secret-seed", action="store_true",
+                   help="a secret root seed (63 bits of the OS's entropy) kept in truth.json "
+                        "only, the manifest's seed null: for a campaign that judges untrusted "
+                        "trackers (its logs cannot give the seed away)")
     p.add_argument("--split", choices=("test", "train"), default="test",
                    help="test: units stop at 50-95 %% of life, RUL hidden (default); train: "
                         "units run to failure")
@@ -79,19 +83,23 @@ def _run_make(args: argparse.Namespace) -> int:
     # --units, --every and --seed are bounded by their argparse types; before any work (a
     # CampaignError is a ValueError: one line by main())
     get_spec(args.name)
-    out = args.out or default_out(args.name, args.track, args.split, args.seed, args.units)
+    if args.secret_seed and args.seed is not None:
+        raise CLIError("give --seed or --secret-seed, not both")
+    seed = None if args.secret_seed else args.seed or 0
+    out = args.out or default_out(args.name, args.track, args.split, seed, args.units)
     prepare_folder(out)
     check_output(out, "--out", folder=True)
     t0 = time.perf_counter()
     c = make_campaign(args.name, units=args.units, split=args.split, track=args.track,
-                      seed=args.seed, inspection_every=args.every, out=out, quiet=args.quiet)
+                      seed=seed, inspection_every=args.every, out=out, quiet=args.quiet)
     seconds = round(time.perf_counter() - t0, 2)
     inspections = sum(len(v) for v in c.units.values())
     summary = {"path": str(c.root), "name": c.name, "split": c.split, "track": c.track,
                "seed": c.seed, "units": len(c.units), "inspections": inspections,
                "inspection_every": c.inspection_every, "seconds": seconds}
     return print_result(args, summary, [
-        f"campaign {c.name}: {len(c.units)} {c.split} units, {c.track} track, seed {c.seed}, "
+        f"campaign {c.name}: {len(c.units)} {c.split} units, {c.track} track, seed "
+        f"{'secret (in truth.json)' if c.seed is None else c.seed}, "
         f"an inspection every {c.inspection_every} flights",
         f"  {inspections} inspections written to {c.root}/ in {seconds:.1f} s; hidden "
         "truth in truth.json",
@@ -132,7 +140,12 @@ def _run_track(args: argparse.Namespace) -> int:
     import time
 
     from ..prognostics.campaign import load_campaign
-    from ..prognostics.tracking import available_trackers, get_tracker, read_track, track_campaign
+    from ..prognostics.tracking import (
+        available_trackers,
+        read_track,
+        track_campaign,
+        tracker_spec,
+    )
 
     if args.list:
         trackers = available_trackers()
@@ -145,8 +158,9 @@ def _run_track(args: argparse.Namespace) -> int:
                               ("--out", args.out)) if not v]
     if missing:
         raise CLIError(f"give {', '.join(missing)} (or --list)")
-    # before any work (TrackerError, CampaignError: one line by main())
-    get_tracker(args.tracker)
+    # before any work (TrackerError, CampaignError: one line by main()); the tracker's plugin
+    # is imported in worker processes only, never beside the campaign
+    tracker_spec(args.tracker)
     campaign = load_campaign(args.campaign)
     check_output(args.out, "--out", folder=True)
     t0 = time.perf_counter()

@@ -96,7 +96,8 @@ def fit(measured: Traces, augment: tuple[str, ...], settings: Settings, seed: Se
         # only ever call problem.objective)
         problem.objective = CarriedObjective(train, problem.space, sample_weights=weights,
                                              faults=faults)
-    res = run_solver(settings.solver, problem, settings.budget, seed=seed)
+    res = run_solver(settings.solver, problem, settings.budget, seed=seed,
+                     seed_scheme=settings.seed_scheme)
     raw = {t: v[0] for t, v in simulate(res.x, augment, measured.tests).items()}
     if not faults:
         return Fit(augment, res.x, res.fitness, raw, res.evaluations, (), raw)

@@ -12,7 +12,10 @@ refuses (:func:`~.validate.check_record`, re-evaluation included), and more:
 - **duplicates**: two finished records of one identity are a finding, not a choice made by
   file order (an error record followed by its retry's record is a resume, not a duplicate);
 - **completeness** is checked per suite (:func:`~.validate.check_complete` on each suite's
-  records apart: one record of another suite no longer switches a suite's check off).
+  records apart: one record of another suite no longer switches a suite's check off);
+- **seed scheme 1** (a solver seed spawned from the run node, which gives the node away) is
+  accepted for the committed boards' records only (:mod:`ema_bench.grandfather`): a record that
+  leaves ``seed_scheme`` out to claim it is refused.
 
 :func:`admitted` is what every writer calls: the records, or :class:`JudgeError` (one line,
 ``ema-bench validate`` lists every finding).  This module imports no plugin: a verdict is
@@ -28,6 +31,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..escape import terminal
+from ..grandfather import accepted_record
 from ..records import schema
 from ..suites import is_case, suite_of
 from ..sweep.schema import SchemaError
@@ -129,6 +133,11 @@ def judge(records: list[dict], *, reevaluate: bool = True, complete: bool = True
                                      "view)"))
                 continue
         found += [Finding(_key(r, i), terminal(p)) for p in check_record(r, reevaluate)]
+        if isinstance(r, dict) and not is_error(r) and not accepted_record(r):
+            found.append(Finding(_key(r, i), "seed scheme 1 (the solver seed spawned from the "
+                                 "run node, which gives the node away) is accepted for the "
+                                 "committed boards' records only: rerun with this version "
+                                 "(seed_scheme 2)"))
     if complete:
         for suite in sorted({suite_of(r.get("case")).id for r in recs}):
             found += check_complete([r for r in recs if suite_of(r.get("case")).id == suite],

@@ -20,7 +20,8 @@ records the kernel (``blas``); replay under another one names both in its findin
 
 The solver never runs in this process: each sampled record's run goes to a fresh worker
 process (:mod:`.replay_worker`, the sweep engine's ``isolated`` executor), which gets the
-truthless instance, the budget and the run node, never the record, and sends back the
+truthless instance, the budget, the run node and the record's seed scheme (the solver's seed
+is derived from the node by it, as in the run), never the record, and sends back the
 problem's log and its count of model evaluations; the comparison happens here.  The sample
 is drawn from fresh entropy unless a seed is given (:mod:`ema_bench.sampling`), so nobody
 can tell beforehand which records will be replayed.
@@ -37,6 +38,7 @@ import numpy as np
 from ..escape import terminal
 from ..faults import FAULT_NAMES
 from ..manifest import blas_kernel
+from ..records import seed_scheme
 from ..sampling import sample_indices
 from ..suites.problem import make_problem
 from ..sweep.executors import Job, execute
@@ -96,7 +98,7 @@ def _job(i: int, r: dict) -> Job:
     # the truthful problem is dropped here: the worker receives the truthless one only
     problem = make_problem(task.case, track=task.track, seed=task.node(),
                            budget=task.budget).without_truth()
-    return Job(str(i), i, (task.solver, problem, task.budget, task.node()))
+    return Job(str(i), i, (task.solver, problem, task.budget, task.node(), seed_scheme(r)))
 
 
 def _finding(r: dict, out: dict) -> str | None:

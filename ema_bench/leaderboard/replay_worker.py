@@ -5,8 +5,9 @@ elsewhere.
 (the sweep engine's ``isolated`` executor: one task per process, so no memory crosses runs).
 The worker receives what a solver may see and nothing else: the solver's name, the
 instance rebuilt *without its truth* from its measured traces (a
-:class:`~ema_bench.problem.Problem` whose truth is gone, pickled), the budget and the run
-node the solver's own stream is derived from; never the record under check.  It runs the
+:class:`~ema_bench.problem.Problem` whose truth is gone, pickled), the budget, the run node
+and the seed scheme the solver's seed is derived with (:func:`~ema_bench.seeding.
+solver_seed`); never the record under check.  It runs the
 solver through :func:`~ema_bench.registry.run_solver` and sends back the trajectory (the
 problem's log) and the number of model evaluations the kernels made
 (:func:`count_kernels`): every candidate through the monitor's compiled entry points and
@@ -64,14 +65,14 @@ def count_kernels() -> list[int]:
 
 
 def replay_job(job: Any) -> dict:
-    """Run one replay (``job.data``: solver name, truthless problem, budget, run node) and
-    return the problem's log, the final vector and the kernels' count."""
-    solver, problem, budget, node = job.data
+    """Run one replay (``job.data``: solver name, truthless problem, budget, run node, seed
+    scheme) and return the problem's log, the final vector and the kernels' count."""
+    solver, problem, budget, node, scheme = job.data
     t0 = time.perf_counter()
     made = count_kernels()
     from ..registry import run_solver  # the plugin loader: imported here, in the worker
 
-    res = run_solver(solver, problem, budget, seed=node)
+    res = run_solver(solver, problem, budget, seed=node, seed_scheme=scheme)
     h = problem.history()
     return {"key": job.key, "fitness": h["fitness"].tolist(), "best": h["best"].tolist(),
             "x_hist": np.asarray(h["x"]).tolist(), "x": np.asarray(res.x).tolist(),

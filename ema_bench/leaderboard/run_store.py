@@ -31,7 +31,7 @@ RUN_SCHEMA = {"solver": req("str"), "case": req("str"), "track": req("str"),
               "model_version": opt("str|int"), "status": opt("str"), "key": opt("str"),
               "success": opt("bool"), "evals_to_success": opt("int|null"),
               "evaluations": opt("int"), "fitness": opt("number|null"),
-              "wall_s": opt("number|null")}
+              "wall_s": opt("number|null"), "seed_scheme": opt("int")}
 #: Records without a solver (a blind-suite case read by the same readers): key only.
 _KEYED = {"key": req("str"), "model_version": opt("str|int")}
 

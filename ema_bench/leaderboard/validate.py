@@ -26,9 +26,9 @@ import numpy as np
 from ..faults import FAULT_NAMES, N_FAULTS, NOMINAL, faults_to_dict
 from ..instances import TRACKS
 from ..manifest import REQUIRED_MANIFEST_KEYS
-from ..records import RECORD_SCHEMA, schema
+from ..records import RECORD_SCHEMA, schema, seed_scheme
 from ..scoring import SUCCESS_RANGE_ERROR, range_error
-from ..seeding import run_seed
+from ..seeding import SEED_SCHEMES, run_seed
 from ..suites import DEFAULT, SUITES, find, is_case, suite_of
 from ..suites.problem import make_problem
 from ..suites.targets import (
@@ -97,6 +97,8 @@ def check_record(r: dict, reevaluate: bool = True) -> list[str]:
                    f" (or a compatible {', '.join(map(repr, COMPATIBLE_VERSIONS))})")
     if schema(r) not in (1, RECORD_SCHEMA):
         bad.append(f"record schema {r.get('schema')!r}, expected {RECORD_SCHEMA} (or legacy)")
+    if type(seed_scheme(r)) is not int or seed_scheme(r) not in SEED_SCHEMES:
+        bad.append(f"seed scheme {seed_scheme(r)!r}, expected one of {sorted(SEED_SCHEMES)}")
     if r["track"] not in TRACKS or not is_case(r["case"]):
         return bad + [f"not an instance of suite {' or '.join(SUITES)}: case {r['case']!r}, "
                       f"track {r['track']!r} (instances: {', '.join(DEFAULT.case_order())}, "

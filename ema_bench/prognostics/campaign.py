@@ -8,11 +8,10 @@ sine tests at every inspection and writes a folder::
     DIR/u000/i000.npz   the traces of unit u000's inspection 0 (Traces.save)
     DIR/truth.json      the hidden truth: faults, effects, end of life, true RUL
 
-:func:`load_campaign` reads the manifest back (checked: clear errors on missing, broken or
-mislabelled files) as a :class:`Campaign`; :func:`load_truth` reads the truth.  Trackers see
-the manifest's settings (:meth:`Campaign.info`, no folder) and the inspections only; the truth
-file may be moved out of the folder before tracking (``campaign track`` never reads it) and is
-bound to its manifest by :func:`manifest_digest`, so scoring refuses another campaign's truth.
+:func:`load_campaign` reads the manifest back (checked) as a :class:`Campaign`;
+:func:`load_truth` reads the truth.  Trackers see the settings (:meth:`Campaign.info`) and the
+inspections only, in a process of their own (:mod:`.track_worker`); the truth is bound to its
+manifest by :func:`manifest_digest`, so scoring refuses another campaign's truth.
 
 The cut rule (published in the manifest as ``cut_rule``): a test unit's last inspection (its
 *cut*) is the inspection before end of life nearest to ``u x horizon``, ``u ~ U(lo, hi)``
@@ -22,7 +21,9 @@ The cut rule (published in the manifest as ``cut_rule``): a test unit's last ins
 Seeds: one root seed ``S``; unit ``u`` is run ``u`` of it (``run_seed(S, u)``, as a
 leaderboard row): its laws come from that node's ``instance`` stream, its stopping point from
 its ``plan`` stream and inspection ``i``'s sensor noise from ``stream(node, "noise", i)``.
-Which units drift in gain only is the root's ``plan`` stream.  Same seed, same files.
+Which units drift in gain only is the root's ``plan`` stream.  Same seed, same files.  One
+judging untrusted trackers has a *secret* seed (``campaign make --secret-seed``): 63 bits of
+entropy in ``truth.json`` only (manifest ``"seed": null``), beyond any search.
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ import hashlib
 import json
 import os
 import re
+import secrets
 import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -127,7 +129,7 @@ class Campaign:
     root: Path
     name: str
     track: str
-    seed: int
+    seed: int | None   # None: a secret seed (truth.json holds it)
     split: str
     inspection_every: int
     thresholds: dict[str, float]
@@ -144,12 +146,8 @@ class Campaign:
         return load_traces(rec.path)
 
     def info(self) -> dict:
-        """The manifest's settings without the inspection list (for tracker factories): plain
-        JSON values, deep-copied, with no folder (a tracker cannot find the truth file through
-        what it is given) and no campaign seed (the generation is public and deterministic:
-        with the seed a tracker could simulate the units' lives again; campaigns that judge
-        untrusted trackers need a secret seed drawn from a large space, e.g.
-        ``secrets.randbits(63)``, which no search through the traces can find)."""
+        """The published settings (for tracker factories): plain JSON, deep-copied, with no
+        inspection list, no folder and no seed (with it a tracker could simulate the lives)."""
         return json.loads(json.dumps({
             "name": self.name, "track": self.track, "split": self.split,
             "inspection_every": self.inspection_every, "thresholds": dict(self.thresholds),
@@ -165,15 +163,16 @@ def get_spec(name: str) -> CampaignSpec:
         raise CampaignError(f"unknown campaign {name!r}; known: {list(CAMPAIGNS)}") from None
 
 
-def default_out(name: str, track: str, split: str, seed: int, units: int) -> Path:
+def default_out(name: str, track: str, split: str, seed: int | None, units: int) -> Path:
     """The folder :func:`make_campaign` writes to without ``out``: named by what it holds."""
-    return Path(f"ema-bench-campaign-{name}-{track}-{split}-seed{seed}-n{units}")
+    return Path(f"ema-bench-campaign-{name}-{track}-{split}-seed"
+                f"{'secret' if seed is None else seed}-n{units}")
 
 
 # --- making ----------------------------------------------------------------------------------
 
 def make_campaign(name: str = "fleet-v1", *, units: int = 20, split: str = "test",
-                  track: str = "twin", seed: int = 0, inspection_every: int | None = None,
+                  track: str = "twin", seed: int | None = 0, inspection_every: int | None = None,
                   out: Path | str | None = None, quiet: bool = True) -> Campaign:
     """Draw a campaign, write it to ``out`` and return it.
 
@@ -187,15 +186,15 @@ def make_campaign(name: str = "fleet-v1", *, units: int = 20, split: str = "test
         Train units run to failure (inspections up to the last one before EOL); test units
         stop at a random share of their life (``spec.test_stop``), their RUL hidden.
     track : {"twin", "reference"}
-        Inspection traces from the monitor model plus sensor noise, or from the reference
-        model (about 0.18 s per inspection).
-    seed : int
-        Root seed: same seed, same files.
+        Traces from the monitor plus noise, or the reference model (0.18 s an inspection).
+    seed : int or None
+        Root seed: same seed, same files.  None: a secret one (63 bits of the OS's entropy),
+        in ``truth.json`` only (``secret_seed``), the manifest's ``seed`` null.
     inspection_every : int, optional
         Flights between inspections (default: the spec's).
     out : path, optional
-        Folder (created; an existing campaign there is replaced; any other non-empty folder
-        is refused).  Default :func:`default_out`.
+        Folder (created; a campaign there is replaced, another non-empty folder refused).
+        Default :func:`default_out`.
     quiet : bool
         No progress bar / lines.
     """
@@ -203,16 +202,18 @@ def make_campaign(name: str = "fleet-v1", *, units: int = 20, split: str = "test
     from ..trace_cache import MODEL_VERSION
 
     spec = get_spec(name)
-    units, seed = _count(units, "units"), _count(seed, "seed", minimum=0)
+    public, units = seed is not None, _count(units, "units")
+    seed = _count(seed, "seed", minimum=0) if public else secrets.randbits(63)
     every = spec.inspection_every if inspection_every is None else _count(
         inspection_every, "inspection_every")
     if split not in SPLITS:
         raise CampaignError(f"unknown split {split!r}; known: {list(SPLITS)}")
     if track not in TRACKS:
         raise CampaignError(f"unknown track {track!r}; known: {list(TRACKS)}")
-    root = Path(out) if out is not None else default_out(name, track, split, seed, units)
+    shown = seed if public else None   # what the manifest (every file a tracker sees) says
+    root = Path(out) if out is not None else default_out(name, track, split, shown, units)
     prepare_folder(root)
-    (root / PARTIAL).write_text(json.dumps({"name": name, "seed": seed}))
+    (root / PARTIAL).write_text(json.dumps({"name": name, "seed": shown}))
 
     node = as_seed_sequence(seed)
     drift = _drift_units(node, units, spec.drift_share)
@@ -229,15 +230,15 @@ def make_campaign(name: str = "fleet-v1", *, units: int = 20, split: str = "test
     from ..version import __version__
     manifest = {"format": FORMAT, "version": VERSION, "name": name,
                 "definition_version": spec.version, "track": track,
-                "seed": seed, "split": split, "inspection_every": every,
+                "seed": shown, "split": split, "inspection_every": every,
                 "tests": list(spec.tests), "thresholds": dict(THRESHOLDS),
                 "laws": spec.laws.to_dict(), "description": spec.description,
                 "cut_rule": cut_rule(spec, split), "drift_share": spec.drift_share,
                 "model_version": MODEL_VERSION, "package_version": __version__,
                 "units": manifest_units}
-    truth = {"format": TRUTH_FORMAT, "version": VERSION, "name": name, "seed": seed,
-             "track": track, "split": split, "manifest_digest": manifest_digest(manifest),
-             "units": truth_units}
+    truth = {"format": TRUTH_FORMAT, "version": VERSION, "name": name, "seed": shown,
+             **({} if public else {"secret_seed": seed}), "track": track, "split": split,
+             "manifest_digest": manifest_digest(manifest), "units": truth_units}
     _write_json(root / "truth.json", truth)
     _write_json(root / "manifest.json", manifest)
     (root / PARTIAL).unlink()
@@ -391,9 +392,8 @@ def _make_unit(root: Path, label: str, node: np.random.SeedSequence, spec: Campa
 
 def simulate_inspection(x: np.ndarray, e: np.ndarray, seed: np.random.SeedSequence,
                         tests: tuple, track: str) -> Traces:
-    """One inspection's measured traces at faults ``x`` and effects ``e``: the monitor model
-    (``twin``) or the reference model (``reference``) through the sensors, noise from
-    ``seed``."""
+    """One inspection's measured traces at faults ``x`` and effects ``e``: the monitor (``twin``)
+    or the reference model (``reference``) through the sensors, noise from ``seed``."""
     if track == "twin":
         from ..instances import twin_traces
 
@@ -505,7 +505,7 @@ def load_campaign(path: Path | str, traces: bool = True) -> Campaign:
     # the settings, each checked in this order (the first missing or mistyped one is named)
     name, track, split, seed, every, thresholds, laws, tests = (
         _need(doc, key, kind, where) for key, kind in (
-            ("name", str), ("track", str), ("split", str), ("seed", int),
+            ("name", str), ("track", str), ("split", str), ("seed", (int, type(None))),
             ("inspection_every", int), ("thresholds", dict), ("laws", dict), ("tests", list)))
     if track not in TRACKS or split not in SPLITS or every < 1:
         raise CampaignError(f"{where}: bad track, split or inspection_every "

@@ -8,9 +8,9 @@ submitted, and one kept below the oracle looks plausible.  A tracker is determin
 its unit's seed (:func:`~ema_bench.prognostics.tracking.unit_seed`), so re-tracking a unit
 from the campaign's traces gives its lines again: replay picks ``K`` of the tracked units
 (a sample drawn from fresh entropy, its seed reported, or the ones named), tracks each from
-its first inspection through
-:func:`~ema_bench.prognostics.tracking.track_unit`, exactly as ``campaign track`` did, and
-compares every field of every line (numbers to :data:`REPLAY_RTOL`, the rest exactly).  A
+its first inspection in a fresh worker process of its own (:mod:`.track_worker`, with the
+run's seed scheme), exactly as ``campaign track`` did, and compares every field of every line
+(numbers to :data:`REPLAY_RTOL`, the rest exactly).  A
 forged line in a sampled unit is found; forging few units leaves them unsampled with a
 probability the report states (replay more, or ``--replay-unit`` the suspicious ones).
 """
@@ -20,18 +20,20 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from types import SimpleNamespace
 
+from ..grandfather import accepted_track
 from ..sampling import escape_chance, sample_indices, sample_seed
+from ..seeding import SEED_SCHEMES
+from ..sweep.executors import execute
 from .campaign import load_campaign
 from .tracking import (
     TrackerError,
     campaign_path,
-    get_tracker,
     read_track,
     regroup,
-    track_unit,
-    unit_seed,
+    tracker_spec,
+    unit_job,
+    unit_jobs,
 )
 
 #: Relative agreement of a replayed number with the recorded one (the trackers are
@@ -79,7 +81,7 @@ def _differences(got: object, want: object, where: str) -> list[str]:
 
 
 def replay_track(run: Path | str, k: int = 2, units: list[str] | None = None,
-                 seed: int | None = None) -> TrackReplay:
+                 seed: int | None = None, workers: int = 1) -> TrackReplay:
     """Re-track ``k`` sampled units (or ``units``) of the tracking run in ``run`` and compare.
 
     Parameters
@@ -94,6 +96,8 @@ def replay_track(run: Path | str, k: int = 2, units: list[str] | None = None,
     seed : int, optional
         Seed of the sample (default: fresh entropy, :func:`~ema_bench.sampling.sample_seed`;
         the report holds it, to repeat the check).
+    workers : int
+        Units re-tracked at once (each in a fresh worker process).
 
     Returns
     -------
@@ -102,7 +106,7 @@ def replay_track(run: Path | str, k: int = 2, units: list[str] | None = None,
     """
     log = read_track(run)
     m = log.manifest
-    info = get_tracker(m["tracker"])   # TrackerError naming the known ones
+    info = tracker_spec(m["tracker"])   # TrackerError naming the known ones; not imported here
     camp = load_campaign(campaign_path(run, m))
     order = list(camp.units)
     tracked = [u for u in order if u in log.steps or u in log.failed]
@@ -116,15 +120,29 @@ def replay_track(run: Path | str, k: int = 2, units: list[str] | None = None,
         raise TrackerError(f"{run}: no tracked unit {unknown[0]!r}; tracked: "
                            f"{', '.join(tracked[:5])}{', ...' if len(tracked) > 5 else ''}")
     report = TrackReplay(str(run), info.name, list(units), len(tracked), seed=seed)
-    if dict(info.config) != m.get("config", {}):
-        report.findings.append(f"the run's tracker config {m.get('config')} is not the "
-                               f"registered {info.name!r}'s {dict(info.config)}")
+    scheme = m.get("seed_scheme", 1)
+    if type(scheme) is not int or scheme not in SEED_SCHEMES:
+        report.findings.append(f"seed scheme {scheme!r}, expected one of {sorted(SEED_SCHEMES)}")
         return report
-    for unit in units:
-        rows: list[dict] = []
-        track_unit(camp, info, unit, unit_seed(int(m["seed"]), order.index(unit)),
-                   SimpleNamespace(append=rows.append))
-        steps, failed = regroup(rows)
+    if not accepted_track(run):
+        report.findings.append("seed scheme 1 (the tracker's seed spawned from its run node, "
+                               "which gives the node away) is accepted for the committed "
+                               "campaign runs only: track again with this version "
+                               "(seed_scheme 2)")
+        return report
+    if info.manifest_config != m.get("config", {}):
+        report.findings.append(f"the run's tracker config {m.get('config')} is not the "
+                               f"registered {info.name!r}'s {info.manifest_config}")
+        return report
+    jobs = unit_jobs(camp, info, list(units), int(m["seed"]), scheme)
+    replayed = {}
+    for o in execute(jobs, unit_job, "isolated", max(1, int(workers))):
+        if o.failure is not None:   # a worker that died is a finding, not a crash
+            report.findings.append(f"{o.task.key}: replay failed: {o.failure.line()}")
+        else:
+            replayed[o.task.key] = o.records
+    for unit in (u for u in units if u in replayed):
+        steps, failed = regroup(replayed[unit])
         want = {"steps": log.steps.get(unit, []), "failed": log.failed.get(unit)}
         got = {"steps": steps.get(unit, []), "failed": failed.get(unit)}
         if len(got["steps"]) != len(want["steps"]):

@@ -14,8 +14,12 @@ folder in it; ``seed``: the unit's ``SeedSequence``) and returns a closure
 :class:`Inspection` objects (traces already read, logged conditions) in flight order, every
 one of them up to the unit's last inspection (the cut), also after the tracker has called for
 replacement: the call is recorded and scored as a maintenance decision, and the RUL headline
-is judged at the cut for every tracker alike.  Nothing a tracker is given leads to the truth
-file (``campaign track`` runs on a folder without it).  The baselines live in the
+is judged at the cut for every tracker alike.  A tracker runs in worker processes
+(:mod:`.track_worker`), which receive per unit those settings, the unit's inspections and its
+one-way seed only: never the :class:`~.campaign.Campaign`, its folder or the campaign's seed
+(``campaign track`` runs on a folder without the truth); replay re-tracks each unit in a
+fresh process of its own.  The baselines
+live in the
 top-level ``trackers/`` folder (installed as ``ema_bench_trackers``) and register through
 ema-bench's own entry points.
 
@@ -26,6 +30,7 @@ per unit and inspection, appended as each finishes; rerunning resumes) and
 
 from __future__ import annotations
 
+import functools
 import importlib
 import json
 import logging
@@ -35,7 +40,6 @@ import time
 from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from types import SimpleNamespace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -43,10 +47,11 @@ import numpy as np
 from ..faults import FAULT_NAMES
 from ..jsonio import plain, write_atomic
 from ..plugins import PluginRegistry
-from ..seeding import run_seed, stream
+from ..seeding import SEED_SCHEME, run_seed, solver_seed
 from ..sweep.executors import Job
 from ..sweep.schema import opt, req
 from ..traces import Traces
+from .track_worker import TrackerSpec, UnitInput, UnitSource
 
 if TYPE_CHECKING:
     from ..problem import Problem
@@ -348,21 +353,22 @@ def _unit_done(campaign: Campaign):
 
 # --- running a tracker over a campaign -------------------------------------------------------
 
-def unit_seed(seed: int, k: int) -> np.random.SeedSequence:
-    """The tracker's seed for the ``k``-th unit of the manifest: the ``solver`` stream of run
-    node ``(seed, k)`` (a tracker is that unit's solver), as the campaign's unit ``k`` is run
-    ``k`` of its own root seed."""
-    return stream(run_seed(seed, k), "solver")
+def unit_seed(seed: int, k: int, scheme: int = SEED_SCHEME) -> np.random.SeedSequence:
+    """The tracker's seed for the ``k``-th unit of the manifest: the solver seed
+    (:func:`~ema_bench.seeding.solver_seed`, a one-way hash in ``scheme`` 2) of run node
+    ``(seed, k)`` (a tracker is that unit's solver), as the campaign's unit ``k`` is run
+    ``k`` of its own root seed.  Scheme 1 (the spawned stream) replays the committed runs."""
+    return solver_seed(run_seed(seed, k), scheme)
 
 
-def _manifest(campaign: Campaign, info: TrackerInfo, seed: int, out: Path) -> dict:
+def _manifest(campaign: Campaign, info: TrackerSpec, seed: int, out: Path) -> dict:
     from ..registry import library_versions
     from ..trace_cache import MODEL_VERSION
     from ..version import __version__
 
     return {"format": FORMAT, "version": VERSION, "tracker": info.name,
-            "description": info.description, "config": plain(info.config, default=str),
-            "seed": seed,
+            "description": info.description, "config": info.manifest_config,
+            "seed": seed, "seed_scheme": SEED_SCHEME,
             # relative to the run folder: the two move together (a committed leaderboard)
             "campaign": os.path.relpath(Path(campaign.root).resolve(), Path(out).resolve()),
             "campaign_name": campaign.name, "track": campaign.track, "split": campaign.split,
@@ -370,8 +376,8 @@ def _manifest(campaign: Campaign, info: TrackerInfo, seed: int, out: Path) -> di
             "package_version": __version__, "versions": library_versions("scipy", "cma")}
 
 
-_SAME_RUN = ("format", "tracker", "config", "seed", "campaign", "campaign_name", "track",
-             "split", "campaign_seed")
+_SAME_RUN = ("format", "tracker", "config", "seed", "seed_scheme", "campaign", "campaign_name",
+             "track", "split", "campaign_seed")
 
 
 def _prepare(out: Path, manifest: dict) -> None:
@@ -397,59 +403,100 @@ def _prepare(out: Path, manifest: dict) -> None:
     write_atomic(mpath, json.dumps(manifest, indent=1) + "\n")
 
 
-def track_unit(campaign: Campaign, info: TrackerInfo, unit: str, seed: np.random.SeedSequence,
-               store) -> str:
-    """Track one unit from its first inspection, appending each step's record to ``store``
-    (anything with ``append(record)``) as it finishes.
-
-    Returns ``"replaced"`` (a replacement was called at some inspection; the unit is still
-    tracked to its cut), ``"tracked"`` or ``"failed"``.  A tracker that raises, or answers
-    something :func:`check_step` refuses, is logged and recorded as an error line: the unit
-    has failed, the run goes on."""
-    records = campaign.units[unit]
-    ctx = campaign.info()
-    index, flight = 0, records[0].flight if records else 0
+def run_unit(info: TrackerInfo, settings: Mapping, unit: str, inspections: list[Inspection],
+             seed: np.random.SeedSequence) -> tuple[list[dict], str]:
+    """Track one unit from its first inspection (in the unit's worker process,
+    :mod:`.track_worker`): its lines and ``"replaced"`` (a replacement was called at some
+    inspection; the unit is still tracked to its cut), ``"tracked"`` or ``"failed"``.  A
+    tracker that raises, or answers something :func:`check_step` refuses, is recorded as an
+    error line: the unit has failed, the run goes on."""
+    rows: list[dict] = []
+    index, flight = 0, inspections[0].flight if inspections else 0
     replaced = False
     try:
-        step_fn = info.start(ctx, seed)
-        for rec in records:
-            index, flight = rec.index, rec.flight
-            insp = Inspection(unit=unit, index=rec.index, flight=rec.flight,
-                              traces=campaign.traces(rec),
-                              conditions=json.loads(json.dumps(rec.conditions)),
-                              thresholds=dict(campaign.thresholds),
-                              inspection_every=campaign.inspection_every)
+        step_fn = info.start(settings, seed)
+        for insp in inspections:
+            index, flight = insp.index, insp.flight
             step = check_step(step_fn(insp), insp)
-            store.append(step_record(insp, step))
+            rows.append(step_record(insp, step))
             replaced = replaced or step.replace
     except Exception as exc:  # one unit's failure must not stop the fleet
-        log.warning("tracker %s failed on unit %s at inspection %d (flight %d): %s: %s",
-                    info.name, unit, index, flight, type(exc).__name__, exc)
-        store.append(error_record(unit, index, flight, exc))
-        return "failed"
-    return "replaced" if replaced else "tracked"
+        rows.append(error_record(unit, index, flight, exc))
+        return rows, "failed"
+    return rows, "replaced" if replaced else "tracked"
 
 
-def _track(campaign: Campaign, info: TrackerInfo, seed: int, job: Job) -> list[dict]:
-    """The records of unit ``job.key``, the ``job.data``-th of the manifest (its steps, and
-    its error line if the tracker failed)."""
-    rows: list[dict] = []
-    track_unit(campaign, info, job.key, unit_seed(seed, job.data), SimpleNamespace(
-        append=rows.append))
-    return rows
+# --- one unit in a worker process of its own (:mod:`.track_worker`) ----------------------------
+
+def _unit_inputs(campaign: Campaign, unit: str) -> tuple[dict, list[Inspection]]:
+    """The published settings and the unit's inspections (traces read): what its worker
+    gets, read in the process that holds the campaign."""
+    return campaign.info(), [
+        Inspection(unit=unit, index=rec.index, flight=rec.flight, traces=campaign.traces(rec),
+                   conditions=json.loads(json.dumps(rec.conditions)),
+                   thresholds=dict(campaign.thresholds),
+                   inspection_every=campaign.inspection_every)
+        for rec in campaign.units[unit]]
 
 
-def _worker(root: str, name: str, module: str, seed: int, job: Job) -> list[dict]:
-    """One unit in a worker process: the tracker's module imported by name (a tracker
-    registered in a script's ``__main__`` is not importable there)."""
-    from .campaign import load_campaign
+def unit_jobs(campaign: Campaign, spec: TrackerSpec, units: list[str], seed: int,
+              scheme: int = SEED_SCHEME) -> list[Job]:
+    """One job per unit of ``units`` for :func:`unit_job`: its inputs read from ``campaign``
+    only when sent to its worker, its seed :func:`unit_seed` ``(seed, k)`` (``k``: the unit's
+    place in the manifest)."""
+    order = list(campaign.units)
+    return [Job(u, u, UnitSource(spec, u, unit_seed(seed, order.index(u), scheme),
+                                 functools.partial(_unit_inputs, campaign, u)))
+            for u in units]
 
-    if name not in _TRACKERS.entries:
+
+def _spec(info: TrackerInfo) -> TrackerSpec:
+    return TrackerSpec(info.name, info.factory.__module__, info.factory.__qualname__,
+                       info.description, dict(info.config))
+
+
+def registered(spec: TrackerSpec) -> TrackerInfo:
+    """The tracker of ``spec`` (in a worker): its module imported by name, else its factory
+    registered again under its name and configuration (a variant registered in a function)."""
+    if spec.name not in _TRACKERS.entries:
         try:
-            importlib.import_module(module)
-        except ImportError:
-            pass
-    return _track(load_campaign(root), get_tracker(name), seed, job)
+            factory = functools.reduce(getattr, spec.factory.split("."),
+                                       importlib.import_module(spec.module))
+        except (ImportError, AttributeError):
+            factory = None   # an entry point's tracker: get_tracker finds it
+        if spec.name not in _TRACKERS.entries and callable(factory):
+            register_tracker(spec.name, description=spec.description, **spec.config)(factory)
+    return get_tracker(spec.name)
+
+
+def unit_job(job: Job) -> list[dict]:
+    """Track one unit in a worker process (``job.data``: a
+    :class:`~.track_worker.UnitInput`): its lines, and its error line if the tracker failed."""
+    inp: UnitInput = job.data
+    return run_unit(registered(inp.tracker), inp.settings, inp.unit, inp.inspections,
+                    inp.seed)[0]
+
+
+def spec_job(job: Job) -> dict:
+    """The :class:`~.track_worker.TrackerSpec` of tracker ``job.data``, as a dict (in a
+    worker: its plugin is imported there)."""
+    return asdict(_spec(get_tracker(job.data)))
+
+
+def tracker_spec(name: str) -> TrackerSpec:
+    """The tracker ``name``: from this process's registry when something here registered it
+    already (a script's or a test's own tracker), else looked up in a worker process, so that
+    an entry point's plugin is never imported beside the campaign.  TrackerError (one line)
+    for an unknown or broken tracker."""
+    from ..sweep.executors import execute
+
+    if name in _TRACKERS.entries:
+        return _spec(_TRACKERS.entries[name])
+    (o,) = list(execute([Job(name, name, name)], spec_job, "isolated", 1))
+    if o.failure is not None:
+        raise TrackerError(o.failure.error if o.failure.error_type == "TrackerError"
+                           else o.failure.line())
+    return TrackerSpec(**o.records[0])
 
 
 def track_campaign(campaign: Campaign | Path | str, tracker: str, out: Path | str,
@@ -469,7 +516,7 @@ def track_campaign(campaign: Campaign | Path | str, tracker: str, out: Path | st
     seed : int
         Root seed: unit ``k`` of the manifest gets :func:`unit_seed` ``(seed, k)``.
     workers : int
-        Units tracked at once, in worker processes (1: in this process).
+        Worker processes (units tracked at once); the tracker never runs in this process.
     quiet : bool
         No progress bar or lines.
 
@@ -486,13 +533,10 @@ def track_campaign(campaign: Campaign | Path | str, tracker: str, out: Path | st
     maintenance decision).  A unit whose tracker failed is not retried; delete its lines to
     retry it.
     """
-    import functools
-
     from ..sweep.loop import run_sweep
     from ..sweep.store import Store
     from .campaign import load_campaign
-
-    info = get_tracker(tracker)
+    info = tracker_spec(tracker)   # its plugin is not imported here
     if isinstance(seed, bool) or int(seed) != seed or seed < 0:
         raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
     if isinstance(workers, bool) or int(workers) != workers or workers < 1:
@@ -500,25 +544,26 @@ def track_campaign(campaign: Campaign | Path | str, tracker: str, out: Path | st
     camp = campaign if not isinstance(campaign, str | Path) else load_campaign(campaign)
     out = Path(out)
     _prepare(out, _manifest(camp, info, int(seed), out))
-    tasks = [Job(u, u, k) for k, u in enumerate(camp.units)]
-    if workers == 1:   # in this process: the campaign as given, the tracker as registered
-        runner = functools.partial(_track, camp, info, int(seed))
-    else:
-        runner = functools.partial(_worker, str(camp.root), info.name,
-                                   info.factory.__module__, int(seed))
+    tasks = unit_jobs(camp, info, list(camp.units), int(seed))
     t0 = time.perf_counter()
     with Store(out / TRACK_FILE, task_of=_unit_done(camp), schema=_schema,
                retry_errors=False) as store:
-        report = run_sweep(tasks, runner, [store], executor="serial" if workers == 1
-                           else "processes", workers=int(workers), label=f"track {tracker}",
-                           unit="unit", quiet=quiet, describe=_status)
+        # the tracker never runs here: in worker processes, each unit's inputs sent alone
+        # (replay re-tracks a unit in a fresh process: state carried across units shows)
+        report = run_sweep(tasks, unit_job, [store], executor="processes",
+                           workers=int(workers), label=f"track {tracker}", unit="unit",
+                           quiet=quiet, describe=functools.partial(_status, info.name))
     log.debug("tracked %d unit(s) in %.1f s", report.ran, time.perf_counter() - t0)
     return out
 
 
-def _status(outcome) -> str:
-    """A unit's progress line: its name and how its tracking ended."""
+def _status(tracker: str, outcome) -> str:
+    """A unit's progress line: its name and how its tracking ended (a failure logged)."""
     recs = outcome.records
+    for r in recs:
+        if r.get("status") == "error":
+            log.warning("tracker %s failed on unit %s at inspection %d (flight %d): %s",
+                        tracker, r["unit"], r["index"], r["flight"], r["error"])
     status = ("failed" if any(r.get("status") == "error" for r in recs) else
               "replaced" if any(r.get("replace") for r in recs) else "tracked")
     return f"{outcome.task.key} {status}"

@@ -9,9 +9,11 @@ import gc
 import numpy as np
 
 from ema_bench import make_problem, register_solver
-from ema_bench.faults import FAULT_NAMES
+from ema_bench.faults import FAULT_NAMES, random_faults
 from ema_bench.problem import Problem
+from ema_bench.prognostics.tracking import TrackStep, register_tracker
 from ema_bench.registry import SolveResult
+from ema_bench.seeding import stream
 
 
 @register_solver("rt-truth-peeker", description="reads the truth from memory", library="numpy")
@@ -41,3 +43,49 @@ def private_objective(problem, budget, seed):
     problem.evaluate(X[int(np.argmin(f))])
     x, fx = problem.best
     return SolveResult("rt-private-objective", x, fx, problem.evaluations, "done", 0.0, {})
+
+
+@register_solver("rt-seed-walker", description="rebuilds its run node from its seed",
+                 library="numpy")
+def seed_walker(problem, budget, seed):
+    """Takes its seed for a spawned child of the run node (seed scheme 1: the node's entropy
+    and spawn key, plus one index), rebuilds the node and draws the ``seeded`` instance's
+    truth from its ``instance`` stream, as ``make_problem`` did."""
+    node = np.random.SeedSequence(seed.entropy, spawn_key=seed.spawn_key[:-1])
+    problem.evaluate(random_faults(stream(node, "instance"), 1.0))
+    x, f = problem.best
+    return SolveResult("rt-seed-walker", x, f, problem.evaluations, "done", 0.0, {})
+
+
+@register_tracker("rt-campaign-peeker", description="looks for the campaign from its process")
+def campaign_peeker(campaign_info, seed):
+    """Looks through its process for what a tracker must not reach: the campaign object, its
+    folder (a path holding a manifest.json), the callers' frames; reports what it found
+    (and its parent process)."""
+    import os
+    import sys
+
+    found = {"parent": os.getppid(), "objects": set(), "folders": set(), "frames": set()}
+    for obj in gc.get_objects():
+        if type(obj).__name__ in ("Campaign", "UnitSource", "InspectionRecord"):
+            found["objects"].add(type(obj).__name__)
+        values = (obj.values() if isinstance(obj, dict) else obj
+                  if isinstance(obj, list | tuple) else ())
+        for v in list(values):
+            if isinstance(v, str | os.PathLike) and os.sep in str(v) and len(str(v)) < 500:
+                if os.path.isfile(os.path.join(str(v), "manifest.json")):
+                    found["folders"].add(str(v))
+    frame = sys._getframe(1)
+    while frame is not None:
+        found["frames"] |= {k for k, v in frame.f_locals.items()
+                            if type(v).__name__ in ("Campaign", "UnitSource")}
+        frame = frame.f_back
+    report = {k: sorted(v) if isinstance(v, set) else v for k, v in found.items()}
+
+    def step(insp):
+        x = {n: float(v) for n, v in zip(FAULT_NAMES, (1.0, 0.1689, 0.0, 1e5))}
+        return TrackStep(flight=insp.flight, estimate=x, low=x, high=x, rul=1.0, rul_low=0.0,
+                         rul_high=2.0, failing_fault=None, replace=False, evaluations=0,
+                         extra={"found": report, "settings": campaign_info,
+                                "seed": str(seed.entropy)})
+    return step
