@@ -155,10 +155,18 @@ def test_the_headline_at_the_cut_matches_the_hand_computation(fixture_run):
     # 20, inf
     assert h["coverage"]["value"] == pytest.approx(2 / 3)
     assert math.isinf(h["width"]["value"])
+    # robust PHM08: the median of the three terms, u001's expm1(10/13)
+    assert h["phm08_median"]["value"] == pytest.approx(math.expm1(10 / 13))
+    # 95 % interval scores: 15 and 20 (no miss), u003 none: inf
+    assert math.isinf(h["is95"]["value"])
+    # no oracle: no expected hits; no quantiles given: no CRPS, no 50 / 80 % figures
+    not_scored = {"expected", "crps", "is50", "is80", "cov50", "cov80"}
+    assert {k for k, v in h.items() if math.isnan(v["value"])} == not_scored
+    assert res["reliability"] == {"0.95": pytest.approx(2 / 3)}
     # bootstrap intervals bracket the value; no oracle asked: no ratio
     for k, v in h.items():
         lo, hi = v["ci"]
-        assert lo <= v["value"] <= hi, k
+        assert k in not_scored or lo <= v["value"] <= hi, k
         assert "ratio" not in v
     assert h["within"]["ci"][0] == 0.0 and h["within"]["ci"][1] >= 2 / 3
 
@@ -352,7 +360,9 @@ def test_score_cli_json_has_the_contract_keys(fixture_run, capsys):
                 "untracked", "fault_error", "fault_coverage", "detection_delay",
                 "false_alarm_rate", "per_unit", "rul_horizon", "missing_at_cut"):
         assert key in out
-    assert set(out["headline"]) == {"within", "mae", "rmse", "phm08", "coverage", "width"}
+    assert set(out["headline"]) == {"expected", "within", "mae", "rmse", "phm08",
+                                    "phm08_median", "coverage", "width", "is95", "crps",
+                                    "is50", "is80", "cov50", "cov80"}
     assert (out["alpha"], out["headline"]["within"]["value"]) == (0.05, 0.0)
 
 
@@ -520,7 +530,7 @@ def test_the_oracle_and_the_board_figures_are_pinned_on_a_small_fixed_campaign(r
     assert (g["prognostic_horizon"], g["prognostic_horizon_strict"]) == PINNED_PH
     # a second scoring gives the same (seeded bootstrap, seeded oracle)
     again = score_tracking(root / "run", truth=root / "secret" / "truth.json")
-    assert again["headline"] == res["headline"]
+    assert json.dumps(again["headline"]) == json.dumps(res["headline"])   # NaN: not scored
 
 
 def test_the_no_sensing_references_score_low(real):

@@ -49,6 +49,7 @@ import numpy as np
 from ema_bench.faults import FAULT_INDEX
 from ema_bench.prognostics.bayes import best_point, weighted_quantile
 from ema_bench.prognostics.campaign import cut_likelihood
+from ema_bench.prognostics.distributions import LEVELS, level_key
 from ema_bench.prognostics.laws import FleetLaws, ForwardPaths
 from ema_bench.prognostics.tracking import Inspection, TrackStep, register_tracker
 
@@ -96,8 +97,10 @@ def _cut_summary(summary, t: np.ndarray, flight: float, every: int,
         return summary
     point = best_point(t, w, alpha)
     low, high = weighted_quantile(t, w, [0.025, 0.975])
+    qs = weighted_quantile(t, w, LEVELS)
     return dataclasses.replace(summary, rul=point, low=float(min(low, point)),
-                               high=float(max(high, point)))
+                               high=float(max(high, point)),
+                               quantiles={level_key(q): float(v) for q, v in zip(LEVELS, qs)})
 
 
 @register_tracker("fleet-bayes-cut", description="fleet-bayes whose reported RUL is also "

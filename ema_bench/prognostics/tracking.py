@@ -140,6 +140,10 @@ class TrackStep:
         Model runs this step cost.
     extra : dict
         Anything else the tracker wants recorded (JSON-friendly).
+    rul_quantiles : dict
+        Optional: quantiles of the predicted RUL, level -> flights (``inf`` allowed), e.g. at
+        :data:`~ema_bench.prognostics.distributions.LEVELS`, scored by CRPS and interval
+        scores; empty (the default): only the 95 % interval is scored.
     """
 
     flight: int
@@ -153,6 +157,7 @@ class TrackStep:
     replace: bool
     evaluations: int
     extra: dict[str, Any] = field(default_factory=dict)
+    rul_quantiles: dict[str, float] = field(default_factory=dict)
 
 
 def check_step(step: object, inspection: Inspection) -> TrackStep:
@@ -170,6 +175,12 @@ def check_step(step: object, inspection: Inspection) -> TrackStep:
     ruls = [float(step.rul_low), float(step.rul), float(step.rul_high)]
     if any(math.isnan(r) or r < 0 for r in ruls) or not ruls[0] <= ruls[1] <= ruls[2]:
         raise TrackerError(f"step RUL must be >= 0 and rul_low <= rul <= rul_high, got {ruls}")
+    if step.rul_quantiles:
+        from .distributions import check_quantiles
+        try:
+            check_quantiles(step.rul_quantiles)
+        except ValueError as exc:
+            raise TrackerError(f"step {exc}") from None
     if step.failing_fault is not None and step.failing_fault not in inspection.thresholds:
         raise TrackerError(f"step failing_fault {step.failing_fault!r} has no threshold "
                            f"(thresholds: {list(inspection.thresholds)})")
@@ -244,6 +255,12 @@ def step_record(inspection: Inspection, step: TrackStep) -> dict:
     d["evaluations"] = int(d["evaluations"])
     d["flight"] = int(d["flight"])
     d["extra"] = plain(d["extra"], default=str)
+    if d["rul_quantiles"]:   # infinite quantiles as null; absent when not given
+        from .distributions import check_quantiles
+        d["rul_quantiles"] = {k: (v if math.isfinite(v) else None)
+                              for k, v in check_quantiles(d["rul_quantiles"]).items()}
+    else:
+        del d["rul_quantiles"]
     return {"key": _key(inspection.unit, inspection.index), "unit": inspection.unit,
             "index": inspection.index, **d}
 
@@ -260,6 +277,9 @@ def _restore(record: dict) -> dict:
     for k in INFINITE_FIELDS:
         if r.get(k, 0) is None:
             r[k] = math.inf
+    if r.get("rul_quantiles"):
+        r["rul_quantiles"] = {q: math.inf if v is None else v
+                              for q, v in r["rul_quantiles"].items()}
     return r
 
 
@@ -271,7 +291,8 @@ STEP_SCHEMA = {"key": req("str"), "unit": req("str"), "index": req("int"),
                "high": req("dict", values="number|null"), "rul": req("number|null"),
                "rul_low": req("number|null"), "rul_high": req("number|null"),
                "failing_fault": req("str|null"),
-               "replace": req("bool"), "evaluations": req("int"), "extra": opt("dict")}
+               "replace": req("bool"), "evaluations": req("int"), "extra": opt("dict"),
+               "rul_quantiles": opt("dict", values="number|null")}
 #: The fields of the error line of a unit whose tracker failed.
 ERROR_SCHEMA = {"key": req("str"), "unit": req("str"), "index": req("int"),
                 "flight": req("int"), "status": req("str"), "error": req("str")}
