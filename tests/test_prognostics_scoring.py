@@ -384,7 +384,8 @@ def test_score_cli_table_and_errors(fixture_run, tmp_path, capsys):
     _, run = fixture_run
     assert main(["campaign", "score", str(run), "--no-oracle"]) == 0
     out, err = capsys.readouterr()
-    assert "| hand | twin | 4 | 3 | 33% [" in out and "within +-20 %" in out
+    # no oracle: no expected hits ("-"); the realised hit rate beside
+    assert "| hand | twin | 4 | 3 | - | 33% [" in out and "within +-20 %" in out
     assert "1 failing unit(s) without a prediction at their cut" in err
     assert main(["campaign", "score", str(tmp_path / "nowhere")]) == 2
     assert "not a tracking run" in capsys.readouterr().err
@@ -533,6 +534,31 @@ def test_the_oracle_and_the_board_figures_are_pinned_on_a_small_fixed_campaign(r
     assert json.dumps(again["headline"]) == json.dumps(res["headline"])   # NaN: not scored
 
 
+def test_a_run_written_from_the_truth_earns_its_realised_hits_not_its_expected_ones(real,
+                                                                                   tmp_path):
+    """The attempt to earn the headline without forecasting: a track.jsonl whose RULs at the
+    cut are the true RULs (and a zero-width interval on them) hits every unit as realised, but
+    its expected hits, judged on the units' futures, are no better than the oracle's Bayes
+    point (the true RUL is one draw of a spread-out future)."""
+    import shutil
+
+    truth, _, root = real
+    run = tmp_path / "forged"
+    shutil.copytree(root / "run", run)
+    (run / "manifest.json").write_text((root / "run" / "manifest.json").read_text().replace(
+        '"campaign": "../camp"', f'"campaign": "{root / "camp"}"'))
+    lines = [json.loads(x) for x in (run / "track.jsonl").read_text().splitlines()]
+    for r in lines:
+        t = truth[r["unit"]]
+        if t["eol"] is not None and r["flight"] == t["last_flight"]:
+            r["rul"] = r["rul_low"] = r["rul_high"] = float(t["eol"] - t["last_flight"])
+    (run / "track.jsonl").write_text("".join(json.dumps(r) + "\n" for r in lines))
+    h = score_tracking(run, truth=root / "secret" / "truth.json")["headline"]
+    assert h["within"]["value"] == 1.0 and h["coverage"]["value"] == 1.0
+    assert h["expected"]["value"] < 0.6 < h["expected"]["oracle"]
+    assert h["expected"]["ratio"] < 1.0
+
+
 def test_the_no_sensing_references_score_low(real):
     """Through the real commands on the small campaign, and on 400 lives drawn from fleet-v1's
     laws with the real cut rule (the references read no trace, so no traces are needed)."""
@@ -580,6 +606,12 @@ def test_score_cli_writes_plots_and_a_markdown_table(real, tmp_path, capsys):
     assert lines[3].startswith("| **oracle** | twin |")
     pngs = sorted(p.name for p in (tmp_path / "plots").glob("*.png"))
     assert "rul_errors_twin.png" in pngs and "alpha_lambda_twin.png" in pngs
+    assert "reliability_twin.png" in pngs
+    # the tables by failing fault and cut position, the tracker's row and the oracle's
+    at = lines.index(next(x for x in lines if x.startswith("**expected within +-20 % by")))
+    assert lines[at + 2].startswith("| tracker | Fst (") and "| late (" in lines[at + 2]
+    assert lines[at + 4].startswith("| constant-scoring-test | ")
+    assert lines[at + 5].startswith("| **oracle** | ")
     assert "rul_constant-scoring-test-twin.png" in pngs
     assert any(n.startswith("unit_constant-scoring-test-twin_u") for n in pngs)
     assert capsys.readouterr().out.splitlines() == lines

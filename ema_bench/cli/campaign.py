@@ -221,6 +221,8 @@ def _fmt(v: float, fmt: str) -> str:
 
 
 def _cell(h: dict, fmt: str) -> str:
+    if h["value"] != h["value"]:   # not scored (no oracle, no quantiles given)
+        return "-"
     lo, hi = h["ci"]
     return f"{_fmt(h['value'], fmt)} [{_fmt(lo, fmt)}, {_fmt(hi, fmt)}]"
 
