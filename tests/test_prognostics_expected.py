@@ -110,6 +110,16 @@ def test_quantiles_are_checked_and_recorded_with_inf_as_null(tmp_path):
     assert steps["u000"][0]["rul_quantiles"]["0.9"] == INF
     # not given: not written (lines of trackers without quantiles are as before)
     assert "rul_quantiles" not in step_record(insp, step({}))
+    assert "profile_rul" not in step_record(insp, step({}))
+    # the unconditioned profile: checked, inf as null, read back as inf
+    s = step({})
+    s.profile_rul = -1.0
+    with pytest.raises(TrackerError, match="profile_rul"):
+        check_step(s, insp)
+    s.profile_rul = INF
+    rec = json.loads(json.dumps(step_record(insp, check_step(s, insp))))
+    assert rec["profile_rul"] is None
+    assert regroup([rec])[0]["u000"][0]["profile_rul"] == INF
     assert check_quantiles({0.25: 1, 0.75: 2}) == {"0.25": 1.0, "0.75": 2.0}
 
 

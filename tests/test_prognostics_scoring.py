@@ -198,6 +198,26 @@ def test_decisions_and_diagnostics_match_the_hand_computation(fixture_run):
     assert g["failing_fault_named"] == pytest.approx(1 / 3)
 
 
+def test_the_profile_diagnostics_read_the_unconditioned_forecasts(fixture_run):
+    """A cut-conditioned tracker gives ``profile_rul`` beside its ``rul``: the headline is
+    judged on ``rul`` at the cut, the prognostic horizon and alpha-lambda on the profile."""
+    _, run = fixture_run
+    before = score_tracking(run, oracle=False)
+    lines = [json.loads(x) for x in (run / "track.jsonl").read_text().splitlines()]
+    eol = {"u000": 100, "u001": 60, "u002": None}
+    for r in lines:   # the profile: the true RUL at every inspection (null: no failure)
+        r["profile_rul"] = None if eol[r["unit"]] is None else eol[r["unit"]] - r["flight"]
+    (run / "track.jsonl").write_text("".join(json.dumps(r) + "\n" for r in lines))
+    after = score_tracking(run, oracle=False)
+    assert json.dumps(after["headline"]) == json.dumps(before["headline"])
+    # inside the bounds from the first inspection: PH = EOL - 0 (u000 100, u001 60, u003
+    # untracked 0): median 60, strict too; every tracked unit within the cone at lambda 0.5
+    g = after["diagnostics"]
+    assert (g["prognostic_horizon"], g["prognostic_horizon_strict"]) == (60.0, 60.0)
+    assert g["alpha_lambda"]["0.5"] == {"share": 1.0, "units": 2}
+    assert g["monotonicity"] == pytest.approx(1.0)
+
+
 def test_fault_tracking_and_detection_match_the_hand_computation(fixture_run):
     _, run = fixture_run
     res = score_tracking(run, oracle=False)

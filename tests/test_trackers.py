@@ -251,6 +251,14 @@ def test_baseline_follows_a_linear_friction_rise(synthetic, name):
     assert last["failing_fault"] == "Fst"
     assert 0.6 * true_rul <= last["rul"] <= 1.6 * true_rul, last
     assert last["rul_low"] <= true_rul <= (last["rul_high"] or math.inf), last
+    # the quantiles of its futures, at every level; the 95 % ends those of its interval
+    from ema_bench.prognostics.distributions import LEVELS, level_key
+    q = last["rul_quantiles"]
+    assert list(q) == [level_key(v) for v in LEVELS], q
+    assert q["0.025"] >= last["rul_low"] and (q["0.975"] or math.inf) <= (
+        last["rul_high"] or math.inf)
+    # an unconditioned RUL is its own profile
+    assert "profile_rul" not in last
     assert not any(r["replace"] for rows_ in rows.values() for r in rows_)
     assert all(r["evaluations"] > 0 for r in rows["u000"])
     # gain drift only: no failure in sight
@@ -309,5 +317,7 @@ def test_fleet_bayes_cut_weighs_the_path_lives_by_the_cut_rule():
     got = _cut_summary(plain, t, 100, 10, (0.5, 0.95))
     assert (got.rul, got.low, got.high) == (24.0, 10.0, 30.0)
     assert (got.failing_fault, got.p_fail) == ("Fst", 0.4)
+    # its quantiles from the weighted lives too: 200 carries no weight
+    assert (got.quantiles["0.025"], got.quantiles["0.975"]) == (10.0, 30.0)
     # no path compatible with a cut here (all lives beyond 200): the summary is kept
     assert _cut_summary(plain, np.array([150.0, 400.0]), 100, 10, (0.5, 0.95)) == plain

@@ -411,8 +411,10 @@ def replace_now(summary: RulSummary, low: np.ndarray, high: np.ndarray,
 
 
 def make_step(insp: Inspection, x: np.ndarray, low: np.ndarray, high: np.ndarray,
-              summary: RulSummary, replace: bool, evaluations: int, **extra) -> TrackStep:
-    """The :class:`TrackStep` of physical estimate and interval vectors (4,)."""
+              summary: RulSummary, replace: bool, evaluations: int,
+              profile_rul: float | None = None, **extra) -> TrackStep:
+    """The :class:`TrackStep` of physical estimate and interval vectors (4,)
+    (``profile_rul``: the unconditioned RUL when ``summary``'s is conditioned on the cut)."""
     d = {n: float(v) for n, v in zip(FAULT_NAMES, x)}
     return TrackStep(flight=insp.flight, estimate=d,
                      low={n: float(min(v, d[n])) for n, v in zip(FAULT_NAMES, low)},
@@ -420,7 +422,7 @@ def make_step(insp: Inspection, x: np.ndarray, low: np.ndarray, high: np.ndarray
                      rul=summary.rul, rul_low=summary.low, rul_high=summary.high,
                      failing_fault=summary.failing_fault, replace=bool(replace),
                      evaluations=int(evaluations), extra=extra,
-                     rul_quantiles=dict(summary.quantiles))
+                     rul_quantiles=dict(summary.quantiles), profile_rul=profile_rul)
 
 
 def split_seed(seed: np.random.SeedSequence) -> tuple[np.random.SeedSequence,

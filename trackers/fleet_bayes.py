@@ -185,8 +185,10 @@ def factory(campaign_info: dict, seed: np.random.SeedSequence, *, n_paths: int =
                               d_thr, STEP, HORIZON_FLIGHTS)
         summary = summarise(cross, names, REPLACE_HORIZON * every)
         replace = replace_now(summary, fit.low, fit.high, names, thresholds, replace_prob)
-        if cut_rule:
+        profile = None
+        if cut_rule:   # the unconditioned median stays the profile's (scoring's diagnostics)
+            profile = summary.rul
             summary = _cut_summary(summary, cross.min(axis=1), insp.flight, every, stop)
         return make_step(insp, fit.x, fit.low, fit.high, summary, replace, fit.evaluations,
-                         fit=fit.how, mean_duty=m, coil_present=short is not None)
+                         profile, fit=fit.how, mean_duty=m, coil_present=short is not None)
     return step

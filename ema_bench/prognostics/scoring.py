@@ -246,7 +246,9 @@ def score_unit(rows: list[dict], truth: dict, thresholds: dict[str, float], ever
     rul, low, high = ((float(final["rul"]), float(final["rul_low"]), float(final["rul_high"]))
                       if final is not None else (math.inf, math.inf, math.inf))
     flights = np.array([r["flight"] for r in rows], dtype=float)
-    pred = np.array([r["rul"] for r in rows], dtype=float)
+    # the profile diagnostics read the unconditioned forecasts (a cut-conditioned ``rul``
+    # is scored at the cut only)
+    pred = np.array([r.get("profile_rul", r["rul"]) for r in rows], dtype=float)
     failing = truth["failing_fault"]
     # an inspection that saw less than one interval of life left, with no replacement by then
     short = [r for r in rows if eol - r["flight"] < every]

@@ -28,9 +28,13 @@ FIGURES = (("expected", "expected within +-20 %", "{:.0%}"),
            ("is95", "95 % interval score", "{:.0f}"),
            ("crps", "CRPS", "{:.1f}"))
 
+#: The figures kept per group (the tables' and the hit rate realised).
+KEPT = ("expected", "within", "mae", "is95", "crps")
+
 
 def by_group(res: dict, n_boot: int = 2000) -> dict[str, dict]:
-    """Per group of :data:`GROUPS`: ``units`` (count) and ``headline`` (figure -> value,
+    """Per group of :data:`GROUPS`: ``units`` (count) and ``headline`` (figure of
+    :data:`KEPT` -> value,
     ``ci`` and, when the run was scored with the oracle, ``oracle``, ``ratio``,
     ``ratio_ci``), from ``res`` (:func:`~ema_bench.prognostics.scoring.score_tracking`)."""
     failing = [u for u in res["per_unit"] if u["eol"] is not None]
@@ -44,7 +48,8 @@ def by_group(res: dict, n_boot: int = 2000) -> dict[str, dict]:
         cols = headline_columns(rows, res["rul_horizon"], res["alpha"])
         ocols = (headline_columns([oracle[u["unit"]] for u in rows], res["rul_horizon"],
                                   res["alpha"]) if oracle else None)
-        out[name] = {"units": len(rows), "headline": headline(cols, ocols, n_boot)}
+        h = headline(cols, ocols, n_boot)
+        out[name] = {"units": len(rows), "headline": {k: h[k] for k in KEPT}}
     return out
 
 
