@@ -321,3 +321,37 @@ def test_fleet_bayes_cut_weighs_the_path_lives_by_the_cut_rule():
     assert (got.quantiles["0.025"], got.quantiles["0.975"]) == (10.0, 30.0)
     # no path compatible with a cut here (all lives beyond 200): the summary is kept
     assert _cut_summary(plain, np.array([150.0, 400.0]), 100, 10, (0.5, 0.95)) == plain
+
+
+def test_coil_onset_change_point_posterior():
+    """trackers/coil_onset.py on hand-made fits (0.01 CPU-s): uninformative fits give the
+    law's onset prior (exponential, mean 600 flights) by hand; no short stays healthy; a clear
+    exponential rise from flight 55 puts the onset in (50, 60] and its rate near the truth."""
+    from ema_bench.prognostics.laws import FleetLaws
+    from ema_bench_trackers.coil_onset import onset_paths, onset_posterior
+    from ema_bench_trackers.fleet_bayes import _grid
+
+    laws = FleetLaws().to_dict()
+    grid, prior = _grid(laws["na_growth_median"], laws["na_growth_sigma"])
+    f = np.arange(0.0, 110.0, 10.0)
+    duty = np.r_[0.0, np.full(f.size - 1, 10.0)]
+    # fits that say nothing (sd 10): the posterior over the onset is the law's prior
+    post, *_ = onset_posterior(f, duty, np.zeros(f.size), np.full(f.size, 10.0), laws, grid,
+                               prior, 1.0)
+    by_h = post.sum(axis=1)
+    assert by_h[-1] == pytest.approx(math.exp(-100 / 600), rel=1e-3)           # not begun
+    assert by_h[5] == pytest.approx(math.exp(-40 / 600) - math.exp(-50 / 600), rel=1e-3)
+    # no short in precise fits: healthy
+    post, *_ = onset_posterior(f, duty, np.zeros(f.size), np.full(f.size, 0.003), laws, grid,
+                               prior, 1.0)
+    assert post.sum(axis=1)[-1] > 0.99
+    # a short from flight 55 growing at 0.03 per unit duty, fitted exactly (sd 0.002)
+    s = np.where(f >= 55, 0.01 * np.exp(0.03 * np.clip(f - 55, 0, None)), 0.0)
+    post, share, share_sd = onset_posterior(f, duty, s, np.full(f.size, 0.002), laws, grid,
+                                            prior, 1.0)
+    by_h = post.sum(axis=1)
+    assert int(np.argmax(by_h)) == 6 and by_h[-1] < 1e-6      # the interval (50, 60]
+    g_mean = (post[:-1].sum(axis=0) * grid).sum() / post[:-1].sum()
+    assert 0.02 < g_mean < 0.04
+    begun, s_now, g = onset_paths(np.random.default_rng(0), post, share, share_sd, grid, 2000)
+    assert begun.all() and abs(np.median(s_now) - s[-1]) < 0.005 and (g > 0).all()
