@@ -127,6 +127,8 @@ def test_baselines_are_found_through_entry_points():
     assert eps["rul-age"].value == eps["life-table"].value == "ema_bench_trackers.references"
     assert eps["fleet-bayes-cut"].value == eps["fleet-bayes"].value
     assert registered_config("fleet-bayes-cut") == {"cut_rule": True}
+    assert eps["fleet-bayes-onset"].value == eps["fleet-bayes"].value
+    assert registered_config("fleet-bayes-onset") == {"cut_rule": True, "coil": "changepoint"}
     registered = available_trackers()
     for name in BASELINES:
         assert eps[name].value.startswith("ema_bench_trackers.")
