@@ -27,8 +27,7 @@ import math
 
 import numpy as np
 
-from ..seeding import child
-from .oracle import N_PATHS, unit_futures
+from .oracle import N_PATHS, failing_units, unit_futures
 
 #: Root seed of the futures the points are judged on (the oracle chooses its point on the
 #: futures of seed 0, :func:`~ema_bench.prognostics.oracle.oracle_predictions`).
@@ -59,15 +58,8 @@ def campaign_futures(truth: dict[str, dict], laws: dict, thresholds: dict[str, f
     unit's futures do not depend on which other units are scored (about 0.3 s per unit at
     4,000 paths)."""
     stop = tuple(cut_rule.get("stop", (0.5, 0.95)))
-    out = {}
-    for k, unit in enumerate(sorted(truth)):
-        t = truth[unit]
-        if t["eol"] is None:
-            continue
-        rng = np.random.default_rng(child(seed, k))
-        rul, w, _ = unit_futures(t, laws, thresholds, every, stop, rng, n_paths)
-        out[unit] = (rul, w)
-    return out
+    return {unit: unit_futures(t, laws, thresholds, every, stop, rng, n_paths)[:2]
+            for unit, t, rng in failing_units(truth, seed)}
 
 
 def expected_hits(rows: list[dict], futures: dict[str, tuple[np.ndarray, np.ndarray]],

@@ -129,11 +129,14 @@ def oracle_predictions(truth: dict[str, dict], laws: dict, thresholds: dict[str,
     Unit ``k`` of the sorted truth gets child ``k`` of ``seed``: a unit's prediction does not
     depend on which other units are scored.  Returns unit -> its prediction."""
     stop = tuple(cut_rule.get("stop", (0.5, 0.95)))
-    out = {}
+    return {unit: oracle_unit(t, laws, thresholds, every, stop, rng, n_paths, alpha)
+            for unit, t, rng in failing_units(truth, seed)}
+
+
+def failing_units(truth: dict[str, dict], seed: int):
+    """(unit, its truth, its generator) for every failing unit: unit ``k`` of the sorted
+    truth gets child ``k`` of ``seed``, so a unit's draws do not depend on which other units
+    are scored."""
     for k, unit in enumerate(sorted(truth)):
-        t = truth[unit]
-        if t["eol"] is None:
-            continue
-        rng = np.random.default_rng(child(seed, k))
-        out[unit] = oracle_unit(t, laws, thresholds, every, stop, rng, n_paths, alpha)
-    return out
+        if truth[unit]["eol"] is not None:
+            yield unit, truth[unit], np.random.default_rng(child(seed, k))
