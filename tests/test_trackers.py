@@ -347,6 +347,12 @@ def test_coil_onset_change_point_posterior():
     post, *_ = onset_posterior(f, duty, np.zeros(f.size), np.full(f.size, 0.003), laws, grid,
                                prior, 1.0)
     assert post.sum(axis=1)[-1] > 0.99
+    # one overconfident outlier (a fit stuck at 1 - Na = 0.005 +- 1e-4, as seen on the twin
+    # campaign) followed by healthy fits starts no short
+    s = np.where(f == 50, 0.005, 0.0)
+    sd = np.where(f == 50, 1e-4, 0.0003)
+    post, *_ = onset_posterior(f, duty, s, sd, laws, grid, prior, 1.0)
+    assert post.sum(axis=1)[-1] > 0.95
     # a short from flight 55 growing at 0.03 per unit duty, fitted exactly (sd 0.002)
     s = np.where(f >= 55, 0.01 * np.exp(0.03 * np.clip(f - 55, 0, None)), 0.0)
     post, share, share_sd = onset_posterior(f, duty, s, np.full(f.size, 0.002), laws, grid,
