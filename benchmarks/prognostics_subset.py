@@ -24,24 +24,17 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from ema_bench.prognostics import tracking
 from ema_bench.prognostics.campaign import load_campaign
 from ema_bench.prognostics.expected import FUTURES_SEED, hit_probability
 from ema_bench.prognostics.oracle import N_PATHS, oracle_unit, unit_futures
-from ema_bench.prognostics.tracking import (
-    campaign_path,
-    get_tracker,
-    read_track,
-    regroup,
-    track_unit,
-    unit_seed,
-)
 from ema_bench.seeding import child
 
 
 def measure(camp_dir: str, tracker: str, committed: str, units: list[str], out: Path) -> list:
     camp = load_campaign(camp_dir)
-    log = read_track(committed)
-    truth = json.loads((campaign_path(committed, log.manifest) / "truth.json").read_text())
+    log = tracking.read_track(committed)
+    truth = json.loads((tracking.campaign_path(committed, log.manifest) / "truth.json").read_text())
     truth = truth["units"]
     order, srt = list(camp.units), sorted(truth)
     stop = tuple(camp.cut_rule["stop"])
@@ -51,9 +44,10 @@ def measure(camp_dir: str, tracker: str, committed: str, units: list[str], out: 
             continue
         t0 = time.process_time()
         rows: list[dict] = []
-        track_unit(camp, get_tracker(tracker), u, unit_seed(0, order.index(u)),
-                   SimpleNamespace(append=rows.append))
-        point = regroup(rows)[0][u][-1]["rul"]
+        tracking.track_unit(camp, tracking.get_tracker(tracker), u,
+                            tracking.unit_seed(0, order.index(u)),
+                            SimpleNamespace(append=rows.append))
+        point = tracking.regroup(rows)[0][u][-1]["rul"]
         k = srt.index(u)
         rul, w, _ = unit_futures(truth[u], camp.laws, camp.thresholds, camp.inspection_every,
                                  stop, np.random.default_rng(child(FUTURES_SEED, k)), N_PATHS)
