@@ -155,10 +155,18 @@ def test_the_headline_at_the_cut_matches_the_hand_computation(fixture_run):
     # 20, inf
     assert h["coverage"]["value"] == pytest.approx(2 / 3)
     assert math.isinf(h["width"]["value"])
+    # robust PHM08: the median of the three terms, u001's expm1(10/13)
+    assert h["phm08_median"]["value"] == pytest.approx(math.expm1(10 / 13))
+    # 95 % interval scores: 15 and 20 (no miss), u003 none: inf
+    assert math.isinf(h["is95"]["value"])
+    # no oracle: no expected hits; no quantiles given: no CRPS, no 50 / 80 % figures
+    not_scored = {"expected", "crps", "is50", "is80", "cov50", "cov80"}
+    assert {k for k, v in h.items() if math.isnan(v["value"])} == not_scored
+    assert res["reliability"] == {"0.95": pytest.approx(2 / 3)}
     # bootstrap intervals bracket the value; no oracle asked: no ratio
     for k, v in h.items():
         lo, hi = v["ci"]
-        assert lo <= v["value"] <= hi, k
+        assert k in not_scored or lo <= v["value"] <= hi, k
         assert "ratio" not in v
     assert h["within"]["ci"][0] == 0.0 and h["within"]["ci"][1] >= 2 / 3
 
@@ -188,6 +196,26 @@ def test_decisions_and_diagnostics_match_the_hand_computation(fixture_run):
     assert g["fault_monotonicity"] == 1.0
     # failing fault at the cut: Fst right for u000, wrong for u001, none for u003
     assert g["failing_fault_named"] == pytest.approx(1 / 3)
+
+
+def test_the_profile_diagnostics_read_the_unconditioned_forecasts(fixture_run):
+    """A cut-conditioned tracker gives ``profile_rul`` beside its ``rul``: the headline is
+    judged on ``rul`` at the cut, the prognostic horizon and alpha-lambda on the profile."""
+    _, run = fixture_run
+    before = score_tracking(run, oracle=False)
+    lines = [json.loads(x) for x in (run / "track.jsonl").read_text().splitlines()]
+    eol = {"u000": 100, "u001": 60, "u002": None}
+    for r in lines:   # the profile: the true RUL at every inspection (null: no failure)
+        r["profile_rul"] = None if eol[r["unit"]] is None else eol[r["unit"]] - r["flight"]
+    (run / "track.jsonl").write_text("".join(json.dumps(r) + "\n" for r in lines))
+    after = score_tracking(run, oracle=False)
+    assert json.dumps(after["headline"]) == json.dumps(before["headline"])
+    # inside the bounds from the first inspection: PH = EOL - 0 (u000 100, u001 60, u003
+    # untracked 0): median 60, strict too; every tracked unit within the cone at lambda 0.5
+    g = after["diagnostics"]
+    assert (g["prognostic_horizon"], g["prognostic_horizon_strict"]) == (60.0, 60.0)
+    assert g["alpha_lambda"]["0.5"] == {"share": 1.0, "units": 2}
+    assert g["monotonicity"] == pytest.approx(1.0)
 
 
 def test_fault_tracking_and_detection_match_the_hand_computation(fixture_run):
@@ -352,7 +380,9 @@ def test_score_cli_json_has_the_contract_keys(fixture_run, capsys):
                 "untracked", "fault_error", "fault_coverage", "detection_delay",
                 "false_alarm_rate", "per_unit", "rul_horizon", "missing_at_cut"):
         assert key in out
-    assert set(out["headline"]) == {"within", "mae", "rmse", "phm08", "coverage", "width"}
+    assert set(out["headline"]) == {"expected", "within", "mae", "rmse", "phm08",
+                                    "phm08_median", "coverage", "width", "is95", "crps",
+                                    "is50", "is80", "cov50", "cov80"}
     assert (out["alpha"], out["headline"]["within"]["value"]) == (0.05, 0.0)
 
 
@@ -374,7 +404,8 @@ def test_score_cli_table_and_errors(fixture_run, tmp_path, capsys):
     _, run = fixture_run
     assert main(["campaign", "score", str(run), "--no-oracle"]) == 0
     out, err = capsys.readouterr()
-    assert "| hand | twin | 4 | 3 | 33% [" in out and "within +-20 %" in out
+    # no oracle: no expected hits ("-"); the realised hit rate beside
+    assert "| hand | twin | 4 | 3 | - | 33% [" in out and "within +-20 %" in out
     assert "1 failing unit(s) without a prediction at their cut" in err
     assert main(["campaign", "score", str(tmp_path / "nowhere")]) == 2
     assert "not a tracking run" in capsys.readouterr().err
@@ -519,7 +550,32 @@ def test_the_oracle_and_the_board_figures_are_pinned_on_a_small_fixed_campaign(r
     assert (g["prognostic_horizon"], g["prognostic_horizon_strict"]) == PINNED_PH
     # a second scoring gives the same (seeded bootstrap, seeded oracle)
     again = score_tracking(root / "run", truth=root / "secret" / "truth.json")
-    assert again["headline"] == res["headline"]
+    assert json.dumps(again["headline"]) == json.dumps(res["headline"])   # NaN: not scored
+
+
+def test_a_run_written_from_the_truth_earns_its_realised_hits_not_its_expected_ones(real,
+                                                                                   tmp_path):
+    """The attempt to earn the headline without forecasting: a track.jsonl whose RULs at the
+    cut are the true RULs (and a zero-width interval on them) hits every unit as realised, but
+    its expected hits, judged on the units' futures, are no better than the oracle's Bayes
+    point (the true RUL is one draw of a spread-out future)."""
+    import shutil
+
+    truth, _, root = real
+    run = tmp_path / "forged"
+    shutil.copytree(root / "run", run)
+    (run / "manifest.json").write_text((root / "run" / "manifest.json").read_text().replace(
+        '"campaign": "../camp"', f'"campaign": "{root / "camp"}"'))
+    lines = [json.loads(x) for x in (run / "track.jsonl").read_text().splitlines()]
+    for r in lines:
+        t = truth[r["unit"]]
+        if t["eol"] is not None and r["flight"] == t["last_flight"]:
+            r["rul"] = r["rul_low"] = r["rul_high"] = float(t["eol"] - t["last_flight"])
+    (run / "track.jsonl").write_text("".join(json.dumps(r) + "\n" for r in lines))
+    h = score_tracking(run, truth=root / "secret" / "truth.json")["headline"]
+    assert h["within"]["value"] == 1.0 and h["coverage"]["value"] == 1.0
+    assert h["expected"]["value"] < 0.6 < h["expected"]["oracle"]
+    assert h["expected"]["ratio"] < 1.0
 
 
 def test_the_no_sensing_references_score_low(real):
@@ -569,6 +625,12 @@ def test_score_cli_writes_plots_and_a_markdown_table(real, tmp_path, capsys):
     assert lines[3].startswith("| **oracle** | twin |")
     pngs = sorted(p.name for p in (tmp_path / "plots").glob("*.png"))
     assert "rul_errors_twin.png" in pngs and "alpha_lambda_twin.png" in pngs
+    assert "reliability_twin.png" in pngs
+    # the tables by failing fault and cut position, the tracker's row and the oracle's
+    at = lines.index(next(x for x in lines if x.startswith("**expected within +-20 % by")))
+    assert lines[at + 2].startswith("| tracker | Fst (") and "| late (" in lines[at + 2]
+    assert lines[at + 4].startswith("| constant-scoring-test | ")
+    assert lines[at + 5].startswith("| **oracle** | ")
     assert "rul_constant-scoring-test-twin.png" in pngs
     assert any(n.startswith("unit_constant-scoring-test-twin_u") for n in pngs)
     assert capsys.readouterr().out.splitlines() == lines

@@ -134,6 +134,8 @@ def test_baselines_are_found_through_entry_points():
     assert eps["rul-age"].value == eps["life-table"].value == "ema_bench_trackers.references"
     assert eps["fleet-bayes-cut"].value == eps["fleet-bayes"].value
     assert registered_config("fleet-bayes-cut") == {"cut_rule": True}
+    assert eps["fleet-bayes-onset"].value == eps["fleet-bayes"].value
+    assert registered_config("fleet-bayes-onset") == {"cut_rule": True, "coil": "changepoint"}
     registered = available_trackers()
     for name in BASELINES:
         assert eps[name].value.startswith("ema_bench_trackers.")
@@ -250,6 +252,14 @@ def test_baseline_follows_a_linear_friction_rise(synthetic, name, tmp_path):
     assert last["failing_fault"] == "Fst"
     assert 0.6 * true_rul <= last["rul"] <= 1.6 * true_rul, last
     assert last["rul_low"] <= true_rul <= (last["rul_high"] or math.inf), last
+    # the quantiles of its futures, at every level; the 95 % ends those of its interval
+    from ema_bench.prognostics.distributions import LEVELS, level_key
+    q = last["rul_quantiles"]
+    assert list(q) == [level_key(v) for v in LEVELS], q
+    assert q["0.025"] >= last["rul_low"] and (q["0.975"] or math.inf) <= (
+        last["rul_high"] or math.inf)
+    # an unconditioned RUL is its own profile
+    assert "profile_rul" not in last
     assert not any(r["replace"] for rows_ in rows.values() for r in rows_)
     assert all(r["evaluations"] > 0 for r in rows["u000"])
     # gain drift only: no failure in sight
@@ -308,5 +318,47 @@ def test_fleet_bayes_cut_weighs_the_path_lives_by_the_cut_rule():
     got = _cut_summary(plain, t, 100, 10, (0.5, 0.95))
     assert (got.rul, got.low, got.high) == (24.0, 10.0, 30.0)
     assert (got.failing_fault, got.p_fail) == ("Fst", 0.4)
+    # its quantiles from the weighted lives too: 200 carries no weight
+    assert (got.quantiles["0.025"], got.quantiles["0.975"]) == (10.0, 30.0)
     # no path compatible with a cut here (all lives beyond 200): the summary is kept
     assert _cut_summary(plain, np.array([150.0, 400.0]), 100, 10, (0.5, 0.95)) == plain
+
+
+def test_coil_onset_change_point_posterior():
+    """trackers/coil_onset.py on hand-made fits (0.01 CPU-s): uninformative fits give the
+    law's onset prior (exponential, mean 600 flights) by hand; no short stays healthy; a clear
+    exponential rise from flight 55 puts the onset in (50, 60] and its rate near the truth."""
+    from ema_bench.prognostics.laws import FleetLaws
+    from ema_bench_trackers.coil_onset import onset_paths, onset_posterior
+    from ema_bench_trackers.fleet_bayes import _grid
+
+    laws = FleetLaws().to_dict()
+    grid, prior = _grid(laws["na_growth_median"], laws["na_growth_sigma"])
+    f = np.arange(0.0, 110.0, 10.0)
+    duty = np.r_[0.0, np.full(f.size - 1, 10.0)]
+    # fits that say nothing (sd 10): the posterior over the onset is the law's prior
+    post, *_ = onset_posterior(f, duty, np.zeros(f.size), np.full(f.size, 10.0), laws, grid,
+                               prior, 1.0)
+    by_h = post.sum(axis=1)
+    assert by_h[-1] == pytest.approx(math.exp(-100 / 600), rel=1e-3)           # not begun
+    assert by_h[5] == pytest.approx(math.exp(-40 / 600) - math.exp(-50 / 600), rel=1e-3)
+    # no short in precise fits: healthy
+    post, *_ = onset_posterior(f, duty, np.zeros(f.size), np.full(f.size, 0.003), laws, grid,
+                               prior, 1.0)
+    assert post.sum(axis=1)[-1] > 0.99
+    # one overconfident outlier (a fit stuck at 1 - Na = 0.005 +- 1e-4, as seen on the twin
+    # campaign) followed by healthy fits starts no short
+    s = np.where(f == 50, 0.005, 0.0)
+    sd = np.where(f == 50, 1e-4, 0.0003)
+    post, *_ = onset_posterior(f, duty, s, sd, laws, grid, prior, 1.0)
+    assert post.sum(axis=1)[-1] > 0.95
+    # a short from flight 55 growing at 0.03 per unit duty, fitted exactly (sd 0.002)
+    s = np.where(f >= 55, 0.01 * np.exp(0.03 * np.clip(f - 55, 0, None)), 0.0)
+    post, share, share_sd = onset_posterior(f, duty, s, np.full(f.size, 0.002), laws, grid,
+                                            prior, 1.0)
+    by_h = post.sum(axis=1)
+    assert int(np.argmax(by_h)) == 6 and by_h[-1] < 1e-6      # the interval (50, 60]
+    g_mean = (post[:-1].sum(axis=0) * grid).sum() / post[:-1].sum()
+    assert 0.02 < g_mean < 0.04
+    begun, s_now, g = onset_paths(np.random.default_rng(0), post, share, share_sd, grid, 2000)
+    assert begun.all() and abs(np.median(s_now) - s[-1]) < 0.005 and (g > 0).all()

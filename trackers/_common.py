@@ -34,11 +34,12 @@ import hashlib
 import os
 import pickle
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from ema_bench.faults import FAULT_INDEX, FAULT_NAMES, LOWER, NOMINAL, UPPER
+from ema_bench.prognostics.distributions import LEVELS, level_key
 from ema_bench.prognostics.tracking import Inspection, TrackStep
 from ema_bench.seeding import child
 
@@ -369,6 +370,7 @@ class RulSummary:
     high: float
     failing_fault: str | None
     p_fail: float
+    quantiles: dict[str, float] = field(default_factory=dict)
 
 
 def _rank(sorted_t: np.ndarray, q: float) -> float:
@@ -388,7 +390,8 @@ def summarise(cross: np.ndarray, names: list[str], horizon: float) -> RulSummary
     failing = names[int(np.bincount(first, minlength=len(names)).argmax())] \
         if first.size else None
     return RulSummary(_rank(s, 0.5), _rank(s, 0.025), _rank(s, 0.975), failing,
-                      float(np.mean(t <= horizon)))
+                      float(np.mean(t <= horizon)),
+                      {level_key(q): _rank(s, q) for q in LEVELS})
 
 
 def replace_now(summary: RulSummary, low: np.ndarray, high: np.ndarray,
@@ -408,15 +411,18 @@ def replace_now(summary: RulSummary, low: np.ndarray, high: np.ndarray,
 
 
 def make_step(insp: Inspection, x: np.ndarray, low: np.ndarray, high: np.ndarray,
-              summary: RulSummary, replace: bool, evaluations: int, **extra) -> TrackStep:
-    """The :class:`TrackStep` of physical estimate and interval vectors (4,)."""
+              summary: RulSummary, replace: bool, evaluations: int,
+              profile_rul: float | None = None, **extra) -> TrackStep:
+    """The :class:`TrackStep` of physical estimate and interval vectors (4,)
+    (``profile_rul``: the unconditioned RUL when ``summary``'s is conditioned on the cut)."""
     d = {n: float(v) for n, v in zip(FAULT_NAMES, x)}
     return TrackStep(flight=insp.flight, estimate=d,
                      low={n: float(min(v, d[n])) for n, v in zip(FAULT_NAMES, low)},
                      high={n: float(max(v, d[n])) for n, v in zip(FAULT_NAMES, high)},
                      rul=summary.rul, rul_low=summary.low, rul_high=summary.high,
                      failing_fault=summary.failing_fault, replace=bool(replace),
-                     evaluations=int(evaluations), extra=extra)
+                     evaluations=int(evaluations), extra=extra,
+                     rul_quantiles=dict(summary.quantiles), profile_rul=profile_rul)
 
 
 def split_seed(seed: np.random.SeedSequence) -> tuple[np.random.SeedSequence,

@@ -49,6 +49,7 @@ import numpy as np
 from ema_bench.faults import FAULT_INDEX
 from ema_bench.prognostics.bayes import best_point, weighted_quantile
 from ema_bench.prognostics.campaign import cut_likelihood
+from ema_bench.prognostics.distributions import LEVELS, level_key
 from ema_bench.prognostics.laws import FleetLaws, ForwardPaths
 from ema_bench.prognostics.tracking import Inspection, TrackStep, register_tracker
 
@@ -64,6 +65,7 @@ from ._common import (
     to_damage,
     unit_setup,
 )
+from .coil_onset import onset_paths, onset_posterior
 
 N_PATHS = 2000
 STEP = 2.0          # flights per forward step
@@ -96,10 +98,16 @@ def _cut_summary(summary, t: np.ndarray, flight: float, every: int,
         return summary
     point = best_point(t, w, alpha)
     low, high = weighted_quantile(t, w, [0.025, 0.975])
+    qs = weighted_quantile(t, w, LEVELS)
     return dataclasses.replace(summary, rul=point, low=float(min(low, point)),
-                               high=float(max(high, point)))
+                               high=float(max(high, point)),
+                               quantiles={level_key(q): float(v) for q, v in zip(LEVELS, qs)})
 
 
+@register_tracker("fleet-bayes-onset", description="fleet-bayes-cut with the coil short's "
+                  "onset as a change point of the Na fits (joint posterior of the onset "
+                  "interval and the growth rate, trackers/coil_onset.py)", cut_rule=True,
+                  coil="changepoint")
 @register_tracker("fleet-bayes-cut", description="fleet-bayes whose reported RUL is also "
                   "conditioned on the published cut rule (Bayes point for +-20 %, weighted "
                   "95 % interval); replacement decided as fleet-bayes", cut_rule=True)
@@ -108,7 +116,10 @@ def _cut_summary(summary, t: np.ndarray, flight: float, every: int,
                   "fleet's published laws as priors; RUL by running the laws forward")
 def factory(campaign_info: dict, seed: np.random.SeedSequence, *, n_paths: int = N_PATHS,
             first_budget: int = 1500, global_budget: int = 1000,
-            replace_prob: float = REPLACE_PROB, cut_rule: bool = False):
+            replace_prob: float = REPLACE_PROB, cut_rule: bool = False,
+            coil: str = "threshold"):
+    if coil not in ("threshold", "changepoint"):
+        raise ValueError(f"coil must be 'threshold' or 'changepoint', got {coil!r}")
     u = unit_setup(campaign_info, seed, first_budget, global_budget)
     thresholds, every, names, d_thr, fitter, mc_seed = (u.thresholds, u.every, u.names, u.d_thr,
                                                         u.fitter, u.mc_seed)
@@ -156,7 +167,12 @@ def factory(campaign_info: dict, seed: np.random.SeedSequence, *, n_paths: int =
             post["BLK"] = _posterior(blk_prior, ll)
         # coil: present or not, and its growth rate
         short = None
-        if "Na" in names:
+        onset = None
+        if "Na" in names and coil == "changepoint":
+            j = FAULT_INDEX["Na"]
+            onset = onset_posterior(np.array(hist["flight"]), duty, 1.0 - x[:, j], sd[:, j],
+                                    laws, na_grid, na_prior, m)
+        elif "Na" in names:
             j = FAULT_INDEX["Na"]
             s = 1.0 - x[:, j]
             present = s > np.maximum(ONSET_SD * sd[:, j], 1e-3)
@@ -176,14 +192,21 @@ def factory(campaign_info: dict, seed: np.random.SeedSequence, *, n_paths: int =
         # where the unit is now, within its fit; its parameters drawn from their posteriors
         x0 = np.tile(fit.x, (n_paths, 1)) + rng.standard_normal((n_paths, len(fit.x))) * fit.sd
         rates = {f: rng.choice(grids[f], size=n_paths, p=post[f]) for f in post}
-        paths = ForwardPaths(rng, x0, rates, laws, m, np.full(n_paths, short is not None))
+        begun = np.full(n_paths, short is not None)
+        if onset is not None:   # each path's onset and growth from the change-point posterior
+            begun, s_now, rates["Na"] = onset_paths(rng, *onset, na_grid, n_paths)
+            x0[:, FAULT_INDEX["Na"]] = 1.0 - s_now
+            short = float(np.mean(begun)) if begun.mean() >= 0.5 else None
+        paths = ForwardPaths(rng, x0, rates, laws, m, begun)
         cross = first_passage(to_damage(paths.x, names, thresholds),
                               lambda dt: to_damage(paths.advance(dt), names, thresholds),
                               d_thr, STEP, HORIZON_FLIGHTS)
         summary = summarise(cross, names, REPLACE_HORIZON * every)
         replace = replace_now(summary, fit.low, fit.high, names, thresholds, replace_prob)
-        if cut_rule:
+        profile = None
+        if cut_rule:   # the unconditioned median stays the profile's (scoring's diagnostics)
+            profile = summary.rul
             summary = _cut_summary(summary, cross.min(axis=1), insp.flight, every, stop)
         return make_step(insp, fit.x, fit.low, fit.high, summary, replace, fit.evaluations,
-                         fit=fit.how, mean_duty=m, coil_present=short is not None)
+                         profile, fit=fit.how, mean_duty=m, coil_present=short is not None)
     return step

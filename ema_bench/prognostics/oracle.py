@@ -38,6 +38,41 @@ class OracleError(ValueError):
     """A truth the oracle cannot use (no law parameters)."""
 
 
+def unit_futures(truth: dict, laws: dict, thresholds: dict[str, float], every: int,
+                 stop: tuple[float, float], rng: np.random.Generator,
+                 n_paths: int = N_PATHS) -> tuple[np.ndarray, np.ndarray, bool]:
+    """Futures of one failing unit drawn from its true state at its cut, weighed by the cut
+    rule: what the oracle decides on, and what expected hits are judged on
+    (:mod:`~ema_bench.prognostics.expected`).
+
+    Parameters are those of :func:`oracle_unit`.
+
+    Returns
+    -------
+    rul : ndarray (n_paths,)
+        Each future's remaining life from the cut, flights (``inf`` beyond the look-ahead).
+    weights : ndarray (n_paths,)
+        The cut rule's probability of this cut given each future's life
+        (:func:`~ema_bench.prognostics.campaign.cut_likelihood`); all ones when no future
+        fits the rule.
+    weighted : bool
+        False when no future fitted the cut rule and the weights are uniform.
+    """
+    p = truth.get("params")
+    if not p:
+        raise OracleError(f"truth of unit {truth.get('unit')} has no law parameters")
+    cut = int(truth["last_flight"])
+    x0 = np.tile(np.array(truth["faults"][str(cut)], dtype=float), (n_paths, 1))
+    rates = {"Fst": np.full(n_paths, p["fst_rate"]), "BLK": np.full(n_paths, p["blk_rate"]),
+             "Na": np.full(n_paths, p["na_growth"])}
+    paths = ForwardPaths(rng, x0, rates, laws, p["mean_duty"],
+                         np.full(n_paths, p["na_onset"] <= cut))
+    rul = paths.first_failure(thresholds, STEP, HORIZON)
+    w = cut_likelihood(cut, cut + rul, every, stop)
+    weighted = bool(w.sum() > 0)
+    return rul, (w if weighted else np.ones_like(rul)), weighted
+
+
 def oracle_unit(truth: dict, laws: dict, thresholds: dict[str, float], every: int,
                 stop: tuple[float, float], rng: np.random.Generator, n_paths: int = N_PATHS,
                 alpha: float = 0.2) -> dict:
@@ -65,29 +100,23 @@ def oracle_unit(truth: dict, laws: dict, thresholds: dict[str, float], every: in
     -------
     dict
         ``rul`` (the Bayes point), ``rul_low``, ``rul_high`` (weighted 2.5 and 97.5 %), flights;
-        ``p_within`` (the posterior probability that ``rul`` is within +-alpha of the truth);
-        ``cut_weighted`` (False when no future fitted the cut rule and the unweighted futures
-        were used).
+        ``p_within`` (the posterior probability that ``rul`` is within +-alpha of the truth,
+        on the futures the point was chosen on: optimistic; the board judges it on
+        independent futures, :mod:`~ema_bench.prognostics.expected`);
+        ``quantiles`` (level -> weighted quantile of the RUL, flights, at
+        :data:`~ema_bench.prognostics.distributions.LEVELS`); ``cut_weighted`` (False when no
+        future fitted the cut rule and the unweighted futures were used).
     """
-    p = truth.get("params")
-    if not p:
-        raise OracleError(f"truth of unit {truth.get('unit')} has no law parameters")
-    cut = int(truth["last_flight"])
-    x0 = np.tile(np.array(truth["faults"][str(cut)], dtype=float), (n_paths, 1))
-    rates = {"Fst": np.full(n_paths, p["fst_rate"]), "BLK": np.full(n_paths, p["blk_rate"]),
-             "Na": np.full(n_paths, p["na_growth"])}
-    paths = ForwardPaths(rng, x0, rates, laws, p["mean_duty"],
-                         np.full(n_paths, p["na_onset"] <= cut))
-    rul = paths.first_failure(thresholds, STEP, HORIZON)
-    w = cut_likelihood(cut, cut + rul, every, stop)
-    weighted = bool(w.sum() > 0)
-    if not weighted:
-        w = np.ones_like(rul)
+    from .distributions import LEVELS, level_key
+
+    rul, w, weighted = unit_futures(truth, laws, thresholds, every, stop, rng, n_paths)
     point = best_point(rul, w, alpha)
     low, high = weighted_quantile(rul, w, [0.025, 0.975])
     lo_ok, hi_ok = (1 - alpha) * rul <= point, point <= (1 + alpha) * rul
+    qs = weighted_quantile(rul, w, LEVELS)
     return {"rul": point, "rul_low": float(min(low, point)), "rul_high": float(max(high, point)),
             "p_within": float(np.sum(w * (lo_ok & hi_ok)) / np.sum(w)),
+            "quantiles": {level_key(q): float(v) for q, v in zip(LEVELS, qs)},
             "cut_weighted": weighted}
 
 
@@ -100,11 +129,14 @@ def oracle_predictions(truth: dict[str, dict], laws: dict, thresholds: dict[str,
     Unit ``k`` of the sorted truth gets child ``k`` of ``seed``: a unit's prediction does not
     depend on which other units are scored.  Returns unit -> its prediction."""
     stop = tuple(cut_rule.get("stop", (0.5, 0.95)))
-    out = {}
+    return {unit: oracle_unit(t, laws, thresholds, every, stop, rng, n_paths, alpha)
+            for unit, t, rng in failing_units(truth, seed)}
+
+
+def failing_units(truth: dict[str, dict], seed: int):
+    """(unit, its truth, its generator) for every failing unit: unit ``k`` of the sorted
+    truth gets child ``k`` of ``seed``, so a unit's draws do not depend on which other units
+    are scored."""
     for k, unit in enumerate(sorted(truth)):
-        t = truth[unit]
-        if t["eol"] is None:
-            continue
-        rng = np.random.default_rng(child(seed, k))
-        out[unit] = oracle_unit(t, laws, thresholds, every, stop, rng, n_paths, alpha)
-    return out
+        if truth[unit]["eol"] is not None:
+            yield unit, truth[unit], np.random.default_rng(child(seed, k))

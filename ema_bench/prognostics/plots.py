@@ -147,3 +147,27 @@ def plot_alpha_lambda(curves: Mapping[str, Mapping[str, Mapping]], path: str | o
     ax.legend(fontsize=8)
     ax.set_title(title or "alpha-lambda over lambda (diagnostic)", fontsize=10)
     save_figure(fig, path)
+
+
+def plot_reliability(points: Mapping[str, Mapping[str, float]], path: str | os.PathLike,
+                     title: str = "") -> None:
+    """Reliability diagram: per tracker (and the oracle), the observed coverage of its
+    central RUL intervals at the cut against their nominal level (50, 80, 95 %; a tracker that
+    gives only its 95 % interval is one point), the diagonal for perfect calibration.
+    ``points``: name -> level key -> observed share (``score_tracking(...)["reliability"]``).
+    Saves a PNG to ``path``."""
+    fig, ax = plt.subplots(figsize=(5.0, 4.6))
+    ax.plot([0, 1], [0, 1], color="0.6", lw=1, ls=":", label="calibrated")
+    for k, (name, pts) in enumerate(points.items()):
+        nominal = np.array([float(x) for x in pts])
+        observed = np.array(list(pts.values()), dtype=float)
+        ax.plot(nominal, observed, "-s" if name == "oracle" else "-o", ms=5,
+                color="k" if name == "oracle" else f"C{k % 10}", lw=1.2, label=name)
+    ax.set_xlabel("nominal level of the central RUL interval")
+    ax.set_ylabel("observed share holding the true RUL")
+    ax.set_xlim(0.4, 1.0)
+    ax.set_ylim(0.0, 1.02)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title(title or "reliability of the RUL intervals at the cut", fontsize=10)
+    save_figure(fig, path)

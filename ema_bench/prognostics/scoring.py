@@ -23,6 +23,14 @@ infinitely wide.  Over the failing units:
 - ``coverage``: share of 95 % RUL intervals holding the true RUL; ``width``: their mean
   width, flights (infinite when one is), so that ``[0, inf]`` buys no credit.
 
+Beside them, scored at the same cut: ``expected``, the expected hit rate (the probability
+that the point lands within ``+-alpha`` under each unit's futures drawn from its true state,
+averaged; :mod:`~ema_bench.prognostics.expected`), the board's headline, since the realised
+``within`` also carries the luck of the units' futures; ``phm08_median``, the median unit's
+PHM08 term (robust: one unit's exponential does not carry it); the interval scores ``is50``,
+``is80``, ``is95``, coverages ``cov50``, ``cov80`` and ``crps`` of the predictive
+distribution (:mod:`~ema_bench.prognostics.distributions`).
+
 Each comes with a bootstrap interval over units (:data:`N_BOOT` resamples, 2.5-97.5 %
 percentiles, seed :data:`BOOT_SEED`) and, when the oracle is scored
 (:mod:`~ema_bench.prognostics.oracle`), as a ratio to the oracle's figure on the same units
@@ -59,8 +67,9 @@ from pathlib import Path
 import numpy as np
 
 from ..faults import FAULT_INDEX, FAULT_NAMES, LOWER, NOMINAL, UPPER
-from . import metrics
+from . import distributions, metrics
 from .campaign import load_campaign, read_truth
+from .expected import at_most, expected_hits
 from .laws import DAMAGE_SIGN
 from .tracking import TRACK_FILE, VERSION, campaign_path, read_track
 
@@ -83,8 +92,12 @@ PH_ALPHA = 0.1
 LAMBDAS = (0.5, 0.6, 0.7, 0.8, 0.9)
 #: Which prediction alpha-lambda judges (:func:`metrics.prediction_at`).
 ALPHA_LAMBDA_SIDE = "after"
-#: The headline figures, in board order.
-HEADLINE = ("within", "mae", "rmse", "phm08", "coverage", "width")
+#: The headline figures, in board order: the expected and realised hit rates
+#: (:mod:`~ema_bench.prognostics.expected`), point errors, PHM08 per unit (mean and median
+#: term), the 95 % interval, and the distribution's figures
+#: (:mod:`~ema_bench.prognostics.distributions`).
+HEADLINE = ("expected", "within", "mae", "rmse", "phm08", "phm08_median", "coverage", "width",
+            "is95", "crps", "is50", "is80", "cov50", "cov80")
 
 
 class ScoringError(ValueError):
@@ -117,6 +130,11 @@ def _check_steps(unit: str, rows: list[dict], truth: dict, where: str) -> None:
             raise ScoringError(f"{at}: RUL is NaN")
         if r["rul"] < 0:
             raise ScoringError(f"{at}: negative RUL {r['rul']}")
+        if r.get("rul_quantiles"):
+            try:
+                distributions.check_quantiles(r["rul_quantiles"])
+            except ValueError as exc:
+                raise ScoringError(f"{at}: {exc}") from None
         if str(r["flight"]) not in truth["faults"]:
             raise ScoringError(f"{at}: not an inspection flight of the campaign's truth (was "
                                "the campaign remade?)")
@@ -228,12 +246,16 @@ def score_unit(rows: list[dict], truth: dict, thresholds: dict[str, float], ever
     rul, low, high = ((float(final["rul"]), float(final["rul_low"]), float(final["rul_high"]))
                       if final is not None else (math.inf, math.inf, math.inf))
     flights = np.array([r["flight"] for r in rows], dtype=float)
-    pred = np.array([r["rul"] for r in rows], dtype=float)
+    # the profile diagnostics read the unconditioned forecasts (a cut-conditioned ``rul``
+    # is scored at the cut only)
+    pred = np.array([r.get("profile_rul", r["rul"]) for r in rows], dtype=float)
     failing = truth["failing_fault"]
     # an inspection that saw less than one interval of life left, with no replacement by then
     short = [r for r in rows if eol - r["flight"] < every]
     rec.update({
         "true_rul": true_rul, "rul": rul, "rul_low": low, "rul_high": high,
+        "quantiles": dict(final.get("rul_quantiles") or {}) if final is not None else {},
+        "life_fraction": cut / eol,
         "within": bool((1 - alpha) * true_rul <= rul <= (1 + alpha) * true_rul),
         "covered": bool(low <= true_rul <= high),
         "width": math.inf if math.isinf(low) or math.isinf(high) else high - low,
@@ -268,8 +290,11 @@ def headline_columns(units: list[dict], horizon: float, alpha: float = ALPHA
                      ) -> dict[str, np.ndarray]:
     """Per failing unit (in the given order) the terms the headline figures average:
     ``within``, ``abs`` and ``sq`` errors and ``phm08`` terms of the clipped prediction,
-    ``covered``, ``width``.  ``units``: rows with ``rul``, ``rul_low``, ``rul_high`` and
-    ``true_rul`` (a tracker's :func:`score_unit` rows or the oracle's)."""
+    ``covered``, ``width``, ``expected`` (the expected hit, ``nan`` when not judged) and the
+    distribution's terms (:func:`~ema_bench.prognostics.distributions.columns`).
+    ``units``: rows with ``rul``, ``rul_low``, ``rul_high`` and ``true_rul`` (a tracker's
+    :func:`score_unit` rows or the oracle's; ``expected_hit`` and ``quantiles`` when
+    given)."""
     pred = np.array([u["rul"] for u in units], dtype=float)
     true = np.array([u["true_rul"] for u in units], dtype=float)
     low = np.array([u["rul_low"] for u in units], dtype=float)
@@ -280,7 +305,9 @@ def headline_columns(units: list[dict], horizon: float, alpha: float = ALPHA
     return {"within": ((1 - alpha) * true <= pred) & (pred <= (1 + alpha) * true),
             "abs": np.abs(clipped - true), "sq": (clipped - true) ** 2,
             "phm08": metrics.phm08_terms(clipped, true),
-            "covered": (low <= true) & (true <= high), "width": width}
+            "covered": (low <= true) & (true <= high), "width": width,
+            "expected": np.array([u.get("expected_hit", math.nan) for u in units], dtype=float),
+            **distributions.columns(units, horizon)}
 
 
 #: Each headline figure from the columns of a set of units (``idx``: their rows).
@@ -289,8 +316,13 @@ _STATS: dict[str, Callable[[dict, np.ndarray], np.ndarray]] = {
     "mae": lambda c, i: c["abs"][i].mean(axis=-1),
     "rmse": lambda c, i: np.sqrt(c["sq"][i].mean(axis=-1)),
     "phm08": lambda c, i: c["phm08"][i].mean(axis=-1),
+    # robust PHM08: the median unit's term (one unit's exponential no longer carries it)
+    "phm08_median": lambda c, i: np.median(c["phm08"][i], axis=-1),
+    "expected": lambda c, i: c["expected"][i].mean(axis=-1),
     "coverage": lambda c, i: c["covered"][i].mean(axis=-1),
     "width": lambda c, i: c["width"][i].mean(axis=-1),
+    **{k: (lambda c, i, k=k: c[k][i].mean(axis=-1))
+       for k in ("is95", "crps", "is50", "is80", "cov50", "cov80")},
 }
 
 
@@ -399,6 +431,21 @@ def _pooled(units: list[dict], rows: dict[str, list[dict]], truth: dict) -> dict
 
 
 _ORACLE_CACHE: dict[tuple, dict] = {}
+_FUTURES_CACHE: dict[tuple, dict] = {}
+
+
+def campaign_futures(camp, truth: dict[str, dict], n_paths: int | None = None) -> dict:
+    """The failing units' futures that expected hits are judged on
+    (:func:`~ema_bench.prognostics.expected.campaign_futures`; memoised per campaign)."""
+    from .expected import campaign_futures as futures
+    from .oracle import N_PATHS
+
+    n = N_PATHS if n_paths is None else int(n_paths)
+    key = (camp.digest, n)
+    if key not in _FUTURES_CACHE:
+        _FUTURES_CACHE[key] = futures(truth, camp.laws, camp.thresholds, camp.inspection_every,
+                                      camp.cut_rule, n)
+    return _FUTURES_CACHE[key]
 
 
 def campaign_oracle(camp, truth: dict[str, dict], n_paths: int | None = None,
@@ -453,8 +500,12 @@ def score_tracking(out: Path | str, truth: Path | str | None = None, alpha: floa
         ``oracle``, ``oracle_ci``, ``ratio``, ``ratio_ci``); ``decisions``
         (:func:`decisions`); ``diagnostics`` (:func:`diagnostics`); ``fault_error`` and
         ``fault_coverage`` per fault; ``detection_delay``, ``detections``, ``onsets``,
-        ``false_alarm_rate``; ``per_unit`` rows (:func:`score_unit`) and with the oracle
-        ``oracle_per_unit``.
+        ``false_alarm_rate``; ``reliability`` (central level -> observed coverage,
+        :func:`~ema_bench.prognostics.distributions.reliability`); ``per_unit`` rows
+        (:func:`score_unit`, with ``expected_hit`` when judged) and with the oracle
+        ``oracle_per_unit``, ``oracle_reliability`` and ``luck`` (for the tracker and the
+        oracle: realised ``hits``, ``expected_hits`` and ``p_at_most``, the chance of so few
+        hits or fewer under the units' futures).
 
     Raises
     ------
@@ -477,7 +528,6 @@ def score_tracking(out: Path | str, truth: Path | str | None = None, alpha: floa
              for u in sorted(truth)]
     tracked = [u for u in units if u["inspections"]]
     failing = [u for u in units if u["eol"] is not None]
-    cols = headline_columns(failing, horizon, alpha)
     res: dict = {
         "tracker": m.get("tracker"), "campaign": camp.name,
         "definition_version": camp.definition_version, "track": camp.track,
@@ -492,10 +542,22 @@ def score_tracking(out: Path | str, truth: Path | str | None = None, alpha: floa
     if oracle and failing:
         predictions = campaign_oracle(camp, full, oracle_paths, alpha=alpha)
         orows = oracle_rows(truth, {u: p for u, p in predictions.items() if u in truth})
+        # expected hits: both points judged on the same futures, not the oracle's own
+        futures = campaign_futures(camp, full, oracle_paths)
+        for rows in (failing, orows):
+            for r, e in zip(rows, expected_hits(rows, futures, alpha)):
+                r["expected_hit"] = float(e)
         ocols = headline_columns(orows, horizon, alpha)
+        cols = headline_columns(failing, horizon, alpha)
         res["headline"] = headline(cols, ocols, n_boot)
+        res["luck"] = {who: {"hits": int(c["within"].sum()),
+                             "expected_hits": float(c["expected"].sum()),
+                             "p_at_most": at_most(c["expected"], int(c["within"].sum()))}
+                       for who, c in (("tracker", cols), ("oracle", ocols))}
+        res["oracle_reliability"] = distributions.reliability(orows)
     else:
-        res["headline"] = headline(cols, None, n_boot)
+        res["headline"] = headline(headline_columns(failing, horizon, alpha), None, n_boot)
+    res["reliability"] = distributions.reliability(failing)
     res["decisions"] = decisions(units, every)
     res["diagnostics"] = diagnostics(failing)
     res.update(_pooled(tracked, steps, truth))

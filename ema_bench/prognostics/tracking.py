@@ -145,6 +145,15 @@ class TrackStep:
         Model runs this step cost.
     extra : dict
         Anything else the tracker wants recorded (JSON-friendly).
+    rul_quantiles : dict
+        Optional: quantiles of the predicted RUL, level -> flights (``inf`` allowed), e.g. at
+        :data:`~ema_bench.prognostics.distributions.LEVELS`, scored by CRPS and interval
+        scores; empty (the default): only the 95 % interval is scored.
+    profile_rul : float or None
+        Optional: the RUL *not* conditioned on this inspection being the cut, flights, when
+        ``rul`` is (a cut-conditioned forecast is scored at the cut only; the prognostic
+        horizon, alpha-lambda and monotonicity read this profile); None: ``rul`` is
+        unconditioned.
     """
 
     flight: int
@@ -158,6 +167,8 @@ class TrackStep:
     replace: bool
     evaluations: int
     extra: dict[str, Any] = field(default_factory=dict)
+    rul_quantiles: dict[str, float] = field(default_factory=dict)
+    profile_rul: float | None = None
 
 
 def check_step(step: object, inspection: Inspection) -> TrackStep:
@@ -175,6 +186,14 @@ def check_step(step: object, inspection: Inspection) -> TrackStep:
     ruls = [float(step.rul_low), float(step.rul), float(step.rul_high)]
     if any(math.isnan(r) or r < 0 for r in ruls) or not ruls[0] <= ruls[1] <= ruls[2]:
         raise TrackerError(f"step RUL must be >= 0 and rul_low <= rul <= rul_high, got {ruls}")
+    if step.rul_quantiles:
+        from .distributions import check_quantiles
+        try:
+            check_quantiles(step.rul_quantiles)
+        except ValueError as exc:
+            raise TrackerError(f"step {exc}") from None
+    if step.profile_rul is not None and not float(step.profile_rul) >= 0:
+        raise TrackerError(f"step profile_rul must be >= 0, got {step.profile_rul!r}")
     if step.failing_fault is not None and step.failing_fault not in inspection.thresholds:
         raise TrackerError(f"step failing_fault {step.failing_fault!r} has no threshold "
                            f"(thresholds: {list(inspection.thresholds)})")
@@ -249,6 +268,16 @@ def step_record(inspection: Inspection, step: TrackStep) -> dict:
     d["evaluations"] = int(d["evaluations"])
     d["flight"] = int(d["flight"])
     d["extra"] = plain(d["extra"], default=str)
+    if d["rul_quantiles"]:   # infinite quantiles as null; absent when not given
+        from .distributions import check_quantiles
+        d["rul_quantiles"] = {k: (v if math.isfinite(v) else None)
+                              for k, v in check_quantiles(d["rul_quantiles"]).items()}
+    else:
+        del d["rul_quantiles"]
+    if d["profile_rul"] is None:   # not given: not written
+        del d["profile_rul"]
+    else:
+        d["profile_rul"] = float(d["profile_rul"]) if math.isfinite(d["profile_rul"]) else None
     return {"key": _key(inspection.unit, inspection.index), "unit": inspection.unit,
             "index": inspection.index, **d}
 
@@ -265,6 +294,11 @@ def _restore(record: dict) -> dict:
     for k in INFINITE_FIELDS:
         if r.get(k, 0) is None:
             r[k] = math.inf
+    if "profile_rul" in r and r["profile_rul"] is None:
+        r["profile_rul"] = math.inf
+    if r.get("rul_quantiles"):
+        r["rul_quantiles"] = {q: math.inf if v is None else v
+                              for q, v in r["rul_quantiles"].items()}
     return r
 
 
@@ -276,7 +310,9 @@ STEP_SCHEMA = {"key": req("str"), "unit": req("str"), "index": req("int"),
                "high": req("dict", values="number|null"), "rul": req("number|null"),
                "rul_low": req("number|null"), "rul_high": req("number|null"),
                "failing_fault": req("str|null"),
-               "replace": req("bool"), "evaluations": req("int"), "extra": opt("dict")}
+               "replace": req("bool"), "evaluations": req("int"), "extra": opt("dict"),
+               "rul_quantiles": opt("dict", values="number|null"),
+               "profile_rul": opt("number|null")}
 #: The fields of the error line of a unit whose tracker failed.
 ERROR_SCHEMA = {"key": req("str"), "unit": req("str"), "index": req("int"),
                 "flight": req("int"), "status": req("str"), "error": req("str")}

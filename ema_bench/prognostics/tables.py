@@ -1,0 +1,89 @@
+"""Where trackers lose: the board's figures by failure mode and by cut position.
+
+Each failing unit falls in one group of each kind: its failing fault (``Fst`` friction,
+``BLK`` backlash, ``Na`` coil short) and its cut's share of life (``early`` below 0.65,
+``mid`` 0.65-0.8, ``late`` from 0.8: thirds of the cut rule's 50-95 %).  Within a group the
+figures are the headline's (:func:`~ema_bench.prognostics.scoring.headline`: value, bootstrap
+interval, the oracle's on the same units and the paired ratio), computed from a scored run's
+per-unit rows alone.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from .scoring import headline, headline_columns
+
+#: The groups, in table order: name -> membership of a tracker's per-unit row.
+GROUPS: dict[str, Callable[[dict], bool]] = {
+    "Fst": lambda u: u["failing_fault"] == "Fst",
+    "BLK": lambda u: u["failing_fault"] == "BLK",
+    "Na": lambda u: u["failing_fault"] == "Na",
+    "early": lambda u: u["life_fraction"] < 0.65,
+    "mid": lambda u: 0.65 <= u["life_fraction"] < 0.8,
+    "late": lambda u: u["life_fraction"] >= 0.8,
+}
+#: Figures of the group tables: key, header, cell format.
+FIGURES = (("expected", "expected within +-20 %", "{:.0%}"),
+           ("is95", "95 % interval score", "{:.0f}"),
+           ("crps", "CRPS", "{:.1f}"))
+
+#: The figures kept per group (the tables' and the hit rate realised).
+KEPT = ("expected", "within", "mae", "is95", "crps")
+
+
+def by_group(res: dict, n_boot: int = 2000) -> dict[str, dict]:
+    """Per group of :data:`GROUPS`: ``units`` (count) and ``headline`` (figure of
+    :data:`KEPT` -> value,
+    ``ci`` and, when the run was scored with the oracle, ``oracle``, ``ratio``,
+    ``ratio_ci``), from ``res`` (:func:`~ema_bench.prognostics.scoring.score_tracking`)."""
+    failing = [u for u in res["per_unit"] if u["eol"] is not None]
+    oracle = {u["unit"]: u for u in res.get("oracle_per_unit", [])}
+    out = {}
+    for name, member in GROUPS.items():
+        rows = [u for u in failing if member(u)]
+        if not rows:
+            out[name] = {"units": 0, "headline": {}}
+            continue
+        cols = headline_columns(rows, res["rul_horizon"], res["alpha"])
+        ocols = (headline_columns([oracle[u["unit"]] for u in rows], res["rul_horizon"],
+                                  res["alpha"]) if oracle else None)
+        h = headline(cols, ocols, n_boot)
+        out[name] = {"units": len(rows), "headline": {k: h[k] for k in KEPT}}
+    return out
+
+
+def _fmt(v: float | None, fmt: str) -> str:
+    if v is None or v != v:
+        return "-"
+    return "inf" if v == float("inf") else fmt.format(v)
+
+
+def group_tables(results: list[dict]) -> list[str]:
+    """Markdown: per figure of :data:`FIGURES` and track, a table with one row per run and
+    one for the oracle, one column per group (value, and the ratio to the oracle in
+    brackets).  ``results``: scored runs, each with its ``groups`` (:func:`by_group`)."""
+    from ..escape import markdown
+
+    lines: list[str] = []
+    tracks = list(dict.fromkeys(r["track"] for r in results))
+    for key, header, fmt in FIGURES:
+        for track in tracks:
+            runs = [r for r in results if r["track"] == track]
+            g0 = runs[0]["groups"]
+            lines += ["", f"**{header} by failing fault and cut position, {track} track** "
+                      "(value, `/ oracle` in brackets; units per group in the header)", "",
+                      "| tracker | " + " | ".join(f"{g} ({g0[g]['units']})" for g in GROUPS)
+                      + " |", "|---|" + "---|" * len(GROUPS)]
+            for r in runs:
+                cells = []
+                for g in GROUPS:
+                    h = r["groups"][g]["headline"].get(key, {})
+                    cell = _fmt(h.get("value"), fmt)
+                    if "ratio" in h and h["ratio"] == h["ratio"]:
+                        cell += f" ({h['ratio']:.2f})"
+                    cells.append(cell)
+                lines.append(f"| {markdown(r['tracker'])} | " + " | ".join(cells) + " |")
+            cells = [_fmt(g0[g]["headline"].get(key, {}).get("oracle"), fmt) for g in GROUPS]
+            lines.append("| **oracle** | " + " | ".join(cells) + " |")
+    return lines
