@@ -20,11 +20,10 @@ import argparse
 import json
 import time
 from pathlib import Path
-from types import SimpleNamespace
 
 import numpy as np
 
-from ema_bench.prognostics import tracking
+from ema_bench.prognostics import track_io, track_run, tracking
 from ema_bench.prognostics.campaign import load_campaign
 from ema_bench.prognostics.expected import FUTURES_SEED, hit_probability
 from ema_bench.prognostics.oracle import N_PATHS, oracle_unit, unit_futures
@@ -33,8 +32,8 @@ from ema_bench.seeding import child
 
 def measure(camp_dir: str, tracker: str, committed: str, units: list[str], out: Path) -> list:
     camp = load_campaign(camp_dir)
-    log = tracking.read_track(committed)
-    truth = json.loads((tracking.campaign_path(committed, log.manifest) / "truth.json").read_text())
+    log = track_io.read_track(committed)
+    truth = json.loads((track_io.campaign_path(committed, log.manifest) / "truth.json").read_text())
     truth = truth["units"]
     order, srt = list(camp.units), sorted(truth)
     stop = tuple(camp.cut_rule["stop"])
@@ -44,10 +43,10 @@ def measure(camp_dir: str, tracker: str, committed: str, units: list[str], out: 
             continue
         t0 = time.process_time()
         rows: list[dict] = []
-        tracking.track_unit(camp, tracking.get_tracker(tracker), u,
-                            tracking.unit_seed(0, order.index(u)),
-                            SimpleNamespace(append=rows.append))
-        point = tracking.regroup(rows)[0][u][-1]["rul"]
+        settings, inspections = track_run.unit_inputs(camp, u)
+        rows, _ = track_run.run_unit(tracking.get_tracker(tracker), settings, u, inspections,
+                                     track_run.unit_seed(0, order.index(u)))
+        point = track_io.regroup(rows)[0][u][-1]["rul"]
         k = srt.index(u)
         rul, w, _ = unit_futures(truth[u], camp.laws, camp.thresholds, camp.inspection_every,
                                  stop, np.random.default_rng(child(FUTURES_SEED, k)), N_PATHS)

@@ -17,13 +17,8 @@ import sweep_jobs
 
 from ema_bench.cli import main
 from ema_bench.prognostics.replay import replay_track
-from ema_bench.prognostics.tracking import (
-    Inspection,
-    TrackerError,
-    TrackStep,
-    register_tracker,
-    track_campaign,
-)
+from ema_bench.prognostics.track_run import track_campaign
+from ema_bench.prognostics.tracking import Inspection, TrackerError, TrackStep, register_tracker
 
 
 @register_tracker("seeded-age", description="test tracker: the age plus a draw of its seed")

@@ -91,7 +91,8 @@ def test_columns_score_what_a_tracker_gives():
 
 
 def test_quantiles_are_checked_and_recorded_with_inf_as_null(tmp_path):
-    from ema_bench.prognostics.tracking import Inspection, regroup, step_record
+    from ema_bench.prognostics.track_io import regroup, step_record
+    from ema_bench.prognostics.tracking import Inspection
 
     insp = Inspection("u000", 0, 0, None, {}, {"Fst": 0.6756}, 10)
     est = {"Na": 1.0, "Fst": 0.2, "BLK": 0.0, "Gprop": 1e5}

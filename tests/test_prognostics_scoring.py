@@ -21,12 +21,8 @@ from ema_bench.prognostics.campaign import (
     manifest_digest,
 )
 from ema_bench.prognostics.scoring import ScoringError, score_tracking
-from ema_bench.prognostics.tracking import (
-    TrackerError,
-    TrackStep,
-    register_tracker,
-    track_campaign,
-)
+from ema_bench.prognostics.track_run import track_campaign
+from ema_bench.prognostics.tracking import TrackerError, TrackStep, register_tracker
 
 INF = math.inf
 THRESHOLDS = {"Na": 0.85, "Fst": 0.6756, "BLK": 0.03}

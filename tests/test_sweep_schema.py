@@ -16,7 +16,7 @@ import pytest
 from ema_bench.diagnosis.blind import CASE_SCHEMA
 from ema_bench.leaderboard.run_store import RUN_SCHEMA
 from ema_bench.leaderboard.run_store import read_records as read_runs
-from ema_bench.prognostics.tracking import ERROR_SCHEMA, STEP_SCHEMA
+from ema_bench.prognostics.track_io import ERROR_SCHEMA, STEP_SCHEMA
 from ema_bench.suites.best_known import ENTRY_SCHEMA
 from ema_bench.sweep.schema import SchemaError
 from ema_bench.sweep.store import Store, read_records
@@ -52,7 +52,8 @@ CASES = [
     ("blind", CASE_SCHEMA, lambda: first_line(BOARDS / "blind" / "blind.jsonl"),
      lambda p: read_records(p, schema=CASE_SCHEMA)),
     ("step", STEP_SCHEMA,
-     lambda: first_line(BOARDS / "campaign" / "twin" / "kalman" / "track.jsonl"),
+     # a run that gives quantiles and the unconditioned profile (issue 47), every field
+     lambda: first_line(BOARDS / "campaign" / "reference" / "fleet-bayes-cut" / "track.jsonl"),
      lambda p: Store(p, schema=STEP_SCHEMA).records),
     ("track-error", ERROR_SCHEMA, track_error_record,
      lambda p: read_records(p, schema=ERROR_SCHEMA)),

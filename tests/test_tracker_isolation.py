@@ -21,7 +21,7 @@ import pytest
 from ema_bench.cli import main
 from ema_bench.prognostics.campaign import _conditions, get_spec, make_campaign
 from ema_bench.prognostics.laws import unit_history
-from ema_bench.prognostics.tracking import read_track
+from ema_bench.prognostics.track_io import read_track
 from ema_bench.seeding import run_seed, stream
 
 PLUGIN = Path(__file__).resolve().parent / "redteam"

@@ -24,6 +24,8 @@ from ema_bench.effects import N_EFFECTS
 from ema_bench.faults import FAULT_NAMES, NOMINAL
 from ema_bench.instances import twin_traces
 from ema_bench.prognostics.laws import THRESHOLDS
+from ema_bench.prognostics.track_io import read_track
+from ema_bench.prognostics.track_run import track_campaign, unit_seed
 from ema_bench.prognostics.tracking import (
     ENTRY_POINT_GROUP,
     TRACK_FILE,
@@ -32,10 +34,7 @@ from ema_bench.prognostics.tracking import (
     TrackStep,
     available_trackers,
     get_tracker,
-    read_track,
     register_tracker,
-    track_campaign,
-    unit_seed,
 )
 from ema_bench.protocol import STANDARD_TESTS
 from ema_bench.seeding import child

@@ -3,7 +3,7 @@
 Each module registers a tracker factory with
 :func:`ema_bench.prognostics.tracking.register_tracker` and is named in ema-bench's own
 ``[project.entry-points."ema_bench.trackers"]`` table, exactly as a third-party tracker package
-would be.  Run one with ``ema_bench.prognostics.tracking.track_campaign(dir, name, out)`` or
+would be.  Run one with ``ema_bench.prognostics.track_run.track_campaign(dir, name, out)`` or
 ``ema-bench campaign track DIR --tracker NAME --out DIR2``; list them with
 ``ema-bench campaign track --list``.
 

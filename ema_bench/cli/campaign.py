@@ -140,12 +140,9 @@ def _run_track(args: argparse.Namespace) -> int:
     import time
 
     from ..prognostics.campaign import load_campaign
-    from ..prognostics.tracking import (
-        available_trackers,
-        read_track,
-        track_campaign,
-        tracker_spec,
-    )
+    from ..prognostics.track_io import read_track
+    from ..prognostics.track_run import track_campaign, tracker_spec
+    from ..prognostics.tracking import available_trackers
 
     if args.list:
         trackers = available_trackers()
@@ -373,7 +370,7 @@ def _plots(runs: list[str], results: list[dict], folder, alpha: float, truth_fil
         plot_rul,
         plot_unit,
     )
-    from ..prognostics.tracking import campaign_path, read_track
+    from ..prognostics.track_io import campaign_path, read_track
 
     folder.mkdir(parents=True, exist_ok=True)
     errors: dict[str, dict[str, list[float]]] = {}

@@ -45,8 +45,8 @@ SCHEMAS: dict[str, SchemaFile] = {
         "ema-bench tracking step",
         "One line of a campaign tracking run's track.jsonl (ema-bench campaign track): an "
         "inspection's estimate, interval, RUL and decision, or a unit's error line.",
-        ("ema_bench.prognostics.tracking:STEP_SCHEMA",
-         "ema_bench.prognostics.tracking:ERROR_SCHEMA")),
+        ("ema_bench.prognostics.track_io:STEP_SCHEMA",
+         "ema_bench.prognostics.track_io:ERROR_SCHEMA")),
     "blind-case": SchemaFile(
         "ema-bench blind-suite case",
         "One line of blind.jsonl (ema-bench blind): a diagnosed case and its verdict.",

@@ -12,15 +12,9 @@ from .campaign import CAMPAIGNS, Campaign, CampaignError, load_campaign, load_tr
 from .laws import THRESHOLDS
 from .oracle import oracle_predictions
 from .scoring import ScoringError, score_tracking
-from .tracking import (
-    Inspection,
-    TrackerError,
-    TrackStep,
-    available_trackers,
-    read_track,
-    register_tracker,
-    track_campaign,
-)
+from .track_io import read_track
+from .track_run import track_campaign
+from .tracking import Inspection, TrackerError, TrackStep, available_trackers, register_tracker
 
 __all__ = [
     "CAMPAIGNS", "THRESHOLDS", "Campaign", "CampaignError", "Inspection", "ScoringError",

@@ -5,7 +5,7 @@ with the registered tracker and compare every line.
 it cannot be handed a figure; but the steps themselves are the submitter's.  A
 ``track.jsonl`` whose RULs were written from the truth, or moved toward it, scores as
 submitted, and one kept below the oracle looks plausible.  A tracker is deterministic given
-its unit's seed (:func:`~ema_bench.prognostics.tracking.unit_seed`), so re-tracking a unit
+its unit's seed (:func:`~ema_bench.prognostics.track_run.unit_seed`), so re-tracking a unit
 from the campaign's traces gives its lines again: replay picks ``K`` of the tracked units
 (a sample drawn from fresh entropy, its seed reported, or the ones named), tracks each from
 its first inspection in a fresh worker process of its own (:mod:`.track_worker`, with the
@@ -26,15 +26,9 @@ from ..sampling import escape_chance, sample_indices, sample_seed
 from ..seeding import SEED_SCHEMES
 from ..sweep.executors import execute
 from .campaign import load_campaign
-from .tracking import (
-    TrackerError,
-    campaign_path,
-    read_track,
-    regroup,
-    tracker_spec,
-    unit_job,
-    unit_jobs,
-)
+from .track_io import campaign_path, read_track, regroup
+from .track_run import tracker_spec, unit_job, unit_jobs
+from .tracking import TrackerError
 
 #: Relative agreement of a replayed number with the recorded one (the trackers are
 #: deterministic; this leaves room for another CPU's floating-point rounding only, as the

@@ -1,7 +1,7 @@
 """Score a tracked campaign against its hidden truth.
 
 :func:`score_tracking` reads a tracking run (``DIR2/manifest.json`` and ``DIR2/track.jsonl`` of
-:func:`~ema_bench.prognostics.tracking.track_campaign`), the campaign its manifest names and the
+:func:`~ema_bench.prognostics.track_run.track_campaign`), the campaign its manifest names and the
 campaign's truth, given explicitly (default: the ``truth.json`` that ``campaign make`` wrote in
 the campaign folder); a truth file of another campaign is refused
 (:func:`~ema_bench.prognostics.campaign.read_truth`).  Formulas in
@@ -71,7 +71,8 @@ from . import distributions, metrics
 from .campaign import load_campaign, read_truth
 from .expected import at_most, expected_hits
 from .laws import DAMAGE_SIGN
-from .tracking import TRACK_FILE, VERSION, campaign_path, read_track
+from .track_io import campaign_path, read_track
+from .tracking import TRACK_FILE, VERSION
 
 #: The headline's relative half-width (+-20 %).
 ALPHA = 0.2
@@ -118,7 +119,7 @@ def _mean(values: list) -> float:
 
 def _check_steps(unit: str, rows: list[dict], truth: dict, where: str) -> None:
     """Every step complete, no NaN, at an inspection flight of the truth (read_track's
-    schema, :data:`~.tracking.STEP_SCHEMA`, has checked that every field is there)."""
+    schema, :data:`~.track_io.STEP_SCHEMA`, has checked that every field is there)."""
     for r in rows:
         at = f"{where}: unit {unit} flight {r.get('flight')}"
         for k in ("estimate", "low", "high"):

@@ -5,10 +5,10 @@ campaign.
 ``processes`` executor, ``--workers`` of them, as a leaderboard sweep runs solvers) and
 ``campaign score --replay`` each replayed unit to a fresh one (``isolated``: one unit per
 process, as replay runs solvers, so a tracker that carries state from one unit to the next
-does not replay); the worker runs :func:`~.tracking.unit_job`.  The worker receives a
+does not replay); the worker runs :func:`~.track_run.unit_job`.  The worker receives a
 :class:`UnitInput`: the tracker (:class:`TrackerSpec`), the campaign's published settings
 (:meth:`~.campaign.Campaign.info`: no folder, no seed), the unit's inspections with their
-traces already read, and the unit's one-way seed (:func:`~.tracking.unit_seed`, which gives
+traces already read, and the unit's one-way seed (:func:`~.track_run.unit_seed`, which gives
 neither the tracking run's root seed nor the campaign's away); never the
 :class:`~.campaign.Campaign`, its folder or the campaign's seed.  The inspections are read in
 the process that holds the campaign, when the unit is sent (:class:`UnitSource`), one unit
