@@ -80,8 +80,8 @@ def test_the_shipped_best_known_tables_validate():
     ("run-record", "ema_bench.leaderboard.run_store:RUN_SCHEMA", {"success": 1}),
     ("run-record", "ema_bench.leaderboard.run_store:RUN_SCHEMA", {"budget": True}),
     ("run-record", "ema_bench.leaderboard.run_store:RUN_SCHEMA", {"solver": None}),
-    ("track-step", "ema_bench.prognostics.tracking:STEP_SCHEMA", {"replace": "no"}),
-    ("track-step", "ema_bench.prognostics.tracking:STEP_SCHEMA", {"rul": "12"}),
+    ("track-step", "ema_bench.prognostics.track_io:STEP_SCHEMA", {"replace": "no"}),
+    ("track-step", "ema_bench.prognostics.track_io:STEP_SCHEMA", {"rul": "12"}),
 ])
 def test_validator_and_reader_refuse_the_same_broken_lines(name, table, edit):
     import importlib
