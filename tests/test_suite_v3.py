@@ -207,3 +207,39 @@ def test_the_ecdfs_of_fitness_and_parameter_targets_count_apart():
     assert np.allclose(ecdf_curve([rec], grid, "p"), 2 / 3)
     assert np.allclose(ecdf_curve([rec], grid, "f"), reached_f / 21)
     assert np.allclose(ecdf_curve([rec], grid), (reached_f + 2) / 24)
+
+
+#: The point the fixed-point test solver evaluates (set by the test that registers it).
+_POINT: list[np.ndarray] = []
+
+
+def test_a_v3_hit_is_re_derived_on_v3_tolerances_and_not_carried_to_a_v2_label():
+    """The cheapest way to a v3 score not earned: take a run that reaches a v3 tolerance
+    wider than 1 % of range and file it under v2's key, whose 1 % target it does not reach.
+    The judge re-derives the hits on each suite's own tolerances and refuses the relabel."""
+    from ema_bench import register_solver
+    from ema_bench.leaderboard.tasks import Task, run_task
+    from ema_bench.leaderboard.validate import check_record
+    from ema_bench.registry import SolveResult
+
+    inst = suites.instance("v3-t12-s03@prior")
+    i = inst.names.index("eccentricity")
+    tol = v3.scales(inst, "twin")[i] * 0.01
+    assert tol > 0.02 * inst.ranges[i]     # this instance's tolerance: over 2 % of range
+    x = inst.truth.copy()
+    step = 0.016 * inst.ranges[i]          # 1.6 % of range: inside v3's, outside v2's 1 %
+    x[i] += step if x[i] + step <= inst.upper[i] else -step
+    _POINT[:] = [x]
+
+    @register_solver("test-v3-fixed-point", description="evaluates one given point",
+                     library="numpy")
+    def _fixed(problem, budget, seed):
+        problem.evaluate(_POINT[0])
+        return SolveResult("test-v3-fixed-point", _POINT[0], 0.0, 1, "done", 0.0, {})
+
+    r = run_task(Task("test-v3-fixed-point", "v3-t12-s03@prior", "twin", 0, 2))
+    assert r["targets"]["parameters"]["0.01"] == 1     # its one evaluation reaches it
+    assert check_record(r) == []
+    forged = {**r, "case": "t12-s03@prior", "suite": "emafdi-v2"}
+    found = check_record(forged)
+    assert any(m.startswith("targets.parameters") and "'0.01': None" in m for m in found)
