@@ -1,6 +1,6 @@
-"""Gymnasium interface to the identification problem: ``EMAFault/Identify-v1`` and ``-v2``.
+"""Gymnasium interface to the identification problem: ``EMAFault/Identify-v1``, ``-v2``, ``-v3``.
 
-Importing this module registers both versions, one entry point (:class:`EMAFaultEnv`, vector
+Importing this module registers every version, one entry point (:class:`EMAFaultEnv`, vector
 entry point :class:`EMAFaultVectorEnv`) with each version's keyword arguments
 (:data:`VERSIONS`)::
 
@@ -46,6 +46,11 @@ are candidates for the *same* problem, and one step evaluates them all in one ba
 Version history (the id's version follows the benchmark suite, :mod:`ema_bench.suites`; a
 change to the models or the instances is a new version, as with Gymnasium's own ids):
 
+- ``v3`` (suite ``emafdi-v3``, :mod:`ema_bench.suites.v3`): v2's tiers, conditions and
+  problems under v3's case keys (``info["case"]``: ``v3-t7-s03@no-prior``), so a run of an
+  episode is filed and judged on v3's targets (parameter tolerances the noise allows, the
+  21-target fitness ladder).  ``case`` with ``tier``: ``t7-s03`` or ``v3-t7-s03``.
+
 - ``v2`` (suite ``emafdi-v2``, :mod:`ema_bench.suites.v2`): tiers of dimension (``tier=4,
   7, 12``: the faults, then effects fitted with them: the action's dimension) and conditions
   (``condition="prior"``, ``"no-prior"``, ``"step-only"``, ``"surface-current"``: what the
@@ -82,11 +87,14 @@ from .suites import episode_cases, find
 from .suites.problem import check_settings, make_problem
 from .traces import SIGNALS
 
-__all__ = ["ENV_ID", "ENV_ID_V2", "OBSERVATIONS", "EMAFaultEnv", "EMAFaultVectorEnv",
+__all__ = ["ENV_ID", "ENV_ID_V2", "ENV_ID_V3", "OBSERVATIONS", "EMAFaultEnv", "EMAFaultVectorEnv",
            "register"]
 
 ENV_ID = "EMAFault/Identify-v1"
 ENV_ID_V2 = "EMAFault/Identify-v2"
+ENV_ID_V3 = "EMAFault/Identify-v3"
+#: The suite whose tiers each version's ``tier=``/``condition=`` episodes draw from.
+ENV_SUITES = {ENV_ID_V2: "emafdi-v2", ENV_ID_V3: "emafdi-v3"}
 #: Evaluations per episode of ``Identify-v1`` (``budget=None``: the case's suite budget).
 DEFAULT_BUDGET = 1000
 OBSERVATIONS = ("traces", "residuals")
@@ -170,7 +178,8 @@ class _EpisodeMixin:
 
     def _configure(self, case: Any, tier: int | str | None, condition: str | None,
                    track: str, budget: int | None, observation: str, normalise: bool,
-                   heterogeneity: float, render_mode: str | None, root_seed: int) -> None:
+                   heterogeneity: float, render_mode: str | None, root_seed: int,
+                   suite: str) -> None:
         """Check every setting (a clear error at construction, not at the first reset) and
         derive the episodes' cases, the action's parameters and the observation's tests
         from the first case's suite instance (true faults, ``seeded``: the four faults, the
@@ -178,7 +187,8 @@ class _EpisodeMixin:
         if render_mode is not None:
             raise ValueError(f"render_mode {render_mode!r} is not supported (no rendering)")
         run_seed(root_seed, 0)  # a valid root seed, checked now
-        self._pool = episode_cases(case, tier, condition)   # SuiteError (a ValueError)
+        self.suite = suite
+        self._pool = episode_cases(case, tier, condition, suite)  # SuiteError, a ValueError
         inst = find(self._pool[0])
         if budget is None:
             budget = inst.budget if inst is not None else DEFAULT_BUDGET
@@ -207,7 +217,7 @@ class _EpisodeMixin:
         k = int(rng.integers(0, 2**63 - 1)) if seed is None else seed
         self._episode_seed = k
         pool = (self._pool if "case" not in options else
-                episode_cases(options["case"], self.tier, self.condition))
+                episode_cases(options["case"], self.tier, self.condition, self.suite))
         problem = make_problem(pool[k % len(pool)], track=options.get("track", self.track),
                                seed=run_seed(self.root_seed, k), budget=self.budget,
                                normalise=self.normalise, heterogeneity=self.heterogeneity)
@@ -254,9 +264,12 @@ class EMAFaultEnv(_EpisodeMixin, gym.Env):
         (``t7-s03``), default (None) the tier's instance ``k mod n`` for reset seed ``k``.
         ``reset(options={"case": ...})`` overrides it for one episode.
     tier, condition : optional
-        Suite emafdi-v2 (``Identify-v2``): the tier (4, 7, 12: the action's dimension) and
-        the condition (``prior``, ``no-prior``, ``step-only``, ``surface-current``: what the
-        problem hands out and the tests in the observation).
+        Suites emafdi-v2 and -v3 (``Identify-v2``, ``-v3``): the tier (4, 7, 12: the action's
+        dimension) and the condition (``prior``, ``no-prior``, ``step-only``,
+        ``surface-current``: what the problem hands out and the tests in the observation).
+    suite : str
+        The suite whose tiers ``tier``/``condition`` draw from (``emafdi-v2``, ``emafdi-v3``;
+        each registered id sets its own).
     track : {"reference", "twin"}
         Where the measured traces come from (``options={"track": ...}`` overrides it).
     budget : int, optional
@@ -276,9 +289,10 @@ class EMAFaultEnv(_EpisodeMixin, gym.Env):
                  budget: int | None = DEFAULT_BUDGET, observation: str = "traces",
                  normalise: bool = True, heterogeneity: float = 1.0,
                  render_mode: str | None = None, root_seed: int = 0,
-                 tier: int | str | None = None, condition: str | None = None) -> None:
+                 tier: int | str | None = None, condition: str | None = None,
+                 suite: str = ENV_SUITES[ENV_ID_V2]) -> None:
         self._configure(case, tier, condition, track, budget, observation, normalise,
-                        heterogeneity, render_mode, root_seed)
+                        heterogeneity, render_mode, root_seed, suite)
         self.observation_space, self.action_space = self._single_spaces
 
     def reset(self, *, seed: int | None = None,
@@ -329,12 +343,13 @@ class EMAFaultVectorEnv(_EpisodeMixin, VectorEnv):
                  budget: int | None = DEFAULT_BUDGET, observation: str = "traces",
                  normalise: bool = True, heterogeneity: float = 1.0,
                  render_mode: str | None = None, root_seed: int = 0,
-                 tier: int | str | None = None, condition: str | None = None) -> None:
+                 tier: int | str | None = None, condition: str | None = None,
+                 suite: str = ENV_SUITES[ENV_ID_V2]) -> None:
         if isinstance(num_envs, bool) or not isinstance(num_envs, int | np.integer) \
                 or num_envs < 1:
             raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
         self._configure(case, tier, condition, track, budget, observation, normalise,
-                        heterogeneity, render_mode, root_seed)
+                        heterogeneity, render_mode, root_seed, suite)
         if self.budget < num_envs:
             raise ProblemError(f"budget {self.budget} cannot take one batch of {num_envs} "
                                "candidates")
@@ -389,12 +404,15 @@ class EMAFaultVectorEnv(_EpisodeMixin, VectorEnv):
 #: and a condition, whose budget is the default).
 VERSIONS: dict[str, dict[str, Any]] = {
     ENV_ID: {},
-    ENV_ID_V2: {"tier": 4, "condition": "prior", "case": None, "budget": None},
+    ENV_ID_V2: {"tier": 4, "condition": "prior", "case": None, "budget": None,
+                "suite": ENV_SUITES[ENV_ID_V2]},
+    ENV_ID_V3: {"tier": 4, "condition": "prior", "case": None, "budget": None,
+                "suite": ENV_SUITES[ENV_ID_V3]},
 }
 
 
 def register() -> None:
-    """Register ``EMAFault/Identify-v1`` and ``-v2`` with Gymnasium (idempotent)."""
+    """Register ``EMAFault/Identify-v1``, ``-v2`` and ``-v3`` with Gymnasium (idempotent)."""
     for env_id, kwargs in VERSIONS.items():
         if env_id not in gym.registry:
             gym.register(id=env_id, entry_point="ema_bench.env:EMAFaultEnv",

@@ -74,8 +74,8 @@ def test_registered_once_with_both_entry_points():
 @pytest.mark.parametrize("kwargs", [{}, {"observation": "residuals", "track": "twin",
                                          "budget": 5}])
 def test_check_env_passes_without_warnings(kwargs):
-    # making v1 warns only that v2 (suite emafdi-v2) is out, as Gymnasium does for an old id
-    with pytest.warns(DeprecationWarning, match="out of date.*v2") as made:
+    # making v1 warns only that v3 (suite emafdi-v3) is out, as Gymnasium does for an old id
+    with pytest.warns(DeprecationWarning, match="out of date.*v3") as made:
         env = gym.make(ENV_ID, **kwargs)
     assert len(made) == 1
     with warnings.catch_warnings():

@@ -80,11 +80,11 @@ def test_case_groups_expand_in_order_without_repeats():
 def test_gymnasium_id_follows_the_suite_and_the_old_one_is_deprecated():
     assert ema_bench.env.ENV_ID == "EMAFault/Identify-v1"
     assert "v1" in ema_bench.env.__doc__ and SUITE_ID in ema_bench.env.__doc__
-    # v0 is gone; Gymnasium points at the newest id (v2, suite emafdi-v2); v1 is kept
-    with pytest.raises(gym.error.DeprecatedEnv, match="Identify-v2"), \
+    # v0 is gone; Gymnasium points at the newest id (v3, suite emafdi-v3); v1 is kept
+    with pytest.raises(gym.error.DeprecatedEnv, match="Identify-v3"), \
             pytest.warns(DeprecationWarning, match="Identify-v0 is out of date"):
         gym.make("EMAFault/Identify-v0")
-    with pytest.warns(DeprecationWarning, match="Identify-v1 is out of date.*v2"):
+    with pytest.warns(DeprecationWarning, match="Identify-v1 is out of date.*v3"):
         env = gym.make("EMAFault/Identify-v1", case="s02", track="twin", budget=3)
     obs, info = env.reset(seed=0)
     assert info["case"] == "s02"

@@ -118,6 +118,30 @@ def test_both_environment_versions_have_one_entry_point_and_the_vector_one():
     assert np.allclose(-rewards, p.objective.evaluate(p.from_unit(U))[0])
 
 
+def test_identify_v3_episodes_are_v2_problems_filed_under_v3_keys():
+    gym = pytest.importorskip("gymnasium")
+    import ema_bench.env  # noqa: F401  (registers the ids)
+    from ema_bench.suites import SuiteError, suite_of
+
+    assert gym.spec("EMAFault/Identify-v3").entry_point == "ema_bench.env:EMAFaultEnv"
+    kw = dict(tier=7, condition="no-prior", track="twin", budget=4)
+    e3, e2 = gym.make("EMAFault/Identify-v3", **kw), gym.make("EMAFault/Identify-v2", **kw)
+    _, i3 = e3.reset(seed=3)
+    _, i2 = e2.reset(seed=3)
+    # the same measured data, the v3 label: a run of it is judged on v3's targets
+    assert (i3["case"], i2["case"]) == ("v3-t7-s03@no-prior", "t7-s03@no-prior")
+    assert suite_of(i3["case"]).id == "emafdi-v3"
+    assert np.array_equal(e3.unwrapped.problem.measured.stacked(),
+                          e2.unwrapped.problem.measured.stacked())
+    assert e3.unwrapped.action_space.shape == (7,)
+    # an instance named either way; a suite without tiers refuses tier=
+    for name in ("t7-s05", "v3-t7-s05"):
+        env = gym.make("EMAFault/Identify-v3", case=name, **kw)
+        assert env.reset(seed=0)[1]["case"] == "v3-t7-s05@no-prior"
+    with pytest.raises(SuiteError, match="has no tiers"):
+        gym.make("EMAFault/Identify-v3", suite="emafdi-v1", **kw)
+
+
 @pytest.mark.slow
 def test_check_env_passes_on_every_tier_and_condition():
     gym = pytest.importorskip("gymnasium")

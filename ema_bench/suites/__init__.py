@@ -82,15 +82,19 @@ def board_suite(records: Iterable[dict]) -> Suite:
 
 
 def episode_cases(case: object = "small", tier: int | str | None = None,
-                  condition: str | None = None) -> list:
+                  condition: str | None = None, suite: str = v2.SUITE_ID) -> list:
     """The cases an environment's episodes draw from (episode ``k``: case ``k mod n``):
     ``[case]`` (any case key, ``seeded``, true faults), or with ``tier`` or ``condition``
-    (suite emafdi-v2's environment) the keys of that tier under that condition (default the
-    faults-only tier and ``prior``), only the one of instance ``case`` where it is given;
-    SuiteError for a tier, condition or instance the suite does not have."""
+    the keys of that tier of ``suite`` under that condition (default the faults-only tier
+    and ``prior``), only the one of instance ``case`` where it is given; SuiteError for a
+    suite without tiers, or a tier, condition or instance the suite does not have."""
     if tier is None and condition is None:
         return [case]
-    return v2.tier_cases(v2.BASE_TIER if tier is None else tier, condition or "prior", case)
+    found = SUITES.get(suite)
+    if found is None or found.tier_cases is None:
+        raise SuiteError(f"suite {suite!r} has no tiers; suites with tiers: "
+                         f"{[s.id for s in SUITES.values() if s.tier_cases is not None]}")
+    return found.tier_cases(tier, condition, case)
 
 
 def case_order() -> dict[str, int]:

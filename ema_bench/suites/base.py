@@ -207,6 +207,10 @@ class Suite:
     split_ecdf : bool
         Its board also draws the ECDFs of fitness and of parameter targets apart (a dense
         fitness ladder would otherwise outweigh the three parameter targets).
+    tier_cases : callable or None
+        ``(tier or None, condition or None, instance name or None) -> case keys`` of a tier
+        under a condition (its environment's episodes, ``gymnasium.make(..., tier=7)``);
+        None: the suite has no tiers.
     """
 
     id: str
@@ -226,3 +230,4 @@ class Suite:
     target_scales: Callable[[Instance, str], np.ndarray | None] | None = None
     fitness_precisions: tuple[float, ...] = FITNESS_PRECISIONS
     split_ecdf: bool = False
+    tier_cases: Callable[[int | str | None, str | None, object], list[str]] | None = None

@@ -467,9 +467,16 @@ def _target_keys(sel: Selection, seeds: int | None,
     return keys
 
 
+def _env_cases(dim: int | str | None, cond: str | None, name: object = None) -> list[str]:
+    """An environment's episode cases: :func:`tier_cases`, by default of the faults-only tier
+    under ``prior``."""
+    return tier_cases(BASE_TIER if dim is None else dim, cond or "prior", name)
+
+
 SUITE = Suite(id=SUITE_ID, lookup=_lookup, best_known=_best_known, judged=_judged,
               ioh_instance=_ioh_instance, ioh_functions=lambda: list(CONDITIONS),
               complete_cases=_complete_cases,
               case_order=lambda: cases(list(TIERS), list(CONDITIONS)),
               sweep_cases=_sweep_cases, sweep_budget=_sweep_budget, target_keys=_target_keys,
-              targets_file=lambda: targets_path(), grouped=True, clean_fits=True)
+              targets_file=lambda: targets_path(), grouped=True, clean_fits=True,
+              tier_cases=_env_cases)

@@ -203,6 +203,14 @@ def _sweep_budget(keys: Sequence[str], budget: int | None, per_dim: int | None,
         {PREFIX + k: n for k, n in b.budgets.items()}, b.label)
 
 
+def _env_cases(dim: int | str | None, cond: str | None, name: object = None) -> list[str]:
+    """v2's episode cases of the same tier, as v3 keys (instance ``t7-s03`` or
+    ``v3-t7-s03``)."""
+    if isinstance(name, str) and name.startswith(PREFIX):
+        name = name[len(PREFIX):]
+    return [PREFIX + c for c in v2.SUITE.tier_cases(dim, cond, name)]
+
+
 def _own_table(*_args) -> None:
     raise SuiteError(f"{SUITE_ID} reads {v2.SUITE_ID}'s best-known table: compute or show it "
                      f"with --suite {v2.SUITE_ID}")
@@ -216,4 +224,4 @@ SUITE = Suite(id=SUITE_ID, lookup=_lookup, best_known=v2.SUITE.best_known,
               sweep_budget=_sweep_budget, target_keys=_own_table,
               targets_file=_own_table, grouped=True,
               clean_fits=True, target_scales=scales, fitness_precisions=FITNESS_PRECISIONS,
-              split_ecdf=True)
+              split_ecdf=True, tier_cases=_env_cases)
