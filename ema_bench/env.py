@@ -18,7 +18,10 @@ with a hard evaluation budget.  An action is a candidate vector in the normalise
 mapped to physical units with the problem's ``from_unit``); each step costs one evaluation of
 the problem's budget,
 the reward is minus the fitness, and the episode truncates when the budget is spent.  It never
-terminates: the environment cannot know that the truth was found.
+terminates: the environment cannot know that the truth was found.  The ids register no
+``max_episode_steps``: the episode's length is its budget, which depends on the keyword
+arguments (``tier=12`` runs 15,000 steps, ``tier=4`` 5,000), and a registered constant would
+put a ``TimeLimit`` at the wrong step for every other tier; ``info["budget"]`` states it.
 
 Observation (a float64 vector of ``N = sum over tests of n_samples * 4`` values, laid out as
 :meth:`~ema_bench.traces.Traces.stacked`: test by test, signal by signal, sample by sample):
