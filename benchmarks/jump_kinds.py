@@ -61,11 +61,12 @@ KINDS: tuple[Kind, ...] = (
          "the sample at which it leaves the 2 N m limit flips between the two sides, one "
          "sample's integral (the speed error times 50 us) more or less, and the trajectory "
          "differs from there on.",
-         "the PI integral is the first state to differ, at a controller sample while the "
-         "current reference is at its 20 A limit; the jump keeps its size at 25 us and in "
-         "version 4: the controller period (20 kHz) is the ACE's, not the monitor's step, and "
-         "the reference model runs the same sampled law (the real ACE decides at its "
-         "samples). Also on v3-t7-s00 and v3-t12-s01 along sensor_offset (step test)."),
+         "whether the PI integrated is the first discrete state to differ, at a controller "
+         "sample while the current reference is at its 20 A limit; the jump keeps its size "
+         "at 25 us and in version 4: the controller period (20 kHz) is the ACE's, not the "
+         "monitor's step, and the reference model runs the same sampled law (the real ACE "
+         "decides at its samples). Also on v3-t7-s00 and v3-t12-s01 along sensor_offset "
+         "(step test)."),
     Kind("creeping rotor reaches a sector boundary", "v3-t7-s01@prior", "sensor_offset",
          True,
          "In the step test's final hold the rotor creeps towards standstill near a sector "

@@ -187,12 +187,38 @@ def atlas(per_tier: int, directions: int, half: float, k: int, starts: int,
                 "case": case, "names": inst.names, "cond": float(s[0] / s[-1]),
                 "jump_full": jumps(F["full"], f_star), "jump_half": jumps(F["half"], f_star),
                 "jump_v4": jumps(F["v4"], f_star),
+                "v4_worst": worst_flip(p, u_star, dirs, F["v4"], half, f_star, "4"),
                 "F": F, "f_star": f_star,
                 "minima": minima(p, u_star, f_star, e["f_nominal"], starts,
                                  child(SEED, 7 + 1000 * d + idx), max_evals),
                 "valley": valley(p, u_star, f_star, gap), "gap_over_f": gap / f_star})
         out[d] = rows
     return out
+
+
+def worst_flip(p, u_star: np.ndarray, dirs: np.ndarray, F: np.ndarray, half: float,
+               f_star: float, version: str) -> tuple[int, float, float, str]:
+    """The worst of the lines ``F`` (model ``version``, standard step) zoomed 40x: its index,
+    the largest zoomed step and that step bisected to 1e-13 (units of f*: a discontinuity
+    keeps its size, a steep continuous stretch vanishes), and the first discrete state that
+    differs across the zoomed step (:func:`jump_kinds.first_flip`, ``"state (test, sample
+    k)"``)."""
+    i = int(np.argmax(jumps(F, f_star)))
+    _at("full", p, version)
+
+    def f(tt):
+        return _f(p, u_star[None, :] + np.asarray(tt)[:, None] * dirs[i][None, :])
+
+    tt, FF = jump_kinds.zoom(f, np.linspace(-half, half, F.shape[1]), F[i])
+    j = int(np.argmax(np.abs(np.diff(FF))))
+    X = p.objective.space.from_unit(np.clip(u_star[None] + tt[j:j + 2, None] * dirs[i][None],
+                                            0.0, 1.0))
+    test, state, tick = jump_kinds.first_flip(p.objective, X, model_params(version))
+    a, b = jump_kinds.bisect(f, tt, FF)
+    fa, fb = f(np.array([a, b]))
+    _at("full", p)
+    return (i, float(np.abs(FF[j + 1] - FF[j]) / f_star), float(abs(fb - fa) / f_star),
+            f"{state} ({test}, sample {tick})")
 
 
 #: Each kind's witness line is measured at these (step, model version) settings.
@@ -278,6 +304,16 @@ def plots(data: dict, folder: Path) -> list[str]:
     return names
 
 
+def _line_name(r: dict, i: int) -> str:
+    return r["names"][i] if i < len(r["names"]) else f"random direction {i - len(r['names'])}"
+
+
+def _v4_cell(r: dict) -> str:
+    i, zoomed, bisected, flip = r["v4_worst"]
+    return (f"{r['jump_v4'].max():.2e}, {_line_name(r, i)}, {zoomed:.2e}, {bisected:.1e}, "
+            f"{flip}")
+
+
 def kinds_markdown(rows: list[dict]) -> list[str]:
     """The section on the kinds of jump: the measured table, then each kind's attribution."""
     def four(r, what):
@@ -329,16 +365,16 @@ def markdown(data: dict, kind_rows: list[dict], args, cost: str, images: list[st
            "(the kernels unchanged, `simulate_monitor(dt=...)`).", "",
            "| case | condition number | largest jump (50 us) | median jump (50 us) | "
            "largest jump (25 us) | median (25 us) | axis of the largest | it zoomed 40x: "
-           "largest step 50 us / 25 us | largest jump, model version 4 (50 us) |",
+           "largest step 50 us / 25 us | model version 4 (50 us): largest jump, its line, "
+           "zoomed 40x, bisected to 1e-13, first discrete state to differ across it |",
            "|---|---|---|---|---|---|---|---|---|"]
     for rows in data.values():
         for r in rows:
-            i = int(np.argmax(r["jump_full"]))
-            axis = r["names"][i] if i < len(r["names"]) else "random direction"
+            axis = _line_name(r, int(np.argmax(r["jump_full"])))
             md.append(f"| {r['case']} | {r['cond']:.0f} | {r['jump_full'].max():.2e} | "
                       f"{np.median(r['jump_full']):.2e} | {r['jump_half'].max():.2e} | "
                       f"{np.median(r['jump_half']):.2e} | {axis} | "
-                      f"{r['zoom'][0]:.2e} / {r['zoom'][1]:.2e} | {r['jump_v4'].max():.2e} |")
+                      f"{r['zoom'][0]:.2e} / {r['zoom'][1]:.2e} | {_v4_cell(r)} |")
     md += ["", "Per tier, the ratio (25 us / 50 us) of each line's jump: median and range "
            "(a ratio near 1: the jump stays, near 0.5 or below: it shrinks with the step).", "",
            "| tier | lines | median ratio | 10-90 % | axes whose jump halves or better |",
