@@ -160,7 +160,7 @@ FLIP_STATES = ("sector index", "PI integrating", "reducer contact side", "slidin
 def first_flip(objective, X: np.ndarray, params) -> tuple[str, str, int]:
     """The test whose fitness term moves most between the two rows of ``X`` (physical
     units), the first of :data:`FLIP_STATES` to differ there and its controller sample
-    (``"none"``, -1: none differs)."""
+    (``"none"``, -1: none differs), stepping at ``params.dt_mon``."""
     E = objective.space.effects_for(X, objective.effects)
     outs = objective.outputs(X)[0]
     moved = {}
@@ -171,7 +171,8 @@ def first_flip(objective, X: np.ndarray, params) -> tuple[str, str, int]:
     i = [s.name for s in objective.tests].index(test)
     cmd, start = test_layout(objective.tests, params.dt_ctrl)[:2]
     p = params.to_array()
-    A, B = (_tick_states(p, X[r, :4], E[r], cmd[start[i]:start[i + 1]], params.dt_mon, 1)
+    n = int(round(params.dt_ctrl / params.dt_mon))
+    A, B = (_tick_states(p, X[r, :4], E[r], cmd[start[i]:start[i + 1]], params.dt_mon, n)
             for r in range(2))
     differ = A != B
     if not differ.any():

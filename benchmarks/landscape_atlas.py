@@ -177,7 +177,7 @@ def atlas(per_tier: int, directions: int, half: float, k: int, starts: int,
             dirs = _directions(d, idx, inst.dim, directions)
             F = {}
             for key, step, version in (("full", "full", "3"), ("half", "half", "3"),
-                                       ("v4", "full", "4")):
+                                       ("v4", "full", "4"), ("v4half", "half", "4")):
                 _at(step, p, version)
                 F[key] = lines(p, u_star, dirs, half, k)
             _at("full", p)
@@ -188,6 +188,9 @@ def atlas(per_tier: int, directions: int, half: float, k: int, starts: int,
                 "jump_full": jumps(F["full"], f_star), "jump_half": jumps(F["half"], f_star),
                 "jump_v4": jumps(F["v4"], f_star),
                 "v4_worst": worst_flip(p, u_star, dirs, F["v4"], half, f_star, "4"),
+                "census": {key: census(p, u_star, dirs, F[key], half, f_star, v, step)
+                           for key, step, v in (("full", "full", "3"), ("v4", "full", "4"),
+                                                ("v4half", "half", "4"))},
                 "F": F, "f_star": f_star,
                 "minima": minima(p, u_star, f_star, e["f_nominal"], starts,
                                  child(SEED, 7 + 1000 * d + idx), max_evals),
@@ -219,6 +222,39 @@ def worst_flip(p, u_star: np.ndarray, dirs: np.ndarray, F: np.ndarray, half: flo
     _at("full", p)
     return (i, float(np.abs(FF[j + 1] - FF[j]) / f_star), float(abs(fb - fa) / f_star),
             f"{state} ({test}, sample {tick})")
+
+
+#: A bisected step of at least this many f* is a discontinuity (rounding leaves 1e-13-1e-11
+#: between two points 1e-13 apart; v3's finest fitness target is 2.6e-4 f* or more).
+DISCONTINUITY = 1e-6
+
+
+def census(p, u_star: np.ndarray, dirs: np.ndarray, F: np.ndarray, half: float,
+           f_star: float, version: str, step: str = "full") -> dict[str, list[float]]:
+    """Every line of ``F`` (model ``version`` at ``step``): its largest step zoomed 40x and
+    bisected to 1e-13; the sizes (units of f*) of those at least :data:`DISCONTINUITY`, by
+    the first discrete state that flips across them (:func:`jump_kinds.first_flip`)."""
+    _at(step, p, version)
+    params = model_params(version)
+    if step == "half":
+        params = params.replace(dt_mon=params.dt_mon / 2)
+    t = np.linspace(-half, half, F.shape[1])
+    found: dict[str, list[float]] = {}
+    for d, row in zip(dirs, F):
+        def f(tt, d=d):
+            return _f(p, u_star[None, :] + np.asarray(tt)[:, None] * d[None, :])
+
+        tt, FF = jump_kinds.zoom(f, t, row)
+        a, b = jump_kinds.bisect(f, tt, FF)
+        fa, fb = f(np.array([a, b]))
+        size = float(abs(fb - fa) / f_star)
+        if size >= DISCONTINUITY:
+            X = p.objective.space.from_unit(np.clip(u_star[None] + np.array([a, b])[:, None]
+                                                    * d[None], 0.0, 1.0))
+            state = jump_kinds.first_flip(p.objective, X, params)[1]
+            found.setdefault(state, []).append(size)
+    _at("full", p)
+    return found
 
 
 #: Each kind's witness line is measured at these (step, model version) settings.
@@ -386,6 +422,19 @@ def markdown(data: dict, kind_rows: list[dict], args, cost: str, images: list[st
         md.append(f"| {d} | {ratio.size} | {np.median(ratio):.2f} | "
                   f"{np.quantile(ratio, 0.1):.2f}-{np.quantile(ratio, 0.9):.2f} | "
                   f"{', '.join(shrink) or 'none'} |")
+    md += ["", "Discontinuities on every line: each line's largest step zoomed 40x and "
+           f"bisected to 1e-13; those of {DISCONTINUITY:g} f* or more, counted by the first "
+           "discrete state that flips across them (sector index: a commutation; PI "
+           "integrating: the speed loop's anti-windup; none: no tracked state flips at a "
+           "controller sample), with the largest, on model version 3 (50 us) and on "
+           "version 4 (50 us, 25 us).", "",
+           "| case | lines | version 3 | version 4 | version 4, 25 us |", "|---|---|---|---|---|"]
+    for rows in data.values():
+        for r in rows:
+            cells = ["; ".join(f"{state} {len(v)} (<= {max(v):.1e})"
+                               for state, v in sorted(r["census"][ver].items())) or "none"
+                     for ver in ("full", "v4", "v4half")]
+            md.append(f"| {r['case']} | {r['jump_full'].size} | " + " | ".join(cells) + " |")
     md += kinds_markdown(kind_rows)
     md += ["", "## Distinct local minima (multi-start local refits)", "",
            f"{args.starts} uniform random starts per instance, trust-region least-squares "
