@@ -17,6 +17,11 @@ hysteresis current control (:mod:`ema_bench.physics.bldc`), one step per control
   already ramping off its flat top, costs ``ke_y (p w / (pi / 6)) tau i_y`` of torque.  Left
   out, this speed- and current-dependent deficit (up to 0.4 % of torque at 750 rad/s, 20 A)
   was absorbed by a calibrated constant and biased the fitted ``Na`` by up to 1 % of its range.
+  A crossing is predicted on the straight path ``th_m + h w_m``; one that the mechanics'
+  trapezoidal path makes but the prediction misses (an accelerating rotor) shows at the next
+  step's start.  Model version 3 switches the pair there without a transfer, a jump in the
+  fitness decided at step resolution; version 4 (``locate_commutation``) starts the transfer
+  where the crossing was, inside the last step (docs/landscape-atlas.md, "Kinds of jump").
 * **Breakaway.**  The hysteresis ripple's peaks (half the band above the mean current) reach a
   stuck shaft's static friction level first: the mechanics are told that ripple torque.
 """
