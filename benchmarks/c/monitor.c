@@ -181,8 +181,13 @@ static inline void transfer(int64_t sec, bool up, double th_b, double i_tr, doub
                             double *tr_cr) {
     int64_t k3 = pymod(sec, 3), sec_to;
     double ltr, ny;
-    if (up) { ltr = k3 == 0 ? dc->ltr_n : dc->ltr_a; ny = k3 == 1 ? dc->na : 1.0; sec_to = pymod(sec + 1, 6); }
-    else { ltr = k3 == 1 ? dc->ltr_n : dc->ltr_a; ny = k3 == 0 ? dc->na : 1.0; sec_to = pymod(sec + 5, 6); }
+    if (up) {
+        ltr = k3 == 0 ? dc->ltr_n : dc->ltr_a; ny = k3 == 1 ? dc->na : 1.0;
+        sec_to = pymod(sec + 1, 6);
+    } else {
+        ltr = k3 == 1 ? dc->ltr_n : dc->ltr_a; ny = k3 == 0 ? dc->na : 1.0;
+        sec_to = pymod(sec + 5, 6);
+    }
     *kt_from = kt_at(sec, th_b, dc);
     *kt_to = kt_at(sec_to, th_b, dc);
     *tr_len = dmax(i_tr * ltr, 1e-12);
