@@ -10,6 +10,8 @@ fault.
 
     python benchmarks/clean_bias.py > benchmarks/results/clean_bias_suite.txt   # the suite
     python benchmarks/clean_bias.py 20 > bias.txt
+    python benchmarks/clean_bias.py --model-version 4 \
+        > benchmarks/results/clean_bias_suite_v4.txt   # model version 4's monitor
 """
 
 import sys
@@ -18,20 +20,28 @@ import numpy as np
 
 from ema_bench.faults import CASES, random_faults
 from ema_bench.monitor_bias import clean_bias
+from ema_bench.params import model_params
 from ema_bench.suites.v1 import instance_faults, instance_names
 
 if __name__ == "__main__":
-    if len(sys.argv) > 1:
+    args = sys.argv[1:]
+    version = "3"
+    if args[:1] == ["--model-version"]:
+        version, args = args[1], args[2:]
+    params = model_params(version)
+    if args:
         cases = {k: c.x for k, c in CASES.items()}
-        for i in range(int(sys.argv[1])):
+        for i in range(int(args[0])):
             cases[f"seeded{i}"] = random_faults(np.random.SeedSequence(1234, spawn_key=(i,)))
     else:
         cases = {n: instance_faults(n) for n in instance_names()}
     worst = np.zeros(4)
+    if version != "3":
+        print(f"monitor: model version {version}")
     print(f"{'instance':10s} {'Na %':>7} {'Fst %':>7} {'BLK %':>7} {'Gprop %':>7}  f(truth)  "
           "f(best)")
     for name, x in cases.items():
-        r = clean_bias(x)
+        r = clean_bias(x, params=params)
         err, f0, f1 = 100.0 * r["range_error"], r["fitness_truth"], r["fitness_best"]
         worst = np.maximum(worst, np.abs(err))
         print(f"{name:10s} " + " ".join(f"{e:+7.3f}" for e in err) + f"  {f0:.3g}  {f1:.3g}",

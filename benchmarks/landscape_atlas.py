@@ -16,6 +16,11 @@ objective), around each instance's best-known fit ``x*`` (the shipped twin entry
   refit`) from ``--starts`` uniform random points, end points within 2 % of the box merged;
 - **zoom**: each instance's worst line's largest jump resampled 40x closer (:func:`refine`):
   a discontinuity keeps its size, a steep continuous stretch splits into small steps;
+- **model version 4**: the same lines with ``locate_commutation`` on
+  (:func:`ema_bench.params.model_params`), which removes the numerical kind of jump;
+- **kinds of jump**: each kind of :mod:`jump_kinds` on its witness line, at 50 and 25 us on
+  versions 3 and 4: the line's jump, its largest step zoomed 40x and bisected to 1e-13, and
+  the first discrete state that differs across it (:func:`kinds`);
 - **valley width**: per parameter, the smallest offset from ``x*`` (either side, fraction of
   range) at which the fitness rises above the finest fitness target of v2 (1e-4 of the
   f*-to-nominal gap) and of v3 (1e-6).
@@ -30,11 +35,12 @@ import functools
 import time
 from pathlib import Path
 
+import jump_kinds
 import numpy as np
 
 import ema_bench.objective as objective_module
 from ema_bench.monitor import simulate_monitor
-from ema_bench.params import DEFAULT_PARAMS
+from ema_bench.params import DEFAULT_PARAMS, model_params
 from ema_bench.plots import save_figure
 from ema_bench.seeding import child, run_seed
 from ema_bench.suites import instance, v2, v3
@@ -61,9 +67,19 @@ def _half_step():
     return functools.partial(simulate_monitor, dt=DEFAULT_PARAMS.dt_mon / 2)
 
 
-def _at(step: str):
-    """The objective module's monitor at the standard or the halved step."""
+def _at(step: str, p=None, version: str = "3"):
+    """The objective module's monitor at the standard or the halved step; with ``p``, its
+    objective on model ``version`` (:func:`ema_bench.params.model_params`)."""
     objective_module.simulate_monitor = simulate_monitor if step == "full" else _half_step()
+    if p is not None:
+        p.objective.params = model_params(version)
+
+
+def _directions(tier: int, idx: int, dim: int, directions: int) -> np.ndarray:
+    """The lines of instance ``idx`` of ``tier``: each axis, then random unit directions."""
+    rng = np.random.default_rng(child(SEED, 1000 * tier + idx))
+    R = rng.standard_normal((directions, dim))
+    return np.vstack([np.eye(dim), R / np.linalg.norm(R, axis=1)[:, None]])
 
 
 def lines(p, u_star: np.ndarray, dirs: np.ndarray, half: float, k: int) -> np.ndarray:
@@ -158,25 +174,133 @@ def atlas(per_tier: int, directions: int, half: float, k: int, starts: int,
             iv = intervals(p.objective, inst.truth, method="laplace", polish=False,
                            calibrate=False, noise="known", model_form="none")
             s = np.array(iv.identifiability["singular_values"])
-            rng = np.random.default_rng(child(SEED, 1000 * d + idx))
-            R = rng.standard_normal((directions, inst.dim))
-            dirs = np.vstack([np.eye(inst.dim), R / np.linalg.norm(R, axis=1)[:, None]])
+            dirs = _directions(d, idx, inst.dim, directions)
             F = {}
-            for step in ("full", "half"):
-                _at(step)
-                F[step] = lines(p, u_star, dirs, half, k)
-            _at("full")
+            for key, step, version in (("full", "full", "3"), ("half", "half", "3"),
+                                       ("v4", "full", "4"), ("v4half", "half", "4")):
+                _at(step, p, version)
+                F[key] = lines(p, u_star, dirs, half, k)
+            _at("full", p)
             worst = int(np.argmax(jumps(F["full"], f_star)))
             rows.append({
                 "zoom": refine(p, u_star, dirs[worst], F["full"][worst], half, f_star),
                 "case": case, "names": inst.names, "cond": float(s[0] / s[-1]),
                 "jump_full": jumps(F["full"], f_star), "jump_half": jumps(F["half"], f_star),
+                "jump_v4": jumps(F["v4"], f_star),
+                "v4_worst": worst_flip(p, u_star, dirs, F["v4"], half, f_star, "4"),
+                "census": {key: census(p, u_star, dirs, F[key], half, f_star, v, step)
+                           for key, step, v in (("full", "full", "3"), ("v4", "full", "4"),
+                                                ("v4half", "half", "4"))},
                 "F": F, "f_star": f_star,
                 "minima": minima(p, u_star, f_star, e["f_nominal"], starts,
                                  child(SEED, 7 + 1000 * d + idx), max_evals),
                 "valley": valley(p, u_star, f_star, gap), "gap_over_f": gap / f_star})
         out[d] = rows
     return out
+
+
+def worst_flip(p, u_star: np.ndarray, dirs: np.ndarray, F: np.ndarray, half: float,
+               f_star: float, version: str) -> tuple[int, float, float, str]:
+    """The worst of the lines ``F`` (model ``version``, standard step) zoomed 40x: its index,
+    the largest zoomed step and that step bisected to 1e-13 (units of f*: a discontinuity
+    keeps its size, a steep continuous stretch vanishes), and the first discrete state that
+    differs across the zoomed step (:func:`jump_kinds.first_flip`, ``"state (test, sample
+    k)"``)."""
+    i = int(np.argmax(jumps(F, f_star)))
+    _at("full", p, version)
+
+    def f(tt):
+        return _f(p, u_star[None, :] + np.asarray(tt)[:, None] * dirs[i][None, :])
+
+    tt, FF = jump_kinds.zoom(f, np.linspace(-half, half, F.shape[1]), F[i])
+    j = int(np.argmax(np.abs(np.diff(FF))))
+    X = p.objective.space.from_unit(np.clip(u_star[None] + tt[j:j + 2, None] * dirs[i][None],
+                                            0.0, 1.0))
+    test, state, tick = jump_kinds.first_flip(p.objective, X, model_params(version))
+    a, b = jump_kinds.bisect(f, tt, FF)
+    fa, fb = f(np.array([a, b]))
+    _at("full", p)
+    return (i, float(np.abs(FF[j + 1] - FF[j]) / f_star), float(abs(fb - fa) / f_star),
+            f"{state} ({test}, sample {tick})")
+
+
+#: A bisected step of at least this many f* is a discontinuity (rounding leaves 1e-13-1e-11
+#: between two points 1e-13 apart; v3's finest fitness target is 2.6e-4 f* or more).
+DISCONTINUITY = 1e-6
+
+
+def census(p, u_star: np.ndarray, dirs: np.ndarray, F: np.ndarray, half: float,
+           f_star: float, version: str, step: str = "full") -> dict[str, list[float]]:
+    """Every line of ``F`` (model ``version`` at ``step``): its largest step zoomed 40x and
+    bisected to 1e-13; the sizes (units of f*) of those at least :data:`DISCONTINUITY`, by
+    the first discrete state that flips across them (:func:`jump_kinds.first_flip`)."""
+    _at(step, p, version)
+    params = model_params(version)
+    if step == "half":
+        params = params.replace(dt_mon=params.dt_mon / 2)
+    t = np.linspace(-half, half, F.shape[1])
+    found: dict[str, list[float]] = {}
+    for d, row in zip(dirs, F):
+        def f(tt, d=d):
+            return _f(p, u_star[None, :] + np.asarray(tt)[:, None] * d[None, :])
+
+        tt, FF = jump_kinds.zoom(f, t, row)
+        a, b = jump_kinds.bisect(f, tt, FF)
+        fa, fb = f(np.array([a, b]))
+        size = float(abs(fb - fa) / f_star)
+        if size >= DISCONTINUITY:
+            X = p.objective.space.from_unit(np.clip(u_star[None] + np.array([a, b])[:, None]
+                                                    * d[None], 0.0, 1.0))
+            state = jump_kinds.first_flip(p.objective, X, params)[1]
+            found.setdefault(state, []).append(size)
+    _at("full", p)
+    return found
+
+
+#: Each kind's witness line is measured at these (step, model version) settings.
+SETTINGS = (("full", "3"), ("half", "3"), ("full", "4"), ("half", "4"))
+
+
+def kinds(directions: int, half: float, k: int) -> list[dict]:
+    """Per kind of jump (:data:`jump_kinds.KINDS`): its witness line's jump and its largest
+    step zoomed 40x and the jump between the two points 1e-13 apart that bisection of that
+    step finds, at every :data:`SETTINGS` (units of f*); and the first state that differs
+    between the ends of the zoomed step (standard step, version 3;
+    :func:`jump_kinds.first_flip`)."""
+    rows = []
+    for kind in jump_kinds.KINDS:
+        inst = instance(kind.case)
+        e = inst.best_known(TRACK, 0)
+        p = _problem(kind.case)
+        space = p.objective.space
+        u_star = space.to_unit(np.array([[e["x_star"][n] for n in inst.names]]))[0]
+        name = kind.case[len(v3.PREFIX):].split("@")[0]
+        tier = next(t for t in v2.TIERS if name in v2.instance_names(t))
+        dirs = _directions(tier, v2.instance_names(tier).index(name), inst.dim, directions)
+        d = jump_kinds.direction(kind, inst.names, dirs[inst.dim:])
+        t = np.linspace(-half, half, 2 * k + 1)
+
+        def f(tt, p=p, u_star=u_star, d=d):
+            return _f(p, u_star[None, :] + np.asarray(tt)[:, None] * d[None, :])
+
+        row = {"kind": kind, "f_star": e["f_star"]}
+        for step, version in SETTINGS:
+            _at(step, p, version)
+            F = f(t)
+            tt, FF = jump_kinds.zoom(f, t, F)
+            row["line", step, version] = float(jumps(F[None], e["f_star"])[0])
+            row["zoom", step, version] = float(np.max(np.abs(np.diff(FF))) / e["f_star"])
+            a, b = jump_kinds.bisect(f, tt, FF)
+            fa, fb = f(np.array([a, b]))
+            row["pair", step, version] = float((fb - fa) / e["f_star"])
+            if (step, version) == SETTINGS[0]:
+                j = int(np.argmax(np.abs(np.diff(FF))))
+                ends = tt[j:j + 2]
+        _at("full", p)
+        X = space.from_unit(np.clip(u_star[None] + ends[:, None] * d[None], 0.0, 1.0))
+        row["flip"] = jump_kinds.first_flip(p.objective, X, DEFAULT_PARAMS)
+        rows.append(row)
+    return rows
 
 
 def plots(data: dict, folder: Path) -> list[str]:
@@ -216,7 +340,50 @@ def plots(data: dict, folder: Path) -> list[str]:
     return names
 
 
-def markdown(data: dict, args, cost: str, images: list[str]) -> str:
+def _line_name(r: dict, i: int) -> str:
+    return r["names"][i] if i < len(r["names"]) else f"random direction {i - len(r['names'])}"
+
+
+def _v4_cell(r: dict) -> str:
+    i, zoomed, bisected, flip = r["v4_worst"]
+    return (f"{r['jump_v4'].max():.2e}, {_line_name(r, i)}, {zoomed:.2e}, {bisected:.1e}, "
+            f"{flip}")
+
+
+def kinds_markdown(rows: list[dict]) -> list[str]:
+    """The section on the kinds of jump: the measured table, then each kind's attribution."""
+    def four(r, what):
+        return " / ".join(f"{r[what, s, v]:.1e}" for s, v in SETTINGS)
+
+    md = ["", "## Kinds of jump: attribution, and model version 4", "",
+          "Each kind on its witness line (the atlas's line through x* named below): the line's "
+          "jump and its largest step zoomed 40x, at 50 us / 25 us on model version 3 (v1, v2 "
+          "and v3's shipped tables) / 50 us / 25 us on version 4 (`locate_commutation`, "
+          "`ema_bench.params.model_params('4')`), and the jump between the two points 1e-13 "
+          "of the box apart that bisection of each zoomed step finds (a discontinuity keeps "
+          "its size, a steep continuous stretch vanishes); then, on version 3 at 50 us, the "
+          "test whose fitness moves across the zoomed step and the first discrete state "
+          "that differs between its two ends (controller sample). Units of f*; "
+          "`benchmarks/jump_kinds.py` holds the experiment and the attribution.", "",
+          "| kind | physics or numerics | witness | line jump | zoomed 40x | bisected to 1e-13 "
+          "| first state to differ |", "|---|---|---|---|---|---|---|"]
+    for r in rows:
+        k = r["kind"]
+        test, state, tick = r["flip"]
+        md.append(f"| {k.name} | {'physics' if k.physics else 'numerics: removed in v4'} | "
+                  f"{k.case}, {k.line} | {four(r, 'line')} | {four(r, 'zoom')} | "
+                  f"{four(r, 'pair')} | {state} ({test}, sample "
+                  f"{tick}) |")
+    md.append("")
+    for r in rows:
+        k = r["kind"]
+        md += [f"**{k.name}** ({'physics' if k.physics else 'numerics'}). {k.mechanism} "
+               f"Evidence: {k.evidence}", ""]
+    md += [f"**The quantiser.** {jump_kinds.QUANTISER}", ""]
+    return md
+
+
+def markdown(data: dict, kind_rows: list[dict], args, cost: str, images: list[str]) -> str:
     md = ["# Landscape atlas (suite emafdi-v3, per tier)", "",
           f"Generated by `python benchmarks/landscape_atlas.py --per-tier {args.per_tier} "
           f"--directions {args.directions} --half-width {args.half_width:g} --points "
@@ -234,16 +401,16 @@ def markdown(data: dict, args, cost: str, images: list[str]) -> str:
            "(the kernels unchanged, `simulate_monitor(dt=...)`).", "",
            "| case | condition number | largest jump (50 us) | median jump (50 us) | "
            "largest jump (25 us) | median (25 us) | axis of the largest | it zoomed 40x: "
-           "largest step 50 us / 25 us |",
-           "|---|---|---|---|---|---|---|---|"]
+           "largest step 50 us / 25 us | model version 4 (50 us): largest jump, its line, "
+           "zoomed 40x, bisected to 1e-13, first discrete state to differ across it |",
+           "|---|---|---|---|---|---|---|---|---|"]
     for rows in data.values():
         for r in rows:
-            i = int(np.argmax(r["jump_full"]))
-            axis = r["names"][i] if i < len(r["names"]) else "random direction"
+            axis = _line_name(r, int(np.argmax(r["jump_full"])))
             md.append(f"| {r['case']} | {r['cond']:.0f} | {r['jump_full'].max():.2e} | "
                       f"{np.median(r['jump_full']):.2e} | {r['jump_half'].max():.2e} | "
                       f"{np.median(r['jump_half']):.2e} | {axis} | "
-                      f"{r['zoom'][0]:.2e} / {r['zoom'][1]:.2e} |")
+                      f"{r['zoom'][0]:.2e} / {r['zoom'][1]:.2e} | {_v4_cell(r)} |")
     md += ["", "Per tier, the ratio (25 us / 50 us) of each line's jump: median and range "
            "(a ratio near 1: the jump stays, near 0.5 or below: it shrinks with the step).", "",
            "| tier | lines | median ratio | 10-90 % | axes whose jump halves or better |",
@@ -255,6 +422,20 @@ def markdown(data: dict, args, cost: str, images: list[str]) -> str:
         md.append(f"| {d} | {ratio.size} | {np.median(ratio):.2f} | "
                   f"{np.quantile(ratio, 0.1):.2f}-{np.quantile(ratio, 0.9):.2f} | "
                   f"{', '.join(shrink) or 'none'} |")
+    md += ["", "Discontinuities on every line: each line's largest step zoomed 40x and "
+           f"bisected to 1e-13; those of {DISCONTINUITY:g} f* or more, counted by the first "
+           "discrete state that flips across them (sector index: a commutation; PI "
+           "integrating: the speed loop's anti-windup; none: no tracked state flips at a "
+           "controller sample), with the largest, on model version 3 (50 us) and on "
+           "version 4 (50 us, 25 us).", "",
+           "| case | lines | version 3 | version 4 | version 4, 25 us |", "|---|---|---|---|---|"]
+    for rows in data.values():
+        for r in rows:
+            cells = ["; ".join(f"{state} {len(v)} (<= {max(v):.1e})"
+                               for state, v in sorted(r["census"][ver].items())) or "none"
+                     for ver in ("full", "v4", "v4half")]
+            md.append(f"| {r['case']} | {r['jump_full'].size} | " + " | ".join(cells) + " |")
+    md += kinds_markdown(kind_rows)
     md += ["", "## Distinct local minima (multi-start local refits)", "",
            f"{args.starts} uniform random starts per instance, trust-region least-squares "
            f"refits of at most {args.max_evals} evaluations, end points within 2 % of the "
@@ -295,10 +476,11 @@ def main() -> None:
     a = ap.parse_args()
     t0, c0 = time.perf_counter(), time.process_time()
     data = atlas(a.per_tier, a.directions, a.half_width, a.points, a.starts, a.max_evals)
+    kind_rows = kinds(a.directions, a.half_width, a.points)
     out = Path(a.out)
     images = plots(data, out.parent / "landscape-atlas")
     cost = f"{time.process_time() - c0:.0f} CPU-s, {time.perf_counter() - t0:.0f} s wall"
-    out.write_text(markdown(data, a, cost, images))
+    out.write_text(markdown(data, kind_rows, a, cost, images))
     print(f"{out} ({cost})")
 
 

@@ -45,7 +45,8 @@ def calibrate_kt_factor(case: str = "nominal", params: EMAParams = DEFAULT_PARAM
 
 
 def clean_bias(x_true: np.ndarray, evals: int = 6000, seed: int = 1,
-               sigmas: tuple[float, ...] = (0.02, 0.002)) -> dict[str, object]:
+               sigmas: tuple[float, ...] = (0.02, 0.002),
+               params: EMAParams = DEFAULT_PARAMS) -> dict[str, object]:
     """The monitor's best fit to noise-free reference traces, polished from the truth.
 
     No solver can get closer to the truth than this point on clean data: its distance from
@@ -54,7 +55,9 @@ def clean_bias(x_true: np.ndarray, evals: int = 6000, seed: int = 1,
     counts (the truth itself where nothing beats it).  Two steps, because some instances sit
     in valleys far narrower than 2 % of a range (high friction with a high loop gain: the
     stick-slip pattern of the hold phase changes within 1e-4 of the Gprop range), where a
-    wide CMA-ES never samples a point as good as its start.
+    wide CMA-ES never samples a point as good as its start.  ``params``: the monitor's
+    (another model version's, :func:`ema_bench.params.model_params`); the reference data
+    always come from ``DEFAULT_PARAMS``.
 
     Returns
     -------
@@ -64,7 +67,7 @@ def clean_bias(x_true: np.ndarray, evals: int = 6000, seed: int = 1,
     """
     import cma
 
-    objective = Objective(simulate_reference(x_true, noise=False, adc=False))
+    objective = Objective(simulate_reference(x_true, noise=False, adc=False), params=params)
     space = objective.space
 
     def fitness(U: np.ndarray) -> np.ndarray:

@@ -29,6 +29,7 @@ from .faults import (  # noqa: F401  (N_FAULTS re-exported with the search space
     check_faults,
 )
 from .monitor import simulate_monitor
+from .params import DEFAULT_PARAMS, EMAParams
 from .physics.sensors import SENSORS
 from .protocol import HOLDOUT_TESTS, STANDARD_TESTS, TestSpec
 from .traces import OUTPUT_DT, SIGNALS, Traces
@@ -220,6 +221,9 @@ class Objective:
     sample_weights : mapping, optional
         Per test, an (n_samples, 4) multiplier of each sample's weight (e.g. 0 where a
         sample carries no information the model can match); default 1 everywhere.
+    params : EMAParams, optional
+        The monitor's parameters (default ``DEFAULT_PARAMS``, model version 3;
+        :func:`ema_bench.params.model_params` gives another version's).
 
     Notes
     -----
@@ -230,8 +234,10 @@ class Objective:
     def __init__(self, measured: Traces, space: SearchSpace | None = None, *,
                  normalise: bool = True, effects: np.ndarray | None = None,
                  sample_weights: Mapping[str, np.ndarray] | None = None,
-                 signals: Sequence[str] | None = None) -> None:
+                 signals: Sequence[str] | None = None,
+                 params: EMAParams = DEFAULT_PARAMS) -> None:
         self.tests = check_measured(measured)
+        self.params = params
         self.measured = measured
         self.space = space or SearchSpace.of()
         self.normalise = bool(normalise)
@@ -281,7 +287,7 @@ class Objective:
         """Monitor outputs of a validated batch (test -> (n, n_samples, 4)) and the
         success flags of the simulations."""
         return simulate_monitor(X[:, :N_FAULTS], self.space.effects_for(X, self.effects),
-                                tests=self.tests, check=False)
+                                tests=self.tests, params=self.params, check=False)
 
     def evaluate(self, X: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray], np.ndarray]:
         """Fitness (n,), outputs and the failed mask of a validated batch: one monitor call.

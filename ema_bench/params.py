@@ -64,6 +64,10 @@ class EMAParams:
                           "healthy actuator it fits to 1.0000 (python -m "
                           "ema_bench.monitor_bias): the "
                           "commutation transfer is modelled, nothing is left to calibrate")
+    locate_commutation: float = _p(0.0, "-", "1: a sector crossing that the drive's "
+                                   "straight-path prediction missed starts its commutation "
+                                   "transfer where it was (model version 4, suite emafdi-v3); "
+                                   "0: it is dropped (version 3, suites v1 and v2)")
 
     def to_array(self) -> np.ndarray:
         """Flat ``float64`` array in ``P_*`` order, as the compiled kernels take it."""
@@ -95,5 +99,24 @@ P_THSTOP, P_KSTOP, P_CSTOP, P_FDYN, P_WSTICK = (PARAM_INDEX[n] for n in (
 P_KGP, P_WMAX, P_KPV, P_KIV, P_TMAX, P_DTC = (PARAM_INDEX[n] for n in (
     "K_GP", "w_max", "Kpv", "Kiv", "T_max", "dt_ctrl"))
 P_KTF = PARAM_INDEX["kt_factor"]
+P_LOCATE = PARAM_INDEX["locate_commutation"]
 
 DEFAULT_PARAMS = EMAParams()
+
+#: The monitor's parameters per model version: version 3 (suites emafdi-v1 and v2, the
+#: campaigns) drops a commutation transfer whose sector crossing the drive's straight-path
+#: prediction missed; version 4 starts it where the crossing was (docs/landscape-atlas.md,
+#: "Kinds of jump"), bit-identical to version 3 wherever no such crossing happens.
+MODEL_PARAMS: dict[str, EMAParams] = {
+    "3": DEFAULT_PARAMS,
+    "4": DEFAULT_PARAMS.replace(locate_commutation=1.0),
+}
+
+
+def model_params(version: str) -> EMAParams:
+    """The parameters of model ``version`` (:data:`MODEL_PARAMS`); ``KeyError`` names the
+    versions there are."""
+    try:
+        return MODEL_PARAMS[str(version)]
+    except KeyError:
+        raise KeyError(f"no model version {version!r}: {sorted(MODEL_PARAMS)}") from None

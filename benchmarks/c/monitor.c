@@ -23,7 +23,7 @@
 enum {
     IDX_VDC, IDX_R, IDX_L, IDX_KE, IDX_PP, IDX_HYST, IDX_JM, IDX_JU, IDX_TAU, IDX_KS, IDX_CS,
     IDX_CM, IDX_CU, IDX_KAERO, IDX_THSTOP, IDX_KSTOP, IDX_CSTOP, IDX_FDYN, IDX_WSTICK, IDX_KGP,
-    IDX_WMAX, IDX_KPV, IDX_KIV, IDX_TMAX, IDX_DTC, IDX_KTF,
+    IDX_WMAX, IDX_KPV, IDX_KIV, IDX_TMAX, IDX_DTC, IDX_KTF, IDX_LOCATE,
     IDX_E_ECC, IDX_E_OFFSET, IDX_E_VISC, IDX_E_AERO, IDX_E_DELAY, IDX_E_IGAIN, IDX_E_RRISE,
     IDX_E_COG, IDX_E_VSAG, IDX_E_GEAR, IDX_E_QDAMP, IDX_E_HFRIC, IDX_N
 };
@@ -112,6 +112,7 @@ static inline double delayed_feedback(double *buf, int64_t k_ctrl, double value,
 typedef struct {
     double kt_a, kt_n, r_a, r_n, il_a, il_n, ltr_a, ltr_n, na, ke, pp, zeta, v_dc, ktf, half_band,
         h, sector_width, th_0;
+    bool locate;
 } Drive;
 
 static Drive drive_consts(const double *p, const int64_t *ix, double na, double zeta,
@@ -121,7 +122,7 @@ static Drive drive_consts(const double *p, const int64_t *ix, double na, double 
                1.0 / (el * (na * na + 1.0)), 1.0 / (2.0 * el),
                el * (na * na + 1.0) / v_dc, 2.0 * el / v_dc, na, ke, p[ix[IDX_PP]], zeta,
                v_dc, p[ix[IDX_KTF]], 0.5 * p[ix[IDX_HYST]], h, 2.0 * SIXTH / p[ix[IDX_PP]],
-               SIXTH / p[ix[IDX_PP]]};
+               SIXTH / p[ix[IDX_PP]], p[ix[IDX_LOCATE]] != 0.0};
     return d;
 }
 
@@ -174,15 +175,46 @@ static inline void ramp(double cur, double i_ref, double back, double il, double
     *cur1_ = cur1; *f_ = f; *i_mean_ = i_mean; *i_eq_ = f * ramp_abs + (1.0 - f) * fabs(cur1);
 }
 
+/* the commutation transfer of a crossing out of sector sec (0..5), as _transfer */
+static inline void transfer(int64_t sec, bool up, double th_b, double i_tr, double w_m,
+                            const Drive *dc, double *kt_from, double *kt_to, double *tr_len,
+                            double *tr_cr) {
+    int64_t k3 = pymod(sec, 3), sec_to;
+    double ltr, ny;
+    if (up) {
+        ltr = k3 == 0 ? dc->ltr_n : dc->ltr_a; ny = k3 == 1 ? dc->na : 1.0;
+        sec_to = pymod(sec + 1, 6);
+    } else {
+        ltr = k3 == 1 ? dc->ltr_n : dc->ltr_a; ny = k3 == 0 ? dc->na : 1.0;
+        sec_to = pymod(sec + 5, 6);
+    }
+    *kt_from = kt_at(sec, th_b, dc);
+    *kt_to = kt_at(sec_to, th_b, dc);
+    *tr_len = dmax(i_tr * ltr, 1e-12);
+    *tr_cr = ny * dc->ke * dc->pp * fabs(w_m) / SIXTH * i_tr;
+}
+
 static void drive_step_general(DState *s, double i_ref, double th_m, double w_m, const Drive *dc,
                                DOut *o) {
     double h = dc->h, pp = dc->pp;
     int64_t m = s->m;
+    double tr_t0 = s->tr_t0, tr_len = s->tr_len, kt_from = s->kt_from, kt_to = s->kt_to,
+           tr_cr = s->tr_cr;
     double th_lo = dc->th_0 + dc->sector_width * m, th_hi = th_lo + dc->sector_width;
     if (th_m >= th_hi || th_m < th_lo) {
+        int64_t m0 = m;
         m = sector_index(th_m, pp);
         th_lo = dc->th_0 + dc->sector_width * m;
         th_hi = th_lo + dc->sector_width;
+        if (dc->locate && m != m0) {   /* model version 4: the missed crossing, located */
+            bool up = m > m0;
+            double th_b = up ? th_lo : th_hi;
+            tr_t0 = w_m != 0.0 ? (th_b - th_m) / w_m : 0.0;
+            tr_t0 = tr_t0 > -h ? tr_t0 : -h;
+            tr_t0 = tr_t0 < 0.0 ? tr_t0 : 0.0;
+            transfer(pymod(up ? m - 1 : m + 1, 6), up, th_b, fabs(s->cur), w_m, dc, &kt_from,
+                     &kt_to, &tr_len, &tr_cr);
+        }
     }
     int64_t sec = pymod(m, 6);
     bool with_a = pymod(sec, 3) != 2;
@@ -190,24 +222,16 @@ static void drive_step_general(DState *s, double i_ref, double th_m, double w_m,
     double r_pair = with_a ? dc->r_a : dc->r_n, il = with_a ? dc->il_a : dc->il_n;
     double cur = s->cur, cur1, f, i_mean, i_eq;
     ramp(cur, i_ref, kt0 * w_m + r_pair * cur, il, dc->v_dc, h, &cur1, &f, &i_mean, &i_eq);
-    double tr_t0 = s->tr_t0, tr_len = s->tr_len, kt_from = s->kt_from, kt_to = s->kt_to,
-           tr_cr = s->tr_cr;
     double th_end = th_m + h * w_m;
     if (th_end >= th_hi || th_end < th_lo) {
         bool up = th_end >= th_hi;
         double g = ((up ? th_hi : th_lo) - th_m) / (h * w_m);
         double th_b = up ? th_hi : th_lo;
-        kt_from = kt_at(sec, th_b, dc);
-        int64_t k3 = pymod(sec, 3);
-        double ltr, ny;
-        if (up) { ltr = k3 == 0 ? dc->ltr_n : dc->ltr_a; ny = k3 == 1 ? dc->na : 1.0; m += 1; }
-        else { ltr = k3 == 1 ? dc->ltr_n : dc->ltr_a; ny = k3 == 0 ? dc->na : 1.0; m -= 1; }
-        sec = pymod(m, 6);
-        kt_to = kt_at(sec, th_b, dc);
         double i_tr = f > 0.0 ? fabs(cur + (cur1 - cur) * (g < f ? g : f) / f) : fabs(cur1);
+        transfer(sec, up, th_b, i_tr, w_m, dc, &kt_from, &kt_to, &tr_len, &tr_cr);
+        m += up ? 1 : -1;
+        sec = pymod(m, 6);
         tr_t0 = g * h;
-        tr_len = dmax(i_tr * ltr, 1e-12);
-        tr_cr = ny * dc->ke * pp * fabs(w_m) / SIXTH * i_tr;
     }
     double deficit = 0.0, kt_mean, kt_start, kt_end;
     if (tr_t0 < h && tr_t0 + tr_len > 0.0) {

@@ -17,6 +17,11 @@ hysteresis current control (:mod:`ema_bench.physics.bldc`), one step per control
   already ramping off its flat top, costs ``ke_y (p w / (pi / 6)) tau i_y`` of torque.  Left
   out, this speed- and current-dependent deficit (up to 0.4 % of torque at 750 rad/s, 20 A)
   was absorbed by a calibrated constant and biased the fitted ``Na`` by up to 1 % of its range.
+  A crossing is predicted on the straight path ``th_m + h w_m``; one that the mechanics'
+  trapezoidal path makes but the prediction misses (an accelerating rotor) shows at the next
+  step's start.  Model version 3 switches the pair there without a transfer, a jump in the
+  fitness decided at step resolution; version 4 (``locate_commutation``) starts the transfer
+  where the crossing was, inside the last step (docs/landscape-atlas.md, "Kinds of jump").
 * **Breakaway.**  The hysteresis ripple's peaks (half the band above the mean current) reach a
   stuck shaft's static friction level first: the mechanics are told that ripple torque.
 """
@@ -28,7 +33,7 @@ from collections import namedtuple
 
 from numba import njit
 
-from ..params import P_HYST, P_KE, P_KTF, P_L, P_PP, P_R
+from ..params import P_HYST, P_KE, P_KTF, P_L, P_LOCATE, P_PP, P_R
 from .trig import poly_sincos
 
 SIXTH = math.pi / 6.0
@@ -42,7 +47,7 @@ _COS_120, _SIN_120 = -0.5, math.sqrt(3.0) / 2.0
 
 DriveConsts = namedtuple("DriveConsts", (
     "kt_a", "kt_n", "r_a", "r_n", "il_a", "il_n", "ltr_a", "ltr_n", "na", "ke", "pp", "zeta",
-    "v_dc", "ktf", "half_band", "h", "sector_width", "th_0"))
+    "v_dc", "ktf", "half_band", "h", "sector_width", "th_0", "locate"))
 DriveConsts.__doc__ = "Per-candidate constants of :func:`drive_step` (see :func:`drive_consts`)."
 
 
@@ -60,7 +65,7 @@ def drive_consts(p, na, zeta, r_scale, v_dc, h):
                        1.0 / (el * (na * na + 1.0)), 1.0 / (2.0 * el),
                        el * (na * na + 1.0) / v_dc, 2.0 * el / v_dc, na, ke, p[P_PP], zeta,
                        v_dc, p[P_KTF], 0.5 * p[P_HYST], h, 2.0 * SIXTH / p[P_PP],
-                       SIXTH / p[P_PP])
+                       SIXTH / p[P_PP], p[P_LOCATE] != 0.0)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -243,6 +248,25 @@ def drive_fast(cur, tr_t0, tr_len, th_lo, kt, kt_mid, r_pair, il, i_ref, th_m, w
     return fast, cur1, km * i_mean, kf * cur, km * cur1, abs(km) * dc.half_band, i_eq
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def _transfer(sec, up, th_b, i_tr, w_m, dc):
+    """The commutation transfer of a crossing out of sector ``sec`` (0..5) upwards (``up``)
+    or downwards at the boundary ``th_b`` (rad), current ``i_tr`` (A), speed ``w_m``
+    (rad/s): the torque constants before and after (N m/A), its duration (s) and its
+    back-EMF-ramp coefficient (N m/s)."""
+    k3 = sec % 3
+    if up:   # exchanges (b, c), (a, b), (c, a)
+        ltr = dc.ltr_n if k3 == 0 else dc.ltr_a
+        ny = dc.na if k3 == 1 else 1.0
+        sec_to = (sec + 1) % 6
+    else:    # exchanges (a, c), (c, b), (b, a)
+        ltr = dc.ltr_n if k3 == 1 else dc.ltr_a
+        ny = dc.na if k3 == 0 else 1.0
+        sec_to = (sec + 5) % 6
+    return (kt_at(sec, th_b, dc), kt_at(sec_to, th_b, dc), max(i_tr * ltr, 1e-12),
+            ny * dc.ke * dc.pp * abs(w_m) / SIXTH * i_tr)
+
+
 @njit(cache=True, error_model="numpy")
 def drive_step_general(cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr, i_ref, th_m, w_m, dc):
     """:func:`drive_step` for every case: sector crossings, commutation transfers,
@@ -252,9 +276,23 @@ def drive_step_general(cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr, i_ref, th_m
     th_lo = dc.th_0 + dc.sector_width * m
     th_hi = th_lo + dc.sector_width
     if th_m >= th_hi or th_m < th_lo:   # a crossing the speed did not predict
+        m0 = m
         m = sector_index(th_m, pp)
         th_lo = dc.th_0 + dc.sector_width * m
         th_hi = th_lo + dc.sector_width
+        if dc.locate and m != m0:
+            # Model version 4: the mechanics' trapezoidal path crossed a boundary that the
+            # straight prediction ``th_m + h w_m`` of the last step missed (an accelerating
+            # rotor); the commutation transfer starts where the crossing was, inside the
+            # last step, instead of being dropped (a jump in the fitness, docs/
+            # landscape-atlas.md).
+            up = m > m0
+            th_b = th_lo if up else th_hi
+            tr_t0 = (th_b - th_m) / w_m if w_m != 0.0 else 0.0
+            tr_t0 = tr_t0 if tr_t0 > -h else -h
+            tr_t0 = tr_t0 if tr_t0 < 0.0 else 0.0
+            kt_from, kt_to, tr_len, tr_cr = _transfer((m - 1 if up else m + 1) % 6, up,
+                                                      th_b, abs(cur), w_m, dc)
     sec = m % 6
     with_a = sec % 3 != 2
     kt0 = kt_at(sec, th_m, dc)
@@ -268,23 +306,12 @@ def drive_step_general(cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr, i_ref, th_m
         up = th_end >= th_hi
         g = ((th_hi if up else th_lo) - th_m) / (h * w_m)
         th_b = th_hi if up else th_lo
-        kt_from = kt_at(sec, th_b, dc)
-        k3 = sec % 3
-        if up:   # exchanges (b, c), (a, b), (c, a)
-            ltr = dc.ltr_n if k3 == 0 else dc.ltr_a
-            ny = dc.na if k3 == 1 else 1.0
-            m += 1
-        else:    # exchanges (a, c), (c, b), (b, a)
-            ltr = dc.ltr_n if k3 == 1 else dc.ltr_a
-            ny = dc.na if k3 == 0 else 1.0
-            m -= 1
-        sec = m % 6
-        kt_to = kt_at(sec, th_b, dc)
         # the current at the crossing: on its ramp if it had not reached its end yet
         i_tr = abs(cur + (cur1 - cur) * (g if g < f else f) / f) if f > 0.0 else abs(cur1)
+        kt_from, kt_to, tr_len, tr_cr = _transfer(sec, up, th_b, i_tr, w_m, dc)
+        m += 1 if up else -1
+        sec = m % 6
         tr_t0 = g * h
-        tr_len = max(i_tr * ltr, 1e-12)
-        tr_cr = ny * dc.ke * pp * abs(w_m) / SIXTH * i_tr
     deficit = 0.0
     if tr_t0 < h and tr_t0 + tr_len > 0.0:
         a = tr_t0 if tr_t0 > 0.0 else 0.0
