@@ -46,18 +46,26 @@ def test_the_seed_is_in_the_moved_truth_alone(sealed):
     assert log.manifest["campaign_seed"] is None and len(log.steps) == 2
 
 
-def test_the_table_names_the_sealed_campaign_by_its_truth_digest(sealed, capsys):
+def test_the_table_names_the_sealed_campaign_by_its_truth_digest(sealed, capsys, tmp_path):
     digest = hashlib.sha256((sealed / "truth.json").read_bytes()).hexdigest()
     md = (sealed / "scores.md").read_text()
     assert md.splitlines()[0].startswith("Campaign: **sealed**")
     assert f"`{digest}`" in md and "| rul-age | twin | 2 |" in md and "**oracle**" in md
     doc = json.loads((sealed / "scores.json").read_text())
     assert doc["truth_sha256"] == digest and doc["results"][0]["tracker"] == "rul-age"
-    # rerun: resumed, not drawn again (the same truth), the same table
+    # rerun: resumed, not drawn again (the same truth); with thresholds the policy table
+    thresholds = tmp_path / "t.json"
+    thresholds.write_text(json.dumps({"format": "ema-bench-policy-thresholds", "version": 1,
+                                      "trackers": {"rul-age": {"signal": "rul",
+                                                               "threshold": 0.0}}}))
     assert main(["campaign", "sealed", "--units", "2", "--trackers", "rul-age", "--out",
-                 str(sealed), "--quiet"]) == 0
+                 str(sealed), "--quiet", "--policy", str(thresholds)]) == 0
     assert hashlib.sha256((sealed / "truth.json").read_bytes()).hexdigest() == digest
-    assert digest in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert digest in out and "| **oracle policy** | twin | 2 |" in out
+    # RUL = age is 0 at installation: replaced at flight 0, an infinite cost per flight
+    policy = json.loads((sealed / "scores.json").read_text())["policy"]
+    assert policy[0]["cost_per_100_flights"]["value"] is None   # inf, written as null
 
 
 def test_a_published_campaign_is_refused_as_sealed(tmp_path, capsys):

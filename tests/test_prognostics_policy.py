@@ -122,8 +122,14 @@ def test_a_bad_thresholds_file_is_one_line(tmp_path):
 
 
 def test_the_committed_thresholds_were_tuned_on_the_training_split():
+    from ema_bench.prognostics.campaign import manifest_digest
+
     doc = read_thresholds(ROOT / "policy_thresholds.json")
     split = json.loads((ROOT / "training_split.json").read_text())
+    # the split is the committed published campaign, every unit of it
+    manifest = json.loads((ROOT.parent.parent / split["campaign"] / "manifest.json").read_text())
+    assert split["manifest_digest"] == manifest_digest(manifest)
+    assert split["units"] == [u["unit"] for u in manifest["units"]]
     assert doc["tuned_on"]["manifest_digest"] == split["manifest_digest"]
     assert doc["tuned_on"]["seed"] == split["seed"] is not None
     assert set(doc["trackers"]) >= {"fleet-bayes-cut", "kalman"}

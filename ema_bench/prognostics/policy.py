@@ -39,7 +39,7 @@ import numpy as np
 
 from .oracle import HORIZON
 
-#: Maintain-v0's costs, flights' revenue (its keyword arguments' defaults).
+#: Maintain-v0's costs, flights' revenue (the defaults of its keyword arguments).
 INSPECT_COST, REPLACE_COST, FAILURE_COST = 0.5, 40.0, 400.0
 #: The tracker signals a policy may read at each inspection.
 SIGNALS = ("rul_low", "rul")

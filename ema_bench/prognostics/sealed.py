@@ -98,7 +98,9 @@ def run_sealed(out: Path | str, units: int, name: str = "fleet-v1", track: str =
     -------
     dict
         ``label`` (the campaign line), ``truth_sha256``, ``runs`` (tracker -> run folder),
-        ``results`` (scored runs without per-unit rows), ``lines`` (the Markdown table).
+        ``results`` (scored runs without per-unit rows), ``policy`` (with ``policy``:
+        :func:`~ema_bench.prognostics.policy.score_policies`, else empty), ``lines`` (the
+        Markdown table).
     """
     from ..cli.campaign import score_table
     from ..jsonio import plain
@@ -119,13 +121,18 @@ def run_sealed(out: Path | str, units: int, name: str = "fleet-v1", track: str =
         r["groups"] = by_group(r)
     label = campaign_label(camp, truth)
     lines = [label, ""] + score_table(results) + group_tables(results)
+    policies = []
     if policy is not None:
         from .policy import policy_table, score_policies
-        lines += [""] + policy_table(score_policies(list(runs.values()), policy, truth))
+        policies = score_policies(list(runs.values()), policy, truth)
+        lines += ["", "**Replacement policies** (thresholds tuned on the training split; "
+                  "`ema-bench campaign policy`)", ""] + policy_table(policies)
     (out / "scores.md").write_text("\n".join(lines) + "\n")
     kept = [{k: v for k, v in r.items() if k not in ("per_unit", "oracle_per_unit")}
             for r in results]
-    doc = {"campaign": label, "truth_sha256": truth_digest(truth), "results": kept}
+    doc = {"campaign": label, "truth_sha256": truth_digest(truth), "results": kept,
+           "policy": policies}
     (out / "scores.json").write_text(json.dumps(plain(doc), indent=1) + "\n")
     return {"label": label, "truth_sha256": doc["truth_sha256"],
-            "runs": {t: str(p) for t, p in runs.items()}, "results": kept, "lines": lines}
+            "runs": {t: str(p) for t, p in runs.items()}, "results": kept, "policy": policies,
+            "lines": lines}
