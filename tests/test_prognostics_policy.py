@@ -134,3 +134,22 @@ def test_the_committed_thresholds_were_tuned_on_the_training_split():
     assert doc["tuned_on"]["seed"] == split["seed"] is not None
     assert set(doc["trackers"]) >= {"fleet-bayes-cut", "kalman"}
     assert all(math.isfinite(t["threshold"]) for t in doc["trackers"].values())
+
+
+# slow: the units' futures of both campaigns (about 30 CPU-s)
+@pytest.mark.slow
+def test_the_committed_policy_table_rescores_and_meets_its_target():
+    from ema_bench.jsonio import plain
+    from ema_bench.prognostics.policy import score_policies
+
+    committed = {(r["track"], r["tracker"]): r
+                 for r in json.loads((ROOT / "policy.json").read_text())}
+    runs = [ROOT / "twin" / "fleet-bayes", ROOT / "reference" / "fleet-bayes-cut"]
+    for got in plain(score_policies(runs, ROOT / "policy_thresholds.json")):
+        want = committed[(got["track"], got["tracker"])]
+        assert got["ratio"]["value"] == pytest.approx(want["ratio"]["value"], rel=1e-9)
+        for part in ("value", "ci"):
+            assert got["cost_per_100_flights"][part] == pytest.approx(
+                want["cost_per_100_flights"][part], rel=1e-9)
+    best = min(r["ratio"]["value"] for r in committed.values() if r["ratio"]["value"])
+    assert 1.0 <= best <= 1.2

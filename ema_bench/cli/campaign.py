@@ -334,8 +334,19 @@ def _run_score(args: argparse.Namespace) -> int:
     lines = score_table(results)
     if args.markdown:
         lines += group_tables(results)
-        Path(args.markdown).write_text("\n".join(lines) + "\n")
+        head = list(dict.fromkeys(_campaign_label(run, args.truth) for run in args.runs))
+        Path(args.markdown).write_text("\n".join(head + [""] + lines) + "\n")
     return print_result(args, results[0] if len(results) == 1 else results, lines)
+
+
+def _campaign_label(run: str, truth: str | None) -> str:
+    """Which campaign a run is on: published (its seed) or sealed (its truth's digest)."""
+    from ..prognostics.campaign import load_campaign, truth_path
+    from ..prognostics.sealed import campaign_label
+    from ..prognostics.track_io import campaign_path, read_track
+
+    camp = load_campaign(campaign_path(run, read_track(run).manifest), traces=False)
+    return campaign_label(camp, truth_path(camp.root if truth is None else truth))
 
 
 def _replayed(args: argparse.Namespace) -> bool:
