@@ -618,7 +618,7 @@ def test_score_cli_writes_plots_and_a_markdown_table(real, tmp_path, capsys):
     lines = table.read_text().splitlines()
     # the file names its campaign first: this one's seed is published
     assert lines[0] == ("Campaign: **published**, fleet-v1 (definition 2), twin track, 4 test "
-                        "units, seed 2 (trackers may tune on it).") and lines[1] == ""
+                        "units, seed 2 (public: it ranks honest trackers only).") and lines[1] == ""
     lines = lines[2:]
     assert lines[0].startswith("| tracker | track |") and lines[2].startswith(
         "| constant-scoring-test | twin |")

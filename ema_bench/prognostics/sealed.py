@@ -43,7 +43,8 @@ def campaign_label(camp, truth_file: Path | str | None = None) -> str:
     what = f"{camp.name} (definition {camp.definition_version}), {camp.track} track, " \
            f"{len(camp.units)} {camp.split} units"
     if camp.seed is not None:
-        return f"Campaign: **published**, {what}, seed {camp.seed} (trackers may tune on it)."
+        return (f"Campaign: **published**, {what}, seed {camp.seed} (public: it ranks honest "
+                "trackers only).")
     digest = truth_digest(truth_file) if truth_file is not None else "unknown"
     return (f"Campaign: **sealed**, {what}, secret seed (not published); truth file SHA-256 "
             f"`{digest}`.")
@@ -80,8 +81,9 @@ def run_sealed(out: Path | str, units: int, name: str = "fleet-v1", track: str =
     out : path
         The folder (module docstring); created.
     units : int
-        Units of the sealed campaign (about 0.8 CPU-s of tracking per inspection for the seven
-        board trackers with a shared fit cache, 25 inspections per unit on fleet-v1).
+        Units of the sealed campaign (about 36 CPU-s per unit for the seven board trackers
+        with a shared fit cache, scoring included: 1.4 CPU-s per inspection, 25 inspections
+        per unit on fleet-v1).
     name, track : str
         Campaign definition and track.
     trackers : tuple of str
@@ -123,10 +125,15 @@ def run_sealed(out: Path | str, units: int, name: str = "fleet-v1", track: str =
     lines = [label, ""] + score_table(results) + group_tables(results)
     policies = []
     if policy is not None:
-        from .policy import policy_table, score_policies
-        policies = score_policies(list(runs.values()), policy, truth)
+        from .policy import policy_table, read_thresholds, score_policies
+        doc = read_thresholds(policy)
+        tuned = [p for t, p in runs.items() if t in doc["trackers"]]
+        policies = score_policies(tuned, doc, truth)
+        untuned = [t for t in runs if t not in doc["trackers"]]
         lines += ["", "**Replacement policies** (thresholds tuned on the training split; "
-                  "`ema-bench campaign policy`)", ""] + policy_table(policies)
+                  "`ema-bench campaign policy`)"
+                  + (f"; no threshold tuned for {', '.join(untuned)}" if untuned else ""),
+                  ""] + policy_table(policies)
     (out / "scores.md").write_text("\n".join(lines) + "\n")
     kept = [{k: v for k, v in r.items() if k not in ("per_unit", "oracle_per_unit")}
             for r in results]
