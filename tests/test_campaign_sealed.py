@@ -86,3 +86,10 @@ def test_the_committed_sealed_table_gives_its_digest_and_no_seed():
     assert doc["truth_sha256"].encode() in md
     for blob in (md, (ROOT / "sealed" / "scores.json").read_bytes()):
         assert b"secret_seed" not in blob and not LONG_INT.search(blob)
+
+
+def test_no_threshold_is_tuned_on_a_sealed_campaign(sealed, tmp_path, capsys):
+    assert main(["campaign", "policy", str(sealed / "runs" / "rul-age"), "--truth",
+                 str(sealed / "truth.json"), "--tune", str(tmp_path / "t.json")]) == 2
+    assert "tracks a sealed campaign" in capsys.readouterr().err
+    assert not (tmp_path / "t.json").exists()
