@@ -104,10 +104,9 @@ def run_sealed(out: Path | str, units: int, name: str = "fleet-v1", track: str =
         :func:`~ema_bench.prognostics.policy.score_policies`, else empty), ``lines`` (the
         Markdown table).
     """
-    from ..cli.campaign import score_table
     from ..jsonio import plain
     from .scoring import score_tracking
-    from .tables import by_group, group_tables
+    from .tables import by_group, group_tables, score_table
     from .track_run import track_campaign, tracker_spec
 
     out = Path(out)
