@@ -354,8 +354,8 @@ def test_a_claimed_fitness_at_the_truth_is_re_evaluated(fresh):
 def test_the_campaign_score_table_escapes_a_tracker_name():
     """A tracker's name reaches the campaign board's Markdown through ``score_table``: a pipe
     or a tag in it must not add a column or markup (same helper as the leaderboard's)."""
-    from ema_bench.cli.campaign import score_table
     from ema_bench.prognostics.scoring import HEADLINE
+    from ema_bench.prognostics.tables import score_table
 
     h = {k: {"value": 0.5, "ci": [0.4, 0.6]} for k in HEADLINE}
     row = {"tracker": "evil|<img src=x onerror=alert(1)>", "track": "twin", "units": 3,

@@ -616,6 +616,10 @@ def test_score_cli_writes_plots_and_a_markdown_table(real, tmp_path, capsys):
                  str(root / "secret" / "truth.json"), "--plots", str(tmp_path / "plots"),
                  "--markdown", str(table)]) == 0
     lines = table.read_text().splitlines()
+    # the file names its campaign first: this one's seed is published
+    assert lines[0] == ("Campaign: **published**, fleet-v1 (definition 2), twin track, 4 test "
+                        "units, seed 2 (public: it ranks honest trackers only).") and lines[1] == ""
+    lines = lines[2:]
     assert lines[0].startswith("| tracker | track |") and lines[2].startswith(
         "| constant-scoring-test | twin |")
     assert lines[3].startswith("| **oracle** | twin |")

@@ -11,6 +11,7 @@ Examples::
     ema-bench campaign make fleet-v1 --units 20 --track twin --seed 0 --out fleet
     ema-bench campaign track fleet --tracker particle --out fleet-particle
     ema-bench campaign score fleet-particle --json
+    ema-bench campaign sealed --units 10 --out sealed --workers 2
 """
 
 from __future__ import annotations
@@ -38,6 +39,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     _register_make(actions)
     _register_track(actions)
     _register_score(actions)
+    _register_sealed(actions)
+    _register_policy(actions)
 
 
 # --- make (campaign drawing and files) -------------------------------------------------------
@@ -225,84 +228,6 @@ def _register_score(actions: argparse._SubParsersAction) -> None:
     p.set_defaults(func=_run_score)
 
 
-def _fmt(v: float, fmt: str) -> str:
-    import math
-
-    if v != v:
-        return "-"
-    if math.isinf(v):
-        return "inf"
-    return fmt.format(v)
-
-
-def _cell(h: dict, fmt: str) -> str:
-    if h["value"] != h["value"]:   # not scored (no oracle, no quantiles given)
-        return "-"
-    lo, hi = h["ci"]
-    return f"{_fmt(h['value'], fmt)} [{_fmt(lo, fmt)}, {_fmt(hi, fmt)}]"
-
-
-def _ratio_cell(h: dict) -> str:
-    return _cell({"value": h["ratio"], "ci": h["ratio_ci"]}, "{:.2f}") if "ratio" in h else "-"
-
-
-#: Headline columns of the table: figure, header, format (the expected hit rate first: the
-#: board's headline, free of the luck of the units' futures).
-_HEAD = (("expected", "E within +-20 %", "{:.1%}"), ("within", "within +-20 %", "{:.0%}"),
-         ("mae", "MAE", "{:.1f}"), ("rmse", "RMSE", "{:.1f}"),
-         ("phm08", "PHM08/unit", "{:.3g}"), ("phm08_median", "PHM08 median", "{:.3g}"),
-         ("coverage", "95 % cover", "{:.0%}"), ("width", "width", "{:.0f}"),
-         ("is95", "IS 95 %", "{:.0f}"), ("crps", "CRPS", "{:.1f}"),
-         ("cov50", "50 / 80 % cover", "{:.0%}"))
-#: Ratio columns (to the oracle).
-_RATIOS = (("expected", "E within / oracle"), ("within", "within / oracle"),
-           ("mae", "MAE / oracle"), ("is95", "IS 95 % / oracle"), ("crps", "CRPS / oracle"))
-
-
-def _head_cell(h: dict, k: str, fmt: str) -> str:
-    """A headline cell; the 50 / 80 % coverages share one (without intervals)."""
-    if k == "cov50":
-        return f"{_fmt(h['cov50']['value'], fmt)} / {_fmt(h['cov80']['value'], fmt)}"
-    return _cell(h[k], fmt)
-
-
-def score_table(results: list[dict]) -> list[str]:
-    """The Markdown table of scored runs: one row per run, then one per campaign for its
-    oracle (when scored).  Tracker names come from plugins: escaped (``escape.markdown``)."""
-    from ..escape import markdown
-
-    head = (["tracker", "track", "units", "failing"] + [h for _, h, _ in _HEAD]
-            + [h for _, h in _RATIOS]
-            + ["false / early repl.", "fail in service", "cost/unit", "PH / strict"])
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    oracles: dict[tuple, dict] = {}
-    for r in results:
-        h, d, g = r["headline"], r["decisions"], r["diagnostics"]
-        scored = ("" if not r.get("tracked_only") else
-                  f" (partial: {r['scored_units']} tracked)")
-        cells = [markdown(r["tracker"]) + scored, markdown(r["track"]), str(r["units"]),
-                 str(r["failing_units"])]
-        cells += [_head_cell(h, k, fmt) for k, _, fmt in _HEAD]
-        cells += [_ratio_cell(h[k]) for k, _ in _RATIOS]
-        cells += [f"{d['false_replacements']} / {d['early_replacements']}",
-                  str(d["failures_in_service"]), _fmt(d["maintenance_cost"], "{:.2f}"),
-                  f"{_fmt(g['prognostic_horizon'], '{:.0f}')} / "
-                  f"{_fmt(g['prognostic_horizon_strict'], '{:.0f}')}"]
-        lines.append("| " + " | ".join(cells) + " |")
-        if "oracle" in h["within"]:
-            oracles.setdefault((r["campaign"], r["track"], r["scored_units"]), r)
-    for (_, track, _), r in oracles.items():
-        h = r["headline"]
-        scored = ("" if not r.get("tracked_only") else
-                  f" (on the {r['scored_units']} units of {markdown(r['tracker'])})")
-        cells = ["**oracle**" + scored, track, str(r["units"]), str(r["failing_units"])]
-        cells += [_head_cell({k: {"value": h[k]["oracle"], "ci": h[k]["oracle_ci"]}
-                              for k in h}, k, fmt) for k, _, fmt in _HEAD]
-        cells += ["1"] * len(_RATIOS) + ["-"] * 4
-        lines.append("| " + " | ".join(cells) + " |")
-    return lines
-
-
 def _run_score(args: argparse.Namespace) -> int:
     import sys
     from pathlib import Path
@@ -324,15 +249,26 @@ def _run_score(args: argparse.Namespace) -> int:
                   file=sys.stderr)
     if args.plots:
         _plots(args.runs, results, Path(args.plots), args.alpha, args.truth)
-    from ..prognostics.tables import by_group, group_tables
+    from ..prognostics.tables import by_group, group_tables, score_table
 
     for r in results:
         r["groups"] = by_group(r)
     lines = score_table(results)
     if args.markdown:
         lines += group_tables(results)
-        Path(args.markdown).write_text("\n".join(lines) + "\n")
+        head = list(dict.fromkeys(_campaign_label(run, args.truth) for run in args.runs))
+        Path(args.markdown).write_text("\n".join(head + [""] + lines) + "\n")
     return print_result(args, results[0] if len(results) == 1 else results, lines)
+
+
+def _campaign_label(run: str, truth: str | None) -> str:
+    """Which campaign a run is on: published (its seed) or sealed (its truth's digest)."""
+    from ..prognostics.campaign import load_campaign, truth_path
+    from ..prognostics.sealed import campaign_label
+    from ..prognostics.track_io import campaign_path, read_track
+
+    camp = load_campaign(campaign_path(run, read_track(run).manifest), traces=False)
+    return campaign_label(camp, truth_path(camp.root if truth is None else truth))
 
 
 def _replayed(args: argparse.Namespace) -> bool:
@@ -404,3 +340,102 @@ def _plots(runs: list[str], results: list[dict], folder, alpha: float, truth_fil
                          title=f"reliability of the RUL intervals at the cut ({track} track)")
         plot_alpha_lambda(curves[track], folder / f"alpha_lambda_{track}.png", alpha,
                           title=f"alpha-lambda over lambda, a diagnostic ({track} track)")
+
+
+# --- sealed (the maintainer's board on a secret campaign) -------------------------------------
+
+def _register_sealed(actions: argparse._SubParsersAction) -> None:
+    from ..prognostics.sealed import BOARD_TRACKERS
+
+    p = actions.add_parser(
+        "sealed", help="the board on a sealed campaign: secret seed, every tracker, scored",
+        description="Draw a test campaign from a secret seed (63 bits of the OS's entropy) "
+                    "into DIR/campaign, move its truth to DIR/truth.json before any tracker "
+                    "runs (it holds the seed: keep it, never publish it), track it with every "
+                    "board tracker in worker processes (DIR/runs/NAME), score every run and "
+                    "write DIR/scores.md and DIR/scores.json, which name the campaign as "
+                    "sealed with the SHA-256 of its truth file and never its seed.  "
+                    "Rerunning resumes.  Trackers tune on the published campaign only "
+                    "(leaderboards/campaign/training_split.json).")
+    p.add_argument("--units", type=count(1, 10_000), required=True,
+                   help="units of the sealed campaign")
+    p.add_argument("--out", metavar="DIR", required=True, help="folder (created; resumed)")
+    p.add_argument("--name", default="fleet-v1", help="campaign name (default fleet-v1)")
+    p.add_argument("--track", choices=("twin", "reference"), default="twin",
+                   help="inspection traces' track (default twin)")
+    p.add_argument("--trackers", type=option_list, default=list(BOARD_TRACKERS),
+                   metavar="NAMES", help="comma-separated trackers (default the board's: "
+                                         f"{','.join(BOARD_TRACKERS)})")
+    p.add_argument("--workers", type=worker_count, default=1, metavar="N",
+                   help="units tracked at once in worker processes (default 1)")
+    p.add_argument("--policy", metavar="FILE", default=None,
+                   help="replacement-policy thresholds tuned on the training split ("
+                        "'campaign policy --tune'): adds the policy costs to the table")
+    add_json(p, "the summary")
+    add_quiet(p)
+    p.set_defaults(func=_run_sealed)
+
+
+def _run_sealed(args: argparse.Namespace) -> int:
+    from ..prognostics.campaign import get_spec
+    from ..prognostics.sealed import run_sealed
+
+    get_spec(args.name)
+    check_output(args.out, "--out", folder=True)
+    if args.policy is not None:
+        from ..prognostics.policy import read_thresholds
+        read_thresholds(args.policy)   # a bad file before any work
+    r = run_sealed(args.out, args.units, name=args.name, track=args.track,
+                   trackers=tuple(args.trackers), workers=args.workers, quiet=args.quiet,
+                   policy=args.policy)
+    summary = {k: r[k] for k in ("label", "truth_sha256", "runs")}
+    return print_result(args, summary, r["lines"] + [
+        "", f"written to {args.out}/scores.md and scores.json; keep {args.out}/truth.json "
+            "(it holds the secret seed) away from the trackers and out of any commit"])
+
+
+# --- policy (replacement costs against the oracle policy) ------------------------------------
+
+def _register_policy(actions: argparse._SubParsersAction) -> None:
+    p = actions.add_parser(
+        "policy", help="replacement-policy costs of tracking runs beside the oracle policy's",
+        description="Cost a replacement policy per tracking run (replace at the first "
+                    "inspection where the tracker's RUL signal is at most a threshold, or "
+                    "when its forecast at the cut runs down to it) and the oracle policy (the "
+                    "true state at the cut) on the same failing units and futures, with "
+                    "Maintain-v0's costs (inspection 0.5, replacement 40, failure 400 "
+                    "flights' revenue): cost per 100 flights, per unit, expected failures and "
+                    "the ratio to the oracle's.  --tune FILE chooses each tracker's signal and "
+                    "threshold on these runs (the published training split only) and writes "
+                    "them; --thresholds FILE applies tuned ones.  Rules: "
+                    "ema_bench/prognostics/policy.py.")
+    p.add_argument("runs", metavar="DIR2", nargs="+", help="tracking run folder(s)")
+    p.add_argument("--truth", metavar="FILE", help="the campaign's truth file (default: "
+                                                   "truth.json in the campaign folder)")
+    mode = p.add_mutually_exclusive_group(required=True)
+    mode.add_argument("--tune", metavar="FILE", help="tune on these runs and write FILE")
+    mode.add_argument("--thresholds", metavar="FILE", help="apply the thresholds of FILE")
+    p.add_argument("--markdown", metavar="FILE", help="write the table as Markdown here")
+    add_json(p, "the figures (one object per run)")
+    p.set_defaults(func=_run_policy)
+
+
+def _run_policy(args: argparse.Namespace) -> int:
+    import json
+    from pathlib import Path
+
+    from ..jsonio import plain
+    from ..prognostics.policy import policy_table, read_thresholds, score_policies, tune
+
+    if args.tune:
+        check_output(args.tune, "--tune", folder=False)
+        doc = tune(args.runs, args.truth)
+        Path(args.tune).write_text(json.dumps(plain(doc), indent=1) + "\n")
+    else:
+        doc = read_thresholds(args.thresholds)
+    scored = score_policies(args.runs, doc, args.truth)
+    lines = policy_table(scored)
+    if args.markdown:
+        check_output(args.markdown, "--markdown", folder=False)
+        Path(args.markdown).write_text("\n".join(lines) + "\n")
+    return print_result(args, scored, lines)

@@ -61,6 +61,7 @@ from ..protocol import STANDARD_TESTS
 from ..seeding import as_seed_sequence, stream
 from .campaign import get_spec, simulate_inspection
 from .laws import UnitHistory, unit_history
+from .policy import FAILURE_COST, INSPECT_COST, REPLACE_COST
 
 ENV_ID = "EMAFault/Maintain-v0"
 CONTINUE, INSPECT, REPLACE = 0, 1, 2
@@ -72,8 +73,8 @@ class MaintainEnv(gym.Env):
     metadata = {"render_modes": []}
 
     def __init__(self, track: str = "twin", horizon: int = 2000, every: int = 10,
-                 campaign: str = "fleet-v1", inspect_cost: float = 0.5,
-                 replace_cost: float = 40.0, failure_cost: float = 400.0) -> None:
+                 campaign: str = "fleet-v1", inspect_cost: float = INSPECT_COST,
+                 replace_cost: float = REPLACE_COST, failure_cost: float = FAILURE_COST) -> None:
         if track not in TRACKS:
             raise ValueError(f"unknown track {track!r}; known: {list(TRACKS)}")
         for name, v in (("horizon", horizon), ("every", every)):

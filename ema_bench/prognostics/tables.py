@@ -1,4 +1,6 @@
-"""Where trackers lose: the board's figures by failure mode and by cut position.
+"""The campaign board's Markdown: its table (:func:`score_table`, one row per run and one for
+each campaign's oracle) and where trackers lose, its figures by failure mode and by cut
+position (:func:`group_tables`).
 
 Each failing unit falls in one group of each kind: its failing fault (``Fst`` friction,
 ``BLK`` backlash, ``Na`` coil short) and its cut's share of life (``early`` below 0.65,
@@ -56,7 +58,7 @@ def by_group(res: dict, n_boot: int = 2000) -> dict[str, dict]:
 def _fmt(v: float | None, fmt: str) -> str:
     if v is None or v != v:
         return "-"
-    return "inf" if v == float("inf") else fmt.format(v)
+    return "inf" if abs(v) == float("inf") else fmt.format(v)
 
 
 def group_tables(results: list[dict]) -> list[str]:
@@ -86,4 +88,74 @@ def group_tables(results: list[dict]) -> list[str]:
                 lines.append(f"| {markdown(r['tracker'])} | " + " | ".join(cells) + " |")
             cells = [_fmt(g0[g]["headline"].get(key, {}).get("oracle"), fmt) for g in GROUPS]
             lines.append("| **oracle** | " + " | ".join(cells) + " |")
+    return lines
+
+
+# --- the board's table ------------------------------------------------------------------------
+
+def _cell(h: dict, fmt: str) -> str:
+    if h["value"] != h["value"]:   # not scored (no oracle, no quantiles given)
+        return "-"
+    lo, hi = h["ci"]
+    return f"{_fmt(h['value'], fmt)} [{_fmt(lo, fmt)}, {_fmt(hi, fmt)}]"
+
+
+def _ratio_cell(h: dict) -> str:
+    return _cell({"value": h["ratio"], "ci": h["ratio_ci"]}, "{:.2f}") if "ratio" in h else "-"
+
+
+#: Headline columns of the table: figure, header, format (the expected hit rate first: the
+#: board's headline, free of the luck of the units' futures).
+_HEAD = (("expected", "E within +-20 %", "{:.1%}"), ("within", "within +-20 %", "{:.0%}"),
+         ("mae", "MAE", "{:.1f}"), ("rmse", "RMSE", "{:.1f}"),
+         ("phm08", "PHM08/unit", "{:.3g}"), ("phm08_median", "PHM08 median", "{:.3g}"),
+         ("coverage", "95 % cover", "{:.0%}"), ("width", "width", "{:.0f}"),
+         ("is95", "IS 95 %", "{:.0f}"), ("crps", "CRPS", "{:.1f}"),
+         ("cov50", "50 / 80 % cover", "{:.0%}"))
+#: Ratio columns (to the oracle).
+_RATIOS = (("expected", "E within / oracle"), ("within", "within / oracle"),
+           ("mae", "MAE / oracle"), ("is95", "IS 95 % / oracle"), ("crps", "CRPS / oracle"))
+
+
+def _head_cell(h: dict, k: str, fmt: str) -> str:
+    """A headline cell; the 50 / 80 % coverages share one (without intervals)."""
+    if k == "cov50":
+        return f"{_fmt(h['cov50']['value'], fmt)} / {_fmt(h['cov80']['value'], fmt)}"
+    return _cell(h[k], fmt)
+
+
+def score_table(results: list[dict]) -> list[str]:
+    """The Markdown table of scored runs: one row per run, then one per campaign for its
+    oracle (when scored).  Tracker names come from plugins: escaped (``escape.markdown``)."""
+    from ..escape import markdown
+
+    head = (["tracker", "track", "units", "failing"] + [h for _, h, _ in _HEAD]
+            + [h for _, h in _RATIOS]
+            + ["false / early repl.", "fail in service", "cost/unit", "PH / strict"])
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    oracles: dict[tuple, dict] = {}
+    for r in results:
+        h, d, g = r["headline"], r["decisions"], r["diagnostics"]
+        scored = ("" if not r.get("tracked_only") else
+                  f" (partial: {r['scored_units']} tracked)")
+        cells = [markdown(r["tracker"]) + scored, markdown(r["track"]), str(r["units"]),
+                 str(r["failing_units"])]
+        cells += [_head_cell(h, k, fmt) for k, _, fmt in _HEAD]
+        cells += [_ratio_cell(h[k]) for k, _ in _RATIOS]
+        cells += [f"{d['false_replacements']} / {d['early_replacements']}",
+                  str(d["failures_in_service"]), _fmt(d["maintenance_cost"], "{:.2f}"),
+                  f"{_fmt(g['prognostic_horizon'], '{:.0f}')} / "
+                  f"{_fmt(g['prognostic_horizon_strict'], '{:.0f}')}"]
+        lines.append("| " + " | ".join(cells) + " |")
+        if "oracle" in h["within"]:
+            oracles.setdefault((r["campaign"], r["track"], r["scored_units"]), r)
+    for (_, track, _), r in oracles.items():
+        h = r["headline"]
+        scored = ("" if not r.get("tracked_only") else
+                  f" (on the {r['scored_units']} units of {markdown(r['tracker'])})")
+        cells = ["**oracle**" + scored, track, str(r["units"]), str(r["failing_units"])]
+        cells += [_head_cell({k: {"value": h[k]["oracle"], "ci": h[k]["oracle_ci"]}
+                              for k in h}, k, fmt) for k, _, fmt in _HEAD]
+        cells += ["1"] * len(_RATIOS) + ["-"] * 4
+        lines.append("| " + " | ".join(cells) + " |")
     return lines
