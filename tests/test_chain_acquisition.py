@@ -1,0 +1,132 @@
+"""Faults of the whole recording chain and heavy-tailed noise (issue 46, item 2): a fault on
+several channels is one suspect with its size, heavy-tailed noise is chosen by the data and
+not on clean records, and its robust loss keeps the outliers from pulling the physics.
+
+The records are the reference model's (standing for a perfect physical fit at the true
+faults) with the decoys of :mod:`ema_bench.diagnosis.decoys` applied, an implementation
+independent of the fits."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ema_bench.diagnosis import acquisition as acq
+from ema_bench.diagnosis import chain, decoys, tails
+from ema_bench.diagnosis.features import NOISE_STD
+from ema_bench.diagnosis.results import Settings
+from ema_bench.objective import KNOWN_TESTS
+from ema_bench.reference import simulate_reference
+from ema_bench.suites.v1 import instance_faults
+from ema_bench.traces import SIGNALS, Traces
+
+TESTS = ("step", "sine", "sine2")
+TRAIN = ("step", "sine")
+MIN_SCORE = Settings().min_score
+
+
+@pytest.fixture(scope="module")
+def records():
+    """Clean reference outputs (the perfect physical fit) and a noisy record of them."""
+    x = np.array(instance_faults("small"))
+    specs = tuple(KNOWN_TESTS[t] for t in TESTS)
+    clean = simulate_reference(x, {}, tests=specs, noise=False, adc=False)
+    noisy = simulate_reference(x, {}, tests=specs, seed=3)
+    return dict(clean.data), noisy
+
+
+def _ones(tr: Traces) -> dict[str, np.ndarray]:
+    return {t: np.ones_like(tr.data[t]) for t in tr.tests}
+
+
+def _drift_all(noisy: Traces, sd_per_s: tuple[float, ...]) -> Traces:
+    tr = noisy
+    for c, r in zip(SIGNALS, sd_per_s):
+        tr = decoys.drift(tr, c, r * float(NOISE_STD[SIGNALS.index(c)]))
+    return tr
+
+
+def test_a_drift_on_every_channel_is_one_suspect_with_its_size(records):
+    """Drifts of 8, -12, 6 and 10 noise sd/s on the four channels: the screen's best is
+    ``drift(all)`` (one suspect, not four), each member's rate within 5 % of its drift and
+    the group's size the smallest (6 sd/s), its interval excluding zero and holding it."""
+    clean, noisy = records
+    rates = (8.0, -12.0, 6.0, 10.0)
+    tr = _drift_all(noisy, rates)
+    ranked = acq.screen(clean, tr.data, _ones(tr), TRAIN)
+    best = ranked[0]
+    assert best.fault.name == "drift(all)"
+    assert acq.is_acquisition("drift(all)")
+    assert best.score == pytest.approx(sum(e.score for e in ranked[1:5]), rel=1e-9)
+    for p, r in zip(best.fault.parts(), rates):
+        sd = float(NOISE_STD[SIGNALS.index(p.channel)])
+        assert p.value / sd == pytest.approx(r, rel=0.05)
+    lo, hi = best.interval
+    assert best.fault.value == pytest.approx(6.0, rel=0.05) and 0.0 < lo <= 6.0 <= hi
+    # the carried group is the four drifts: the record less it is the noisy record
+    got = acq.carry(clean, [best.fault])
+    one = acq.carry(clean, list(best.fault.parts()))
+    for t in TESTS:
+        np.testing.assert_array_equal(got[t], one[t])
+    assert "every channel" in acq.describe(best.fault)
+
+
+def test_a_shared_time_shift_on_two_channels_is_one_suspect(records):
+    """``omega_m`` and ``i_eq`` both 2 samples late (one recorder clock): the screen names
+    ``time_shift(omega_m,i_eq)`` first with the shared shift 2; the channels not shifted
+    take no part."""
+    clean, noisy = records
+    tr = decoys.time_shift(decoys.time_shift(noisy, "omega_m", 2), "i_eq", 2)
+    best = acq.screen(clean, tr.data, _ones(tr), TRAIN)[0]
+    assert best.fault.name == "time_shift(omega_m,i_eq)"
+    assert best.fault.value == 2.0 and best.interval == [2.0, 2.0]
+    assert [p.name for p in best.fault.parts()] == ["time_shift(omega_m)", "time_shift(i_eq)"]
+
+
+def test_one_channel_faults_make_no_group(records):
+    """A drift on one channel: no group screened; the names a group may take."""
+    clean, noisy = records
+    tr = decoys.drift(noisy, "omega_m", 40.0)
+    ranked = acq.screen(clean, tr.data, _ones(tr), TRAIN)
+    assert ranked[0].fault.name == "drift(omega_m)"
+    assert not any(e.fault.channel not in SIGNALS for e in ranked)
+    assert chain.is_group("theta_u,i_eq") and chain.is_group("all")
+    for bad in ("i_eq,theta_u", "theta_u,theta_m,omega_m,i_eq", "i_eq", "x,y"):
+        assert not chain.is_group(bad)
+    for bad in ("outliers(all)", "stuck(theta_u,i_eq)", "heavy_tailed(i_eq)"):
+        with pytest.raises(ValueError, match="whole-chain"):
+            acq.parse(bad)
+
+
+def test_heavy_tailed_noise_is_chosen_and_rejected(records):
+    """3 % of every channel's samples hit by 10-40 noise sd: every channel's tail share is
+    near 3 %, the test chooses ``heavy_tailed(all)`` and its weights drop those samples;
+    the rejected share holds the injected one (counted independently from the hits)."""
+    clean, noisy = records
+    tr = decoys.heavy_tailed(noisy, share=0.03, seed=5)
+    hit = {t: np.abs(tr.data[t] - noisy.data[t]) > 5 * NOISE_STD for t in TESTS}
+    share = sum(hit[t].sum() for t in TRAIN) / sum(hit[t].size for t in TRAIN)
+    assert 0.02 < share < 0.04
+    e = tails.detect(clean, tr.data, _ones(tr), TRAIN)
+    assert e is not None and e.fault.name == "heavy_tailed(all)"
+    lo, hi = e.interval
+    assert lo <= share <= hi and e.fault.value == pytest.approx(share, rel=0.1)
+    w = acq.weights([e.fault], {t: v.shape for t, v in tr.data.items()})
+    for t in TESTS:      # the held-out test's samples too; few clean samples dropped
+        assert (w[t][hit[t]] == 0).mean() > 0.95
+        assert (w[t][~hit[t]] == 0).mean() < 0.002
+
+
+@pytest.mark.parametrize("effects", [{}, {"cogging": 0.1}, {"delay": 1.6e-3}])
+def test_gaussian_noise_does_not_choose_the_robust_loss(effects):
+    """False alarm: clean records, and records with a strong effect the model lacks (4x its
+    threshold: misfit on the current channel), at the true faults of three instances: the
+    test does not choose heavy-tailed noise."""
+    specs = tuple(KNOWN_TESTS[t] for t in TESTS)
+    for name in ("small", "nominal", "s03"):
+        x = np.array(instance_faults(name))
+        model = simulate_reference(x, {}, tests=specs, noise=False, adc=False)
+        rec = simulate_reference(x, effects, tests=specs, seed=11)
+        assert tails.detect(dict(model.data), rec.data, _ones(rec), TRAIN) is None
+        shares = tails.tail_shares(dict(model.data), rec.data, _ones(rec), TRAIN)
+        assert sum(s >= tails.TAIL_SHARE for s in shares.values()) <= 1
