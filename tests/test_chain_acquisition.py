@@ -130,3 +130,67 @@ def test_gaussian_noise_does_not_choose_the_robust_loss(effects):
         assert tails.detect(dict(model.data), rec.data, _ones(rec), TRAIN) is None
         shares = tails.tail_shares(dict(model.data), rec.data, _ones(rec), TRAIN)
         assert sum(s >= tails.TAIL_SHARE for s in shares.values()) <= 1
+
+
+# --- the blind suite's whole-chain categories ------------------------------------------------
+
+def test_chain_cases_follow_the_others_and_leave_them_as_drawn():
+    """``chain`` cases of each whole-chain category after the others (their draws
+    unchanged): every kind of :data:`~ema_bench.diagnosis.sized.CHAIN_CHANNELS` on its
+    channels, a shared shift or low-pass the same on each, a drift or hum per channel at
+    1-4x its threshold there, heavy-tailed noise on every channel; the truth named as the
+    workflow names a whole-chain suspect."""
+    from ema_bench.diagnosis import blind, sized
+    from ema_bench.diagnosis.blind import draw_cases
+
+    before = draw_cases(20, 0, extra=2, fourth=2)
+    both = draw_cases(20, 0, extra=2, fourth=2, chain=8)
+    assert both[:len(before)] == before
+    new = both[len(before):]
+    assert [c.index for c in new] == list(range(28, 44))
+    assert {c.category for c in new} == set(blind.CHAIN_CATEGORIES)
+    kinds = [c.decoy for c in new if c.category == "whole_chain_acquisition"]
+    assert set(kinds) == set(sized.CHAIN_CHANNELS) and len(kinds) == 8
+    for c in new:
+        (name, _), = c.effects.items()
+        p = c.decoy_params
+        assert blind.acquisition_truth(c) == f"{c.decoy}({p['signal']})"
+        assert acq.is_acquisition(blind.acquisition_truth(c))
+        if c.decoy == "heavy_tailed":
+            assert p["signal"] == "all" and 0.02 <= p["share"] <= 0.05
+            continue
+        assert [q["signal"] for q in p["parts"]] == list(sized.CHAIN_CHANNELS[c.decoy])
+        assert 1.0 <= p["multiple"] <= 4.0
+        spec = acq.KINDS[c.decoy]
+        for q in p["parts"]:
+            sd = float(NOISE_STD[SIGNALS.index(q["signal"])])
+            size = {"lowpass": q.get("tau"), "time_shift": q.get("samples"),
+                    "drift": abs(q.get("rate", 0.0)) / sd,
+                    "mains_hum": q.get("amplitude", 0.0) / sd}[c.decoy]
+            assert spec.detect * p["multiple"] - 1e-12 <= size or c.decoy == "time_shift"
+            assert size <= 4.0 * spec.detect + 1e-9
+        if c.decoy in ("lowpass", "time_shift"):      # one parameter, shared
+            assert len({q.get("tau", q.get("samples")) for q in p["parts"]}) == 1
+    with pytest.raises(ValueError, match=">= 0"):
+        draw_cases(10, 0, chain=-1)
+
+
+def test_a_chain_case_record_is_the_reference_through_every_part():
+    """A whole-chain case's record is the reference record with each channel's decoy
+    applied in turn (an independent composition of :mod:`~ema_bench.diagnosis.decoys`)."""
+    from ema_bench.diagnosis import blind
+    from ema_bench.diagnosis.blind import draw_cases, measured_traces
+    from ema_bench.seeding import run_seed, stream
+
+    for c in draw_cases(0, 5, chain=2):
+        ref = simulate_reference(np.array(list(c.faults.values())), c.effects,
+                                 tests=blind.TESTS, seed=stream(run_seed(5, c.index), "noise"))
+        want = ref
+        if c.decoy == "heavy_tailed":
+            p = {k: v for k, v in c.decoy_params.items() if k != "signal"}
+            want = decoys.heavy_tailed(ref, **p)
+        else:
+            for q in c.decoy_params["parts"]:
+                want = decoys.ACQUISITION_DECOYS[c.decoy](want, **q)
+        got = measured_traces(c, 5)
+        assert got.allclose(want) and not got.allclose(ref)
