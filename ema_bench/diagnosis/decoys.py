@@ -266,8 +266,10 @@ def stuck(tr: Traces, signal: str, start: float = 0.0, value: float | None = Non
 
 def heavy_tailed(tr: Traces, share: float = 0.03, low: float = 10.0, high: float = 40.0,
                  seed: int = 0, signals: tuple[str, ...] = SIGNALS) -> Traces:
-    """Heavy-tailed noise on several channels: impulsive interference reaching the whole
-    recording chain.
+    """Heavy-tailed noise on several channels at once.
+
+    Stands for impulsive interference reaching the whole recording chain (a contactor or a
+    bad ground coupling into every channel's wiring).
 
     In each test and on each of ``signals``, every sample is hit with probability ``share``
     (independently: neighbours may both be hit), by ``+-U(low, high)`` times the channel's
