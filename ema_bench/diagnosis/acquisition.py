@@ -545,35 +545,10 @@ def refit(faults: Sequence[Acquisition], raw: Mapping[str, np.ndarray],
     ivs = {}
     first = ("outliers", "stuck", "heavy_tailed")
     for i in sorted(range(len(cur)), key=lambda i: (cur[i].kind not in first, i)):
-        if cur[i].kind == "time_shift":
-            cur[i] = _shift_with_lowpass(cur, i, raw, measured, w, train)
         e = estimate(cur[i].name, raw, measured, w, train, cur)
         cur[i] = e.fault
         ivs[e.fault.name] = e.interval
     return cur, ivs
-
-
-def _shift_with_lowpass(cur: list[Acquisition], i: int, raw, measured, w, train
-                        ) -> Acquisition:
-    """A shift beside a low-pass of its channel, searched with ``tau`` refitted at each
-    shift: the two are near-degenerate (a low-pass lags by about ``tau``), and fitted one at
-    a time from a wrong shift they stay there (a 2-sample shift of ``i_eq`` beside cogging
-    stayed at 1 sample and 1.4 ms).  The shift of the lowest sum of squares (unchanged
-    without such a low-pass)."""
-    ts = cur[i]
-    j = next((k for k, f in enumerate(cur) if f.kind == "lowpass" and f.channel == ts.channel),
-             None)
-    if j is None or ts.channel not in SIGNALS:
-        return ts
-    rest = [f for k, f in enumerate(cur) if k not in (i, j)]
-    best, sse = ts, math.inf
-    for s in range(-MAX_SHIFT, MAX_SHIFT + 1):
-        sh = Acquisition("time_shift", ts.channel, float(s))
-        lp = estimate(cur[j].name, raw, measured, w, train, rest + [sh]).fault
-        ch = _channel(raw, measured, rest + [sh, lp], w, ts.column, train)
-        if ch.sse(ch.pred) < sse:
-            best, sse = sh, ch.sse(ch.pred)
-    return best
 
 
 def screen(raw: Mapping[str, np.ndarray], measured: Mapping[str, np.ndarray],
