@@ -31,10 +31,8 @@ A group's value is the shared parameter, or (one per channel) the **smallest** m
 size in noise sd (the group claims every member): its interval is ``[min low, min high]``
 of the members' intervals of ``|value| / sd``, so it excludes zero only when every
 member's does.  The screen (:func:`groups`) proposes, per kind, the group of the channels
-that kind scores :data:`GROUP_SCORE` or more on alone, when there are two or more, and for a
-shared parameter also ``kind(all)`` (a base fit can absorb one channel's part of a shift of
-every channel: a 3-sample shift of all four was screened on three): at most six candidates
-more, fitted from the same residuals in milliseconds.
+that kind scores :data:`GROUP_SCORE` or more on alone, when there are two or more: at most
+one candidate per kind (four), fitted from the same residuals in milliseconds.
 """
 
 from __future__ import annotations
@@ -115,11 +113,6 @@ def groups(singles: Sequence[Estimate], raw: Mapping[str, np.ndarray],
         if len(chans) > 1:
             out.append(estimate_group(kind, group_label(chans), raw, measured, w, train,
                                       others))
-        # a shared parameter: the whole chain too, channels that did not score alone
-        # included (a base fit can absorb one channel's part of a shift of all)
-        if len(chans) > 1 and GROUPED[kind] and group_label(chans) != "all" and \
-                not any(p.kind == kind for o in others for p in o.parts()):
-            out.append(estimate_group(kind, "all", raw, measured, w, train, others))
     return out
 
 

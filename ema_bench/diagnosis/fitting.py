@@ -92,41 +92,27 @@ def fit(measured: Traces, augment: tuple[str, ...], settings: Settings, seed: Se
 
     With acquisition ``faults`` (their starting values) the model carries them: the physics
     is fitted through them held fixed, then each is fitted again at the new monitor outputs
-    (one alternation; their parameters need no simulation, :mod:`.acquisition`).  When that
-    moves a time shift, the physics is fitted once more through the new one (a second
-    alternation, one more fit): a shift screened at a model that absorbed part of it comes
-    out short (3 samples of every channel screened at 2 at the base fit)."""
+    (one alternation; their parameters need no simulation, :mod:`.acquisition`)."""
     train = subset_traces(measured, TRAIN)
-    evaluations = 0
-    for _ in range(2 if faults else 1):
-        weights = _fit_weights(train, faults)
-        problem = make_problem(measured=train, budget=settings.budget, augment=augment,
-                               start=start, sample_weights=weights)
-        if faults:
-            # the problem's objective is swapped for one that carries the faults (the
-            # solvers only ever call problem.objective)
-            problem.objective = CarriedObjective(train, problem.space, sample_weights=weights,
-                                                 faults=faults)
-        res = run_solver(settings.solver, problem, settings.budget, seed=seed,
-                         seed_scheme=settings.seed_scheme)
-        evaluations += res.evaluations
-        raw = {t: v[0] for t, v in simulate(res.x, augment, measured.tests).items()}
-        if not faults:
-            return Fit(augment, res.x, res.fitness, raw, res.evaluations, (), raw)
-        new, ivs = acq.refit(faults, raw, measured.data, stick_weights(measured), TRAIN)
-        new = tuple(new)
-        if _shifts(new) == _shifts(faults):
-            break
-        faults, start = new, res.x
+    weights = _fit_weights(train, faults)
+    problem = make_problem(measured=train, budget=settings.budget, augment=augment,
+                           start=start, sample_weights=weights)
+    if faults:
+        # the problem's objective is swapped for one that carries the faults (the solvers
+        # only ever call problem.objective)
+        problem.objective = CarriedObjective(train, problem.space, sample_weights=weights,
+                                             faults=faults)
+    res = run_solver(settings.solver, problem, settings.budget, seed=seed,
+                     seed_scheme=settings.seed_scheme)
+    raw = {t: v[0] for t, v in simulate(res.x, augment, measured.tests).items()}
+    if not faults:
+        return Fit(augment, res.x, res.fitness, raw, res.evaluations, (), raw)
+    new, ivs = acq.refit(faults, raw, measured.data, stick_weights(measured), TRAIN)
+    new = tuple(new)
     weights = _fit_weights(train, new)
     obj = CarriedObjective(train, problem.space, sample_weights=weights, faults=new)
     fitness = float(obj.evaluate(res.x[None, :])[0][0])
-    return Fit(augment, res.x, fitness, acq.carry(raw, new), evaluations, new, raw, ivs)
-
-
-def _shifts(faults: tuple[Acquisition, ...]) -> list[tuple[str, float]]:
-    """The time shifts ``faults`` hold, by name."""
-    return [(f.name, f.value) for f in faults if f.kind == "time_shift"]
+    return Fit(augment, res.x, fitness, acq.carry(raw, new), res.evaluations, new, raw, ivs)
 
 
 def assess(measured: Traces, model: Fit, weights: dict[str, np.ndarray],
