@@ -260,3 +260,26 @@ def test_the_robust_loss_keeps_outliers_from_pulling_the_physics():
     lo_sq, hi_sq = interval(squared, tr, ("eccentricity",))["eccentricity"]
     lo, hi = interval(robust, tr, ("eccentricity",))["eccentricity"]
     assert lo <= 0.1 <= hi and hi - lo < 0.7 * (hi_sq - lo_sq)
+
+
+@pytest.mark.slow
+def test_a_drift_of_the_whole_chain_is_named_as_one_fault():
+    """No physical effect, drifts of 10, -12, 8 and 15 noise sd/s on the four channels: the
+    workflow's verdict is ``acquisition``, naming ``drift(all)`` alone (one suspect, not
+    four), every member's rate within 10 % of its drift and the group's size (the smallest,
+    8 sd/s) inside its interval.  About 40 CPU-s."""
+    from ema_bench.diagnosis.blind import TESTS as BLIND_TESTS
+    from ema_bench.diagnosis.workflow import diagnose
+
+    x = np.array(instance_faults("small"))
+    rates = (10.0, -12.0, 8.0, 15.0)
+    tr = _drift_all(simulate_reference(x, {}, tests=BLIND_TESTS, seed=8), rates)
+    d = diagnose(tr, Settings(budget=2500, n_boot=30), seed=2)
+    assert d.verdict == "acquisition" and d.effects == []
+    (a,) = d.acquisition
+    assert a.name == "drift(all)" and not a.partial
+    assert a.interval[0] <= 8.0 <= a.interval[1] and a.interval[0] > 0
+    f = d.final.acquisition[0]
+    for p, r in zip(f.parts(), rates):
+        assert p.value / float(NOISE_STD[SIGNALS.index(p.channel)]) == pytest.approx(r, rel=0.1)
+    assert "a drift on every channel" in d.message
