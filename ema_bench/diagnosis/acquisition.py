@@ -17,7 +17,15 @@ outliers     spikes, count (0-2 % of samples)   isolated spikes; the samples get
 stuck        share of samples frozen (0-1)      flat from an onset per test (dead from the
                                                 start, or frozen at one value): the model
                                                 holds the record's level; weight 0
+heavy_tailed share of samples rejected (0-1)    spikes on several channels at any share:
+                                                the samples get weight 0 (a robust loss,
+                                                chosen by a test, :mod:`.tails`)
 ===========  =================================  ===========================================
+
+Whole chain (:mod:`.chain`).  A kind may act on several channels at once, as one suspect
+named ``kind(all)`` or ``kind(c1,c2)``: one shared parameter for ``lowpass`` and
+``time_shift``, one per channel for ``drift`` and ``mains_hum``; ``heavy_tailed`` is only
+ever chain-wide.
 
 (``sd``: the channel's sensor-noise standard deviation, :data:`~.features.NOISE_STD`.)  A
 fitted fault is an :class:`Acquisition`, named ``kind(channel)``, e.g. ``mains_hum(i_eq)``.
@@ -125,10 +133,13 @@ KINDS: dict[str, AcquisitionKind] = {k.name: k for k in (
     AcquisitionKind("stuck", "share", "share of samples", 0.0, 1.0, 0.01, 0.03,
                     "one channel flat (dead, or frozen at one value) while the model, "
                     "and the other channels, move"),
+    AcquisitionKind("heavy_tailed", "share", "share of samples", 0.0, 1.0, 0.002, 0.01,
+                    "spikes at any share on several channels: the noise's tails, not "
+                    "the physics"),
 )}
 #: Order in which fitted faults act on the model's outputs: filters, then what adds, then
 #: weights (outliers), then what replaces the values (a stuck channel's level).
-ORDER = ("time_shift", "lowpass", "drift", "mains_hum", "outliers", "stuck")
+ORDER = ("time_shift", "lowpass", "drift", "mains_hum", "outliers", "stuck", "heavy_tailed")
 #: The kinds that filter the channel (act before the additive ones).
 FILTERS = ("time_shift", "lowpass")
 
@@ -154,14 +165,29 @@ class Acquisition:
     def column(self) -> int:
         return SIGNALS.index(self.channel)
 
+    @property
+    def channels(self) -> tuple[str, ...]:
+        """The channels it acts on (one, or a whole-chain group's)."""
+        return SIGNALS if self.channel == "all" else tuple(self.channel.split(","))
+
+    def parts(self) -> tuple[Acquisition, ...]:
+        """The one-channel faults it amounts to (itself, or a group's members)."""
+        return tuple(self.detail.get("parts", (self,)))
+
 
 def parse(name: str) -> tuple[str, str]:
-    """``kind(channel)`` -> ``(kind, channel)``; :class:`ValueError` if not one."""
+    """``kind(channel)`` -> ``(kind, channel)``; :class:`ValueError` if not one.  A
+    whole-chain group's channel is ``all`` or channels in :data:`SIGNALS` order joined by
+    commas (:mod:`.chain`)."""
+    from .chain import GROUPED, is_group
+
     kind, _, rest = name.partition("(")
     channel = rest[:-1] if rest.endswith(")") else ""
-    if kind not in KINDS or channel not in SIGNALS:
+    single = channel in SIGNALS and kind in KINDS and kind != "heavy_tailed"
+    if not single and not (kind in GROUPED and is_group(channel)):
         raise ValueError(f"{name!r} is not an acquisition fault kind(channel): kinds "
-                         f"{list(KINDS)}, channels {list(SIGNALS)}")
+                         f"{list(KINDS)}, channels {list(SIGNALS)}, whole-chain groups "
+                         f"kind(all) or kind(c1,c2) of {list(GROUPED)}")
     return kind, channel
 
 
@@ -175,14 +201,15 @@ def is_acquisition(name: str) -> bool:
 
 
 def trivial(name: str) -> float:
-    """The trivial band of ``kind(channel)`` in the channel's unit."""
+    """The trivial band of ``kind(channel)`` in the channel's unit (a group's: in the kind's
+    scale units, noise sd for the per-channel additive kinds)."""
     kind, channel = parse(name)
-    return KINDS[kind].scaled(channel)[2]
+    return KINDS[kind].scaled(channel)[2] if channel in SIGNALS else KINDS[kind].trivial
 
 
 def all_names() -> tuple[str, ...]:
-    """Every kind on every channel (the screened candidates)."""
-    return tuple(f"{k}({c})" for k in KINDS for c in SIGNALS)
+    """Every kind on every channel (the screened one-channel candidates)."""
+    return tuple(f"{k}({c})" for k in KINDS if k != "heavy_tailed" for c in SIGNALS)
 
 
 # --- the model's outputs through the faults -------------------------------------------------
@@ -232,6 +259,7 @@ def carry(outputs: Mapping[str, np.ndarray], faults: Sequence[Acquisition]
     """The record the model predicts: ``outputs`` (test -> (n_samples, 4) or (k, n_samples,
     4)) with each fault applied to its channel, in :data:`ORDER` (outliers change weights
     only, :func:`weights`)."""
+    faults = [p for f in faults for p in f.parts() if p.kind not in ("outliers", "heavy_tailed")]
     if not faults:
         return dict(outputs)
     out = {}
@@ -256,10 +284,14 @@ def carry(outputs: Mapping[str, np.ndarray], faults: Sequence[Acquisition]
 def weights(faults: Sequence[Acquisition], shapes: Mapping[str, tuple[int, ...]]
             ) -> dict[str, np.ndarray]:
     """Per test, (n_samples, 4) sample weights: 0 at the outlier model's spikes and over a
-    stuck channel's frozen span, 1 else."""
+    stuck channel's frozen span, 1 else; 0 where heavy-tailed noise rejects a sample."""
     out = {t: np.ones(s) for t, s in shapes.items()}
-    for f in faults:
-        if f.kind == "outliers":
+    for f in (p for g in faults for p in g.parts()):
+        if f.kind == "heavy_tailed":
+            for t, keep in f.detail["keep"].items():
+                if t in out:
+                    out[t] = out[t] * keep
+        elif f.kind == "outliers":
             for t, idx in f.detail["spikes"].items():
                 if t in out:
                     out[t][np.asarray(idx, dtype=int), f.column] = 0.0
@@ -293,17 +325,19 @@ class _Channel:
 
 
 def _channel(raw: Mapping[str, np.ndarray], measured: Mapping[str, np.ndarray],
-             others: Sequence[Acquisition], w: Mapping[str, np.ndarray], col: int,
-             train: tuple[str, ...]) -> _Channel:
-    sd = float(NOISE_STD[col])
+             others: Sequence[Acquisition], w: Mapping[str, np.ndarray],
+             col: int | list[int], train: tuple[str, ...]) -> _Channel:
+    """One channel (``col``: arrays (n,)) or several (a list: (k, n), whitened each, for a
+    whole-chain parameter shared between them)."""
+    sd = NOISE_STD[col]
     filters = [f for f in others if f.kind in FILTERS]
     pre = carry(raw, filters)
     pred = carry(raw, others)
     ow = weights(others, {t: v.shape for t, v in raw.items()})
-    return _Channel({t: measured[t][:, col] / sd for t in raw},
-                    {t: pred[t][:, col] / sd for t in raw},
-                    {t: pre[t][:, col] / sd for t in raw},
-                    {t: w[t][:, col] * ow[t][:, col] for t in raw}, train)
+    return _Channel({t: (measured[t][:, col] / sd).T for t in raw},
+                    {t: (pred[t][:, col] / sd).T for t in raw},
+                    {t: (pre[t][:, col] / sd).T for t in raw},
+                    {t: (w[t][:, col] * ow[t][:, col]).T for t in raw}, train)
 
 
 def _with_filter(ch: _Channel, fn: Callable[[np.ndarray], np.ndarray]) -> dict[str, np.ndarray]:
@@ -481,6 +515,11 @@ def estimate(name: str, raw: Mapping[str, np.ndarray], measured: Mapping[str, np
     train : the tests that fit the parameters the held-out test must not see.
     """
     kind, channel = parse(name)
+    if channel not in SIGNALS:
+        from .chain import estimate_group
+
+        return estimate_group(kind, channel, raw, measured, w, train,
+                              [o for o in others if o.name != name])
     ch = _channel(raw, measured, [o for o in others if o.name != name], w,
                   SIGNALS.index(channel), train)
     value, detail, drop, iv = _FITS[kind](ch)
@@ -504,8 +543,8 @@ def refit(faults: Sequence[Acquisition], raw: Mapping[str, np.ndarray],
     their intervals."""
     cur = list(faults)
     ivs = {}
-    for i in sorted(range(len(cur)), key=lambda i: (cur[i].kind not in ("outliers", "stuck"),
-                                                    i)):
+    first = ("outliers", "stuck", "heavy_tailed")
+    for i in sorted(range(len(cur)), key=lambda i: (cur[i].kind not in first, i)):
         e = estimate(cur[i].name, raw, measured, w, train, cur)
         cur[i] = e.fault
         ivs[e.fault.name] = e.interval
@@ -516,9 +555,14 @@ def screen(raw: Mapping[str, np.ndarray], measured: Mapping[str, np.ndarray],
            w: Mapping[str, np.ndarray], train: tuple[str, ...],
            others: Sequence[Acquisition] = ()) -> list[Estimate]:
     """Every kind on every channel not already carried, fitted at ``raw`` (the ``others``
-    held), best score first."""
-    have = {o.name for o in others}
-    out = [estimate(n, raw, measured, w, train, others) for n in all_names() if n not in have]
+    held), and the whole-chain groups of the channels each kind scores on alone
+    (:func:`~.chain.groups`), best score first."""
+    from .chain import groups
+
+    have = {(p.kind, p.channel) for o in others for p in o.parts()}
+    out = [estimate(n, raw, measured, w, train, others) for n in all_names()
+           if parse(n) not in have]
+    out += groups(out, raw, measured, w, train, others)
     return sorted(out, key=lambda e: -e.score)
 
 
@@ -526,6 +570,10 @@ def describe(f: Acquisition) -> str:
     """One phrase for a verdict, e.g. ``400 Hz hum of 0.3 A on i_eq``."""
     from ..traces import UNITS
 
+    if f.channel not in SIGNALS:
+        from .chain import describe_group
+
+        return describe_group(f)
     u = UNITS[f.channel] if isinstance(UNITS, Mapping) else ""
     text = {
         "lowpass": f"a low-pass of {1e3 * f.value:.2g} ms on {f.channel}",

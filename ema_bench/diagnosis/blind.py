@@ -35,6 +35,13 @@ of the suite):
     of the workflow's library sized at 1-4 (1-1.5) times its own detection threshold
     (:mod:`~ema_bench.diagnosis.sized`; a stuck channel and 1-2 sample time shifts among
     them), scored as ``effect_acquisition``.
+``whole_chain_acquisition``, ``heavy_tailed``
+    (issue 46, item 2) one library effect at 1.5-4 times ``detect`` beside a fault of one
+    kind on several channels at once, sized at 1-4 times its threshold on each
+    (:func:`~ema_bench.diagnosis.sized.draw_chain`: a shared shift or low-pass, a drift or
+    hum per channel), or beside heavy-tailed noise on every channel (2-5 % of the samples
+    hit by 10-40 noise sd); scored as ``effect_acquisition``, the fault named as the
+    workflow's whole-chain suspect (``drift(all)``, ``heavy_tailed(all)``).
 
 A decoy is handled when nothing is named confidently that is not there: the workflow reports
 it unexplained or not at all, names a physical effect only flagged partial, or (an
@@ -94,6 +101,7 @@ from .blind_categories import (
     ACQ_MULTIPLES,
     ACQUIRED,
     CATEGORIES,
+    CHAIN_CATEGORIES,
     EFFECT_ACQUISITION,
     EXTRA_CATEGORIES,
     FOURTH_CATEGORIES,
@@ -205,7 +213,15 @@ def _fourth_orders(rng: np.random.Generator) -> dict[str, list[tuple[str, ...]]]
             "sized_kind": [(n,) for n in _perm(rng, tuple(sized.CHANNELS))]}
 
 
-def draw_cases(n: int, seed: int, extra: int = 0, fourth: int = 0) -> list[BlindCase]:
+def _chain_orders(rng: np.random.Generator) -> dict[str, list[tuple[str, ...]]]:
+    """The order the whole-chain categories cycle their effects and fault kinds in."""
+    return {"whole_chain_acquisition": [(n,) for n in _perm(rng, DRAWABLE)],
+            "heavy_tailed": [(n,) for n in _perm(rng, DRAWABLE)],
+            "chain_kind": [(n,) for n in _perm(rng, tuple(sized.CHAIN_CHANNELS))]}
+
+
+def draw_cases(n: int, seed: int, extra: int = 0, fourth: int = 0,
+               chain: int = 0) -> list[BlindCase]:
     """``n`` hidden cases of the suite of root seed ``seed``, laid out in the fixed shares of
     :data:`CATEGORIES`, then ``extra`` cases of each of :data:`EXTRA_CATEGORIES` (indices
     ``n`` on, shuffled); each category cycles through its effects, pairs, triples or decoys
@@ -216,10 +232,11 @@ def draw_cases(n: int, seed: int, extra: int = 0, fourth: int = 0) -> list[Blind
     cases as they were); case ``i``'s faults from the ``instance`` stream of run ``i``
     (``run_seed(seed, i)``), an acquisition fault's channel and magnitude from its
     ``acquisition`` stream.  ``fourth`` cases of each of :data:`FOURTH_CATEGORIES` follow
-    (indices ``n + 2 extra`` on; their layout from ``plan`` stream number 2)."""
-    if n < 0 or extra < 0 or fourth < 0:
-        raise ValueError(f"cases, extra and fourth-round cases must be >= 0, got {n}, {extra} "
-                         f"and {fourth}")
+    (indices ``n + 2 extra`` on; their layout from ``plan`` stream number 2), then
+    ``chain`` cases of each of :data:`CHAIN_CATEGORIES` (``plan`` stream number 3)."""
+    if min(n, extra, fourth, chain) < 0:
+        raise ValueError(f"cases, extra, fourth-round and chain cases must be >= 0, got {n}, "
+                         f"{extra}, {fourth} and {chain}")
     rng = np.random.default_rng(stream(seed, "plan"))
     layout = [c for c, k in category_counts(n).items() for _ in range(k)]
     rng.shuffle(layout)
@@ -236,6 +253,13 @@ def draw_cases(n: int, seed: int, extra: int = 0, fourth: int = 0) -> list[Blind
         rng.shuffle(layout)
         cases += _draw(layout, n + len(EXTRA_CATEGORIES) * extra, seed, rng,
                        _fourth_orders(rng), Counter())
+    if chain:
+        rng = np.random.default_rng(stream(seed, "plan", 3))
+        layout = [c for c in CHAIN_CATEGORIES for _ in range(chain)]
+        rng.shuffle(layout)
+        cases += _draw(layout, n + len(EXTRA_CATEGORIES) * extra
+                       + len(FOURTH_CATEGORIES) * fourth, seed, rng, _chain_orders(rng),
+                       Counter())
     return cases
 
 
@@ -257,7 +281,15 @@ def _draw(layout: list[str], first: int, seed: int, rng: np.random.Generator,
             cycle = orders["effect_acquisition_fault"]
             decoy = cycle[(taken[category] - 1) % len(cycle)][0]
         acq_rng = np.random.default_rng(stream(node, "acquisition"))
-        if category in FOURTH_CATEGORIES:
+        if category in CHAIN_CATEGORIES:
+            decoy = "heavy_tailed"
+            if category == "whole_chain_acquisition":
+                cycle = orders["chain_kind"]
+                decoy = cycle[taken["chain"] % len(cycle)][0]
+                taken["chain"] += 1
+            params = sized.draw_chain(decoy, *ACQ_MULTIPLES.get(category, (1.0, 1.0)),
+                                      acq_rng)
+        elif category in FOURTH_CATEGORIES:
             cycle = orders["sized_kind"]
             decoy = cycle[(taken["sized"]) % len(cycle)][0]
             taken["sized"] += 1
@@ -289,7 +321,9 @@ def measured_traces(case: BlindCase, seed: int) -> Traces:
         tr = twin_traces(x, effects_vector({}), stream(node, "noise"), TESTS)
         return tr.with_meta(model=None)
     tr = simulate_reference(x, case.effects, tests=TESTS, seed=stream(node, "noise"))
-    if case.category in ACQUIRED:
+    if case.category in CHAIN_CATEGORIES:
+        tr = sized.apply_chain(case.decoy, tr, case.decoy_params)
+    elif case.category in ACQUIRED:
         tr = decoys.apply(case.decoy, tr, sized.decoy_params(case.decoy_params))
     return tr
 
@@ -387,7 +421,8 @@ def _run_task(runner: Runner, seed: int, settings: Settings, job: Job) -> dict:
 def run_blind(n: int, seed: int, out: str | Path | None = None,
               settings: Settings | None = None, quiet: bool = True, workers: int = 1,
               runner: Runner | None = None, extra: int = 0,
-              only: Sequence[str] | None = None, fourth: int = 0) -> dict[str, object]:
+              only: Sequence[str] | None = None, fourth: int = 0,
+              chain: int = 0) -> dict[str, object]:
     """Run (or resume, with ``out``) a blind suite of ``n`` cases (and ``extra`` of each
     third-round category, :func:`draw_cases`) and summarise it; progress as
     :func:`~ema_bench.progress.progress` shows it unless ``quiet``.  ``only``: run and
@@ -399,7 +434,7 @@ def run_blind(n: int, seed: int, out: str | Path | None = None,
     runs exactly the cases missing, and the records come back in case order.  ``runner``
     replaces :func:`run_case` (a module-level function, for the processes)."""
     settings = settings or Settings()
-    cases = draw_cases(n, seed, extra, fourth)
+    cases = draw_cases(n, seed, extra, fourth, chain)
     if only is not None:
         unknown = sorted(set(only) - set(KINDS))
         if unknown:

@@ -14,22 +14,29 @@ EXTRA_CATEGORIES: tuple[str, ...] = ("effect_acquisition", "three_effect")
 #: The fourth round's categories (``fourth`` cases of each after the extra ones): an effect
 #: beside an acquisition fault sized by its threshold (:mod:`.sized`), 1-4x and 1-1.5x.
 FOURTH_CATEGORIES: tuple[str, ...] = ("effect_acquisition_sized", "near_threshold_acquisition")
-#: Multiples of the acquisition fault's threshold each fourth-round category draws.
+#: Faults of the whole recording chain (issue 46, item 2; ``chain`` cases of each after the
+#: fourth-round ones): an effect beside a fault of one kind on several channels at once
+#: (:func:`.sized.draw_chain`), and beside heavy-tailed noise on every channel.
+CHAIN_CATEGORIES: tuple[str, ...] = ("whole_chain_acquisition", "heavy_tailed")
+#: Multiples of the acquisition fault's threshold each fourth-round (and chain) category draws.
 ACQ_MULTIPLES: dict[str, tuple[float, float]] = {
-    "effect_acquisition_sized": (1.0, 4.0), "near_threshold_acquisition": (1.0, 1.5)}
+    "effect_acquisition_sized": (1.0, 4.0), "near_threshold_acquisition": (1.0, 1.5),
+    "whole_chain_acquisition": (1.0, 4.0)}
 #: The categories scored on an effect named and an acquisition fault named beside it.
-EFFECT_ACQUISITION = ("effect_acquisition", *FOURTH_CATEGORIES)
+EFFECT_ACQUISITION = ("effect_acquisition", *FOURTH_CATEGORIES, *CHAIN_CATEGORIES)
 KINDS: dict[str, str] = {
     "single": "effect", "near_threshold": "effect", "two_effect": "effect", "null": "null",
     "monitor_null": "null", "physical_decoy": "decoy", "acquisition_decoy": "decoy",
     "effect_acquisition": "effect", "three_effect": "effect",
     "effect_acquisition_sized": "effect", "near_threshold_acquisition": "effect",
+    **{c: "effect" for c in CHAIN_CATEGORIES},
 }
 #: Magnitude of the hidden effects, as a range of multiples of ``detect`` (log-uniform).
 MAGNITUDES: dict[str, tuple[float, float]] = {
     "single": (1.5, 4.0), "near_threshold": (1.0, 1.5), "two_effect": (1.5, 3.0),
     "physical_decoy": (1.0, 4.0), "effect_acquisition": (1.5, 4.0), "three_effect": (2.0, 3.0),
     "effect_acquisition_sized": (1.5, 4.0), "near_threshold_acquisition": (1.5, 4.0),
+    **{c: (1.5, 4.0) for c in CHAIN_CATEGORIES},
 }
 #: Categories whose data go through an acquisition fault (the case's ``decoy``).
 ACQUIRED = ("acquisition_decoy", *EFFECT_ACQUISITION)

@@ -9,7 +9,13 @@ from collections import Counter
 from collections.abc import Callable, Sequence
 
 from ..sweep.schema import opt, req
-from .blind_categories import CATEGORIES, EFFECT_ACQUISITION, EXTRA_CATEGORIES, FOURTH_CATEGORIES
+from .blind_categories import (
+    CATEGORIES,
+    CHAIN_CATEGORIES,
+    EFFECT_ACQUISITION,
+    EXTRA_CATEGORIES,
+    FOURTH_CATEGORIES,
+)
 
 
 def _rate(k: int, n: int) -> float:
@@ -129,7 +135,7 @@ _BLOCKS: dict[str, Callable[[list[dict]], dict[str, object]]] = {
     "null": _null_block, "monitor_null": _null_block, "physical_decoy": _decoy_block,
     "acquisition_decoy": _decoy_block, "effect_acquisition": _effect_acquisition_block,
     "three_effect": _triple_block,
-    **{c: _effect_acquisition_block for c in FOURTH_CATEGORIES},
+    **{c: _effect_acquisition_block for c in FOURTH_CATEGORIES + CHAIN_CATEGORIES},
 }
 
 
@@ -159,7 +165,7 @@ def summarise(records: list[dict]) -> dict[str, object]:
     present = {r["category"] for r in records}
     by = {c: [r for r in records if r["category"] == c]
           for c in (*CATEGORIES, *(c for c in EXTRA_CATEGORIES + FOURTH_CATEGORIES
-                                   if c in present))}
+                                   + CHAIN_CATEGORIES if c in present))}
     named = by["single"] + by["near_threshold"]
     effect = named + by["two_effect"] + by.get("three_effect", []) + [
         r for c in EFFECT_ACQUISITION for r in by.get(c, [])]

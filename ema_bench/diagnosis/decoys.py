@@ -264,9 +264,49 @@ def stuck(tr: Traces, signal: str, start: float = 0.0, value: float | None = Non
     return _map_channel(tr, signal, freeze)
 
 
+def heavy_tailed(tr: Traces, share: float = 0.03, low: float = 10.0, high: float = 40.0,
+                 seed: int = 0, signals: tuple[str, ...] = SIGNALS) -> Traces:
+    """Heavy-tailed noise on several channels at once.
+
+    Stands for impulsive interference reaching the whole recording chain (a contactor or a
+    bad ground coupling into every channel's wiring).
+
+    In each test and on each of ``signals``, every sample is hit with probability ``share``
+    (independently: neighbours may both be hit), by ``+-U(low, high)`` times the channel's
+    noise sd (random sign), then the ADC clips and quantises it.
+
+    Parameters
+    ----------
+    tr : Traces
+        Measured traces.
+    share : float
+        Probability that a sample is hit, in (0, 1).
+    low, high : float
+        Range of the spikes' height, in the channel's noise standard deviations.
+    seed : int
+        Seed of the hits (one generator for all channels and tests, in order).
+    signals : tuple of str
+        The channels hit (default all four).
+    """
+    if not 0.0 < share < 1.0 or not 0.0 < low <= high:
+        raise ValueError(f"need 0 < share < 1 and 0 < low <= high, got {share!r}, {low!r}, "
+                         f"{high!r}")
+    rng = np.random.default_rng(seed)
+    for signal in signals:
+        sd = _noise(signal)
+
+        def hit(y: np.ndarray, _t: np.ndarray, sd: float = sd) -> np.ndarray:
+            k = rng.random(y.size) < share
+            return y + k * rng.choice((-1.0, 1.0), y.size) * rng.uniform(low, high, y.size) * sd
+
+        tr = _map_channel(tr, signal, hit)
+    return tr
+
+
 #: The acquisition-chain decoys, by name (their function's).
 ACQUISITION_DECOYS: dict[str, Callable[..., Traces]] = {
-    f.__name__: f for f in (lowpass, mains_hum, clipping, time_shift, drift, outliers, stuck)}
+    f.__name__: f for f in (lowpass, mains_hum, clipping, time_shift, drift, outliers, stuck,
+                            heavy_tailed)}
 
 
 def _noise(signal: str) -> float:

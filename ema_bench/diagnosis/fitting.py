@@ -65,6 +65,12 @@ class CarriedObjective(Objective):
                  ) -> None:
         super().__init__(measured, space, sample_weights=sample_weights)
         self.faults = faults
+        # the samples heavy-tailed noise rejects, stacked layout: left out of the noise
+        # level an interval estimates (ema_bench.uncertainty.noise.weighed)
+        heavy = [f for f in faults if f.kind == "heavy_tailed"]
+        if heavy:
+            keep = acq.weights(heavy, {t: measured.data[t].shape for t in measured.tests})
+            self.rejected = np.concatenate([keep[t].T.ravel() == 0.0 for t in measured.tests])
 
     def outputs(self, X: np.ndarray) -> tuple[dict[str, np.ndarray], np.ndarray]:
         out, ok = super().outputs(X)

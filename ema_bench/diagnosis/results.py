@@ -199,8 +199,11 @@ class Diagnosis:
 
     @property
     def final(self) -> Fit:
-        """The model the verdict rests on: with the named suspects, else the base fit."""
-        return self.fits["+".join(sorted(self.named))] if self.named else self.fits["base"]
+        """The model the verdict rests on: with the named suspects, else the base fit
+        (heavy-tailed noise is carried by every fit, the base one included, never a set's
+        member)."""
+        named = sorted(n for n in self.named if not n.startswith("heavy_tailed("))
+        return self.fits["+".join(named)] if named else self.fits["base"]
 
     def as_dict(self) -> dict[str, object]:
         return {

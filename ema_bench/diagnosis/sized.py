@@ -53,11 +53,14 @@ def channel_sd(channel: str) -> float:
     return float(NOISE_STD[SIGNALS.index(channel)])
 
 
-def draw(kind: str, lo: float, hi: float, rng: np.random.Generator) -> dict[str, Any]:
+def draw(kind: str, lo: float, hi: float, rng: np.random.Generator,
+         channel: str | None = None) -> dict[str, Any]:
     """The decoy keyword arguments (:func:`.decoys.apply`) of a fault of ``kind`` at ``lo``
     to ``hi`` times its detection threshold (log-uniform), on a channel of
-    :data:`CHANNELS`: JSON-friendly, with ``multiple`` (the drawn multiple) beside them."""
-    channel = CHANNELS[kind][int(rng.integers(len(CHANNELS[kind])))]
+    :data:`CHANNELS` (or on ``channel``): JSON-friendly, with ``multiple`` (the drawn
+    multiple) beside them."""
+    if channel is None:
+        channel = CHANNELS[kind][int(rng.integers(len(CHANNELS[kind])))]
     multiple = float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
     spec = KINDS[kind]
     value = min(multiple * spec.detect, spec.upper)
@@ -81,3 +84,44 @@ def draw(kind: str, lo: float, hi: float, rng: np.random.Generator) -> dict[str,
 def decoy_params(params: dict[str, Any]) -> dict[str, Any]:
     """The keyword arguments :func:`.decoys.apply` takes (``multiple`` left out)."""
     return {k: v for k, v in params.items() if k != "multiple"}
+
+
+#: The channels a whole-chain fault of each kind is drawn on (:mod:`.chain`): every channel,
+#: but a low-pass only on the fast ones (a 1-2 ms filter of a position is below its noise).
+CHAIN_CHANNELS: dict[str, tuple[str, ...]] = {
+    "lowpass": ("omega_m", "i_eq"), "time_shift": SIGNALS, "drift": SIGNALS,
+    "mains_hum": SIGNALS}
+#: Heavy-tailed noise on every channel: the share of samples hit and the spikes' height
+#: range (noise sd), the issue's "a few per cent of samples, tens of sigma".
+HEAVY_SHARE = (0.02, 0.05)
+HEAVY_SD = (10.0, 40.0)
+
+
+def draw_chain(kind: str, lo: float, hi: float, rng: np.random.Generator) -> dict[str, Any]:
+    """A whole-chain fault of ``kind`` on :data:`CHAIN_CHANNELS`: ``signal`` its group
+    label, ``parts`` one channel's decoy keyword arguments each (:func:`draw` on that
+    channel; a shared parameter, the shift or ``tau``, the first part's on all), and
+    ``multiple`` the smallest part's (what the group's size is); ``heavy_tailed``: the
+    :func:`.decoys.heavy_tailed` keyword arguments, on every channel."""
+    from .chain import group_label
+
+    if kind == "heavy_tailed":
+        return {"signal": "all", "share": float(rng.uniform(*HEAVY_SHARE)),
+                "low": HEAVY_SD[0], "high": HEAVY_SD[1], "seed": int(rng.integers(2**31))}
+    parts = []
+    for c in CHAIN_CHANNELS[kind]:
+        shared = parts and kind in ("lowpass", "time_shift")
+        parts.append({**parts[0], "signal": c} if shared else draw(kind, lo, hi, rng, c))
+    return {"signal": group_label(CHAIN_CHANNELS[kind]), "parts": parts,
+            "multiple": min(p.pop("multiple") for p in parts)}
+
+
+def apply_chain(kind: str, tr, params: dict[str, Any]):
+    """The traces ``tr`` through a fault :func:`draw_chain` drew."""
+    from . import decoys
+
+    if kind == "heavy_tailed":
+        return decoys.heavy_tailed(tr, **{k: v for k, v in params.items() if k != "signal"})
+    for p in params["parts"]:
+        tr = decoys.apply(kind, tr, p)
+    return tr

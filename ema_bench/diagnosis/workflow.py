@@ -32,6 +32,7 @@ from ..objective import N_FAULTS, Objective, SearchSpace, signal_weights
 from ..seeding import SeedLike, stream
 from ..traces import Traces
 from . import acquisition as acq
+from . import tails
 from .acquisition import Acquisition
 from .fitting import (
     assess,
@@ -84,6 +85,8 @@ class _Search:
     n_trials: int = 0
     # the latest fitted value of each acquisition fault: where its next fit starts
     guess: dict[str, Acquisition] = field(default_factory=dict)
+    # heavy-tailed noise the data chose (:mod:`.tails`): carried by every fit, never priced
+    noise: tuple[str, ...] = ()
 
     def run(self, effects: tuple[str, ...], start: np.ndarray, against: Trial | None,
             score: float, siblings: dict[str, Trial] | None = None,
@@ -106,7 +109,8 @@ class _Search:
         if key not in self.fits or refit:
             self.n_trials += 1
             if faults is None:
-                faults = tuple(self.guess[n] for n in effects if acq.is_acquisition(n))
+                faults = tuple(self.guess[n] for n in effects + self.noise
+                               if acq.is_acquisition(n))
             f = fit(self.measured, physical(effects), s,
                     stream(self.seed, "fit", 1, self.n_trials), start, faults)
             self.guess.update({a.name: a for a in f.acquisition})
@@ -227,7 +231,7 @@ class _Search:
             cands += [(c.name, c.score, {c.name: c.step})
                       for c in screen(self.measured, f, lo, hi, f.augment)[:s.grow_k]
                       if c.score >= s.min_score]
-        if len(f.acquisition) < s.max_acquisition:
+        if len(f.acquisition) - len(self.noise) < s.max_acquisition:
             cands += [(e.fault.name, e.score, {}) for e in self.screen_acquisition(f)]
         out = []
         for name, score, step in cands:
@@ -280,11 +284,19 @@ def diagnose(measured: Traces, settings: Settings | None = None, seed: SeedLike 
     weights = {t: w[None, :] * sw[t] for t, w in signal_weights(measured).items()}
     base = fit(measured, (), settings, stream(seed, "fit", 0, 0))
     stage(f"base fit done ({base.evaluations} evaluations)")
+    evaluations = base.evaluations
+    noise = tails.detect(base.raw, measured.data, sw, TRAIN)
+    if noise is not None:
+        # heavy-tailed noise: the physics is fitted again with the robust loss, from here on
+        base = fit(measured, (), settings, stream(seed, "fit", 0, 1), base.x, (noise.fault,))
+        evaluations += base.evaluations
+        stage(f"heavy-tailed noise: {acq.describe(base.acquisition[0])}; refitted")
     first, _ = assess(measured, base, weights, settings, stream(seed, "bootstrap", 0))
     stage(f"residuals assessed: {'a discrepancy' if first.detected else 'nothing'} detected")
     search = _Search(measured, weights, settings, seed, base, first, stage,
-                     fits={"base": base}, status={"base": first},
-                     evaluations=base.evaluations)
+                     fits={"base": base}, status={"base": first}, evaluations=evaluations,
+                     guess={a.name: a for a in base.acquisition},
+                     noise=tuple(a.name for a in base.acquisition))
     result = Diagnosis("none", [], [], {}, {}, first.flagged, [], 0, search.fits)
     chosen = None
     if first.detected:
@@ -387,6 +399,11 @@ def _triples(search: _Search, pool: list[Trial], pairs: list[Trial]) -> Trial | 
     return chosen if chosen is None or search.members_hold(chosen) else None
 
 
+def _finding(a: Acquisition, interval: list[float], partial: bool) -> AcquisitionFinding:
+    return AcquisitionFinding(a.name, a.kind, a.channel, a.value, interval, acq.describe(a),
+                              partial=partial)
+
+
 def _conclude(result: Diagnosis, search: _Search, chosen: Trial | None) -> None:
     """The verdict, its message and every reported number, from one computation: the base
     model's discrepancy against that of the model the verdict rests on."""
@@ -406,8 +423,13 @@ def _conclude(result: Diagnosis, search: _Search, chosen: Trial | None) -> None:
     fit_final = search.fits[chosen.name] if chosen else base
     result.faults = {n: {"before": base.faults[n], "after": fit_final.faults[n]}
                      for n in FAULT_NAMES}
+    result.acquisition = [_finding(a, fit_final.acq_intervals[a.name], False)
+                          for a in fit_final.acquisition if a.name in search.noise]
     if not d0.detected:
         result.message = "residuals within the envelopes of the fitted model plus noise"
+        if result.acquisition:
+            result.verdict = "acquisition"
+            result.message += f" once {result.acquisition[0].description}"
         return
     where0 = (
         f"held-out fitness {d0.holdout:.3g} above its threshold {d0.threshold:.3g} (floor "
@@ -436,9 +458,8 @@ def _conclude(result: Diagnosis, search: _Search, chosen: Trial | None) -> None:
     result.verdict = "effect" if phys else "acquisition"
     result.effects = [EffectFinding(n, {n: f.effects[n]}, ivs[n], d0.gap, d1.gap, closed,
                                     partial=chosen.partial) for n in phys]
-    result.acquisition = [AcquisitionFinding(a.name, a.kind, a.channel, a.value, ivs[a.name],
-                                             acq.describe(a), partial=chosen.partial)
-                          for a in f.acquisition]
+    result.acquisition = [_finding(a, ivs.get(a.name, f.acq_intervals.get(a.name)),
+                                   chosen.partial) for a in f.acquisition]
     if not result.acquisition:
         named = " + ".join(phys)
     else:

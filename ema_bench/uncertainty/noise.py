@@ -24,10 +24,14 @@ def known_sigma() -> np.ndarray:
 
 def weighed(objective: Objective) -> np.ndarray:
     """Per residual element (stacked layout), whether the fitness weighs its output (all,
-    unless an information condition of suite ``emafdi-v2`` masks some: ``objective.mask``)."""
+    unless an information condition of suite ``emafdi-v2`` masks some: ``objective.mask``,
+    or a robust loss rejects them: ``objective.rejected``)."""
     mask = getattr(objective, "mask", None)   # objective-like test models carry none
     idx = objective.signal_index
-    return np.ones(idx.size, bool) if mask is None else np.asarray(mask)[idx] > 0.0
+    seen = np.ones(idx.size, bool) if mask is None else np.asarray(mask)[idx] > 0.0
+    # samples a robust loss rejects (the diagnosis's heavy-tailed noise) are no noise sample
+    rejected = getattr(objective, "rejected", None)
+    return seen if rejected is None else seen & ~rejected
 
 
 def estimated_sigma(objective: Objective, residual: np.ndarray, n_params: int) -> np.ndarray:
