@@ -33,6 +33,8 @@ from ..seeding import SeedLike, stream
 from ..traces import Traces
 from . import acquisition as acq
 from .acquisition import Acquisition
+from .discovery import discover, is_term
+from .discovery import finding as term_finding
 from .fitting import (
     assess,
     effect_bounds,
@@ -289,6 +291,9 @@ def diagnose(measured: Traces, settings: Settings | None = None, seed: SeedLike 
     chosen = None
     if first.detected:
         chosen = _search(search, result)
+        if settings.discover and (chosen is None or chosen.still_detected):
+            # no library set closes it: a term no library holds may
+            chosen = discover(search, chosen) or chosen
     result.candidates = list(search.trials)
     result.evaluations = search.evaluations
     _conclude(result, search, chosen)
@@ -432,14 +437,19 @@ def _conclude(result: Diagnosis, search: _Search, chosen: Trial | None) -> None:
     missing = tuple(n for n in chosen.effects if n not in ivs)
     if missing:
         ivs.update(search.intervals(f, missing))
-    phys = physical(chosen.effects)
+    phys = tuple(n for n in physical(chosen.effects) if not is_term(n))
     result.verdict = "effect" if phys else "acquisition"
     result.effects = [EffectFinding(n, {n: f.effects[n]}, ivs[n], d0.gap, d1.gap, closed,
                                     partial=chosen.partial) for n in phys]
+    result.terms = [term_finding(n, f.effects[n], ivs[n], d0.gap, d1.gap, closed,
+                                 chosen.partial) for n in chosen.effects if is_term(n)]
     result.acquisition = [AcquisitionFinding(a.name, a.kind, a.channel, a.value, ivs[a.name],
                                              acq.describe(a), partial=chosen.partial)
                           for a in f.acquisition]
-    if not result.acquisition:
+    if result.terms:
+        result.verdict = "term"
+        named = " + ".join(t.description for t in result.terms)
+    elif not result.acquisition:
         named = " + ".join(phys)
     else:
         named = (f"the actuator: {' + '.join(phys) or 'nothing the library holds'}; the "
