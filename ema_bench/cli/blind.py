@@ -16,7 +16,11 @@ Progress: a bar in a terminal, one line per finished case otherwise (--quiet: no
 --extra K and --fourth K add K cases of each third-round category (an effect beside an
 acquisition-chain fault, three effects) and of each fourth-round one (an effect beside an
 acquisition fault sized at 1-4x and at 1-1.5x its measured detection threshold) after the
-N, which they leave as drawn.
+N, which they leave as drawn.  --outside K adds K cases of each outside-library category
+after those: physics of a known form no library effect holds (the two decoys, a Stribeck
+friction peak, a position-dependent transmission stiffness, a saturating torque constant),
+judged on the dictionary term the diagnosis names (its equation and form), and nulls made by
+the reference and by the monitor, on which no term may be discovered.
 
 --calibrate fits the true effect sets of the effect cases of the suite of root seed 1 (never
 a reported seed) and writes the nonconformity scores of their intervals to
@@ -57,6 +61,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "acquisition fault sized at 1-4x, and at 1-1.5x, its detection "
                         "threshold), after the others, which they leave as they were "
                         "(default 0)")
+    p.add_argument("--outside", type=count(0, 1000), default=0, metavar="K",
+                   help="K more cases of each outside-library category (physics of a known "
+                        "form no library effect holds, judged on the term the diagnosis "
+                        "names; nulls made by the reference and by the monitor, judged on "
+                        "discovering nothing), after the others, which they leave as they "
+                        "were (default 0)")
     p.add_argument("--only", default=None, metavar="CATEGORIES",
                    help="comma-separated categories: run and summarise only their cases of "
                         "the suite drawn (e.g. a rerun of part of a committed suite)")
@@ -78,16 +88,18 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def default_out(seed: int, cases: int, extra: int = 0, fourth: int = 0) -> str:
+def default_out(seed: int, cases: int, extra: int = 0, fourth: int = 0,
+                outside: int = 0) -> str:
     """The folder a blind suite writes to without ``--out``: named by what it holds, so the
     same command resumes and another seed or size never mixes in."""
     return (f"ema-bench-blind-seed{seed}-n{cases}" + (f"-x{extra}" if extra else "")
-            + (f"-f{fourth}" if fourth else ""))
+            + (f"-f{fourth}" if fourth else "") + (f"-o{outside}" if outside else ""))
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.cases + args.extra + args.fourth < 1:   # each >= 0, --workers >= 1 by their types
-        raise CLIError("--cases, --extra and --fourth must be >= 0 (not all 0), --workers >= 1")
+    if args.cases + args.extra + args.fourth + args.outside < 1:   # each >= 0 by its type
+        raise CLIError("--cases, --extra, --fourth and --outside must be >= 0 (not all 0), "
+                       "--workers >= 1")
     only = None
     if args.only is not None:
         from ..diagnosis.blind import KINDS
@@ -116,12 +128,12 @@ def _run(args: argparse.Namespace, only: list[str] | None) -> int:
     from ..sweep.schema import check
 
     # before any work: the suite takes minutes per case
-    out = check_output(args.out or default_out(args.seed, args.cases, args.extra, args.fourth),
-                       "--out", folder=True)
+    out = check_output(args.out or default_out(args.seed, args.cases, args.extra, args.fourth,
+                                               args.outside), "--out", folder=True)
     if args.out is None and not args.quiet:
         print(f"writing to {out}/ (rerun the same command to resume)", file=sys.stderr)
     res = run_blind(args.cases, args.seed, out, quiet=args.quiet, workers=args.workers,
-                    extra=args.extra, only=only, fourth=args.fourth)
+                    extra=args.extra, only=only, fourth=args.fourth, outside=args.outside)
     res["summary"]["interval_calibration"] = source()
     text = dumps({"command": "ema-bench " + " ".join(sys.argv[1:]), **res["summary"]},
                  indent=1)

@@ -95,10 +95,13 @@ from .blind_categories import (
     ACQUIRED,
     CATEGORIES,
     EFFECT_ACQUISITION,
+    EXPECTED_TERMS,
     EXTRA_CATEGORIES,
     FOURTH_CATEGORIES,
     KINDS,
     MAGNITUDES,
+    OUTSIDE_CATEGORIES,
+    OUTSIDE_PHYSICS,
 )
 from .blind_summary import summarise
 from .results import Settings
@@ -132,6 +135,8 @@ CASE_SCHEMA = {
     "one_named": _FLAG, "all_named": _FLAG, "named_partial": _FLAG, "false_alarm": _FLAG,
     "decoy_ok": _FLAG, "effect_named": _FLAG, "acquisition_named": _FLAG,
     "acquisition_ok": _FLAG, "interval_covers": opt("dict|bool"),
+    "terms_named": opt("list"), "term_named": _FLAG, "right_term": _FLAG,
+    "discoveries": opt("int"),
 }
 
 
@@ -205,7 +210,8 @@ def _fourth_orders(rng: np.random.Generator) -> dict[str, list[tuple[str, ...]]]
             "sized_kind": [(n,) for n in _perm(rng, tuple(sized.CHANNELS))]}
 
 
-def draw_cases(n: int, seed: int, extra: int = 0, fourth: int = 0) -> list[BlindCase]:
+def draw_cases(n: int, seed: int, extra: int = 0, fourth: int = 0,
+               outside: int = 0) -> list[BlindCase]:
     """``n`` hidden cases of the suite of root seed ``seed``, laid out in the fixed shares of
     :data:`CATEGORIES`, then ``extra`` cases of each of :data:`EXTRA_CATEGORIES` (indices
     ``n`` on, shuffled); each category cycles through its effects, pairs, triples or decoys
@@ -216,8 +222,9 @@ def draw_cases(n: int, seed: int, extra: int = 0, fourth: int = 0) -> list[Blind
     cases as they were); case ``i``'s faults from the ``instance`` stream of run ``i``
     (``run_seed(seed, i)``), an acquisition fault's channel and magnitude from its
     ``acquisition`` stream.  ``fourth`` cases of each of :data:`FOURTH_CATEGORIES` follow
-    (indices ``n + 2 extra`` on; their layout from ``plan`` stream number 2)."""
-    if n < 0 or extra < 0 or fourth < 0:
+    (indices ``n + 2 extra`` on; their layout from ``plan`` stream number 2), then
+    ``outside`` cases of each of :data:`OUTSIDE_CATEGORIES` (``plan`` stream number 3)."""
+    if n < 0 or extra < 0 or fourth < 0 or outside < 0:
         raise ValueError(f"cases, extra and fourth-round cases must be >= 0, got {n}, {extra} "
                          f"and {fourth}")
     rng = np.random.default_rng(stream(seed, "plan"))
@@ -236,6 +243,14 @@ def draw_cases(n: int, seed: int, extra: int = 0, fourth: int = 0) -> list[Blind
         rng.shuffle(layout)
         cases += _draw(layout, n + len(EXTRA_CATEGORIES) * extra, seed, rng,
                        _fourth_orders(rng), Counter())
+    if outside:
+        rng = np.random.default_rng(stream(seed, "plan", 3))
+        layout = [c for c in OUTSIDE_CATEGORIES for _ in range(outside)]
+        rng.shuffle(layout)
+        cases += _draw(layout, n + len(EXTRA_CATEGORIES) * extra
+                       + len(FOURTH_CATEGORIES) * fourth, seed, rng,
+                       {"outside_library": [(n,) for n in _perm(rng, OUTSIDE_PHYSICS)]},
+                       Counter())
     return cases
 
 
@@ -285,7 +300,7 @@ def measured_traces(case: BlindCase, seed: int) -> Traces:
     acquisition fault applied."""
     node = run_seed(seed, case.index)
     x = np.array(list(case.faults.values()))
-    if case.category == "monitor_null":
+    if case.category in ("monitor_null", "outside_monitor_null"):
         tr = twin_traces(x, effects_vector({}), stream(node, "noise"), TESTS)
         return tr.with_meta(model=None)
     tr = simulate_reference(x, case.effects, tests=TESTS, seed=stream(node, "noise"))
@@ -307,6 +322,7 @@ def run_case(case: BlindCase, seed: int, settings: Settings) -> dict:
                  seed=stream(node, "diagnosis"))
     return {**case_record(case, seed), "verdict": d.verdict, "named": [e.name for e in d.effects],
             "named_acquisition": [a.name for a in getattr(d, "acquisition", [])],
+            "terms_named": [t.name for t in getattr(d, "terms", [])],
             "partial": d.gap.get("partial"), "gap_closed": d.gap.get("closed", 0.0),
             "gap_before": d.gap["before"], "gap_after": d.gap["after"],
             "message": d.message, "evaluations": d.evaluations, **score(case, d),
@@ -319,7 +335,11 @@ def score(case: BlindCase, d: Any) -> dict:
     """The scores of diagnosis ``d`` (a :class:`~ema_bench.diagnosis.results.Diagnosis`)
     of ``case``: by kind, see the module's docstring."""
     if case.kind == "null":
-        return {"false_alarm": d.verdict != "none"}
+        return {"false_alarm": d.verdict != "none",
+                **({"discoveries": len(d.terms)} if case.category in OUTSIDE_CATEGORIES
+                   else {})}
+    if case.kind == "outside":
+        return outside_score(case, d)
     fault = acquisition_truth(case)
     findings = list(d.effects) + list(getattr(d, "acquisition", []))
     # a verdict flagged partial claims no suspect as the whole answer
@@ -347,6 +367,19 @@ def score(case: BlindCase, d: Any) -> dict:
         rec["correct"] = bool(found)
     rec["named_partial"] = any(e.partial for e in d.effects if e.name in found)
     return {**rec, **_estimates(case.effects, d.effects, found)}
+
+
+def outside_score(case: BlindCase, d: Any) -> dict:
+    """An outside-library case's scores: whether a term was named, whether the right one
+    (:data:`~ema_bench.diagnosis.blind_categories.EXPECTED_TERMS`: its equation and form;
+    for physics no term has the form, that none was named) and the library effects named
+    without a partial flag (``misnamed``)."""
+    terms = [t.name for t in d.terms]
+    want = EXPECTED_TERMS[next(iter(case.effects))]
+    flagged = bool(d.gap.get("partial")) or any(e.partial for e in d.effects)
+    return {"term_named": bool(terms), "discoveries": len(terms),
+            "right_term": want in terms if want else not terms,
+            "misnamed": [] if flagged else sorted(e.name for e in d.effects)}
 
 
 def acquisition_truth(case: BlindCase) -> str | None:
@@ -387,9 +420,11 @@ def _run_task(runner: Runner, seed: int, settings: Settings, job: Job) -> dict:
 def run_blind(n: int, seed: int, out: str | Path | None = None,
               settings: Settings | None = None, quiet: bool = True, workers: int = 1,
               runner: Runner | None = None, extra: int = 0,
-              only: Sequence[str] | None = None, fourth: int = 0) -> dict[str, object]:
+              only: Sequence[str] | None = None, fourth: int = 0,
+              outside: int = 0) -> dict[str, object]:
     """Run (or resume, with ``out``) a blind suite of ``n`` cases (and ``extra`` of each
-    third-round category, :func:`draw_cases`) and summarise it; progress as
+    third-round category, ``fourth`` of each fourth-round one and ``outside`` of each
+    outside-library one, :func:`draw_cases`) and summarise it; progress as
     :func:`~ema_bench.progress.progress` shows it unless ``quiet``.  ``only``: run and
     summarise the cases of these categories alone (the others are drawn, not run).
 
@@ -399,7 +434,7 @@ def run_blind(n: int, seed: int, out: str | Path | None = None,
     runs exactly the cases missing, and the records come back in case order.  ``runner``
     replaces :func:`run_case` (a module-level function, for the processes)."""
     settings = settings or Settings()
-    cases = draw_cases(n, seed, extra, fourth)
+    cases = draw_cases(n, seed, extra, fourth, outside)
     if only is not None:
         unknown = sorted(set(only) - set(KINDS))
         if unknown:
