@@ -12,7 +12,9 @@
    grows by one effect while a discrepancy remains (up to ``max_effects``); every added
    effect must close ``pair_penalty`` more than the set without it, and lie outside its
    trivial band with a 95 % interval excluding zero, so noise and decoys do not buy names.
-4. Verdict ``effect`` (named), or ``unexplained`` with the discrepancy left open (and the
+4. When no library set closes it, search the dictionary of terms no library holds
+   (:mod:`.discovery`): verdict ``term`` when one is accepted.
+5. Verdict ``effect`` (named), or ``unexplained`` with the discrepancy left open (and the
    nearest candidate flagged ``partial`` when it closes part of it).  A named set is flagged
    ``partial`` too when the model with it still leaves the bootstrap envelopes: it explains
    much of the discrepancy, not all of it (a decoy outside the library ends so, as does a
