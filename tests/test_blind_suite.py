@@ -857,3 +857,17 @@ def test_summary_of_the_outside_categories_by_hand():
     assert block["right_by_physics"] == {"quadratic_damping": "1/1", "torque_saturation": "0/1"}
     assert _BLOCKS["outside_null"](recs[2:3])["discoveries"] == 0
     assert _BLOCKS["outside_monitor_null"](recs[3:])["discoveries"] == 1
+
+
+def test_cli_runs_an_outside_null_case_and_prints_its_discoveries(tmp_path, capsys):
+    """A real run (the monitor's own data, about 4 CPU-s): no term discovered."""
+    assert main(["blind", "--cases", "0", "--outside", "1", "--seed", "3", "--only",
+                 "outside_monitor_null", "--out", str(tmp_path), "-q"]) == 0
+    out = capsys.readouterr().out
+    line = next(s for s in out.splitlines() if s.strip().startswith("outside_monitor_null"))
+    assert "terms discovered 0, false alarms 0/1" in line
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["per_category"]["outside_monitor_null"]["discoveries"] == 0
+    (rec,) = map(json.loads, (tmp_path / "blind.jsonl").read_text().splitlines())
+    (case,) = [c for c in draw_cases(0, 3, outside=1) if c.category == "outside_monitor_null"]
+    assert rec["terms_named"] == [] and rec["discoveries"] == 0 and rec["seed"] == case.index

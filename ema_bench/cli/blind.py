@@ -198,6 +198,14 @@ def _category_line(name: str, b: dict) -> str:
                 f"  {b['per_acquisition']}")
     if name in ("null", "monitor_null"):
         return f"false alarms {b['false_alarms']}/{n}  {b['by_verdict']}"
+    if name == "outside_library":
+        return (f"right term (equation and form) {b['right_term']}/{n} "
+                f"({_pct(b['right_term_rate'])}), a term named {b['term_named']}/{n}, gap "
+                f"closed when right {_pct(b['median_gap_closed_when_named'])}, median "
+                f"{b['median_cpu_s']:.0f} CPU-s  {b['right_by_physics']}")
+    if name in ("outside_null", "outside_monitor_null"):
+        return (f"terms discovered {b['discoveries']}, false alarms {b['false_alarms']}/{n}  "
+                f"{b['by_verdict']}")
     o = b["by_outcome"]
     return (f"handled {b['ok']}/{n} (unexplained {o['unexplained']}, named but partial "
             f"{o['named_partial']}, acquisition fault named "
