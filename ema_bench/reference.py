@@ -42,11 +42,11 @@ def reference_consts(p, x, e, dt):
     zeta, v_dc, r_scale, ks_scale, c_visc, k_aero, cog, quad, hfric = plant_terms(e, p)
     bc = bldc_consts(p, x[F_NA], zeta, r_scale, v_dc)
     mc = mech_consts(p, x[F_FST], x[F_BLK], c_visc, k_aero, ks_scale, dt)
-    on, c = term_consts(e)
+    on, c, inv_kt = term_consts(e, p)
     # the outside-library physics (the monitor has none of it) and what a position-dependent
     # transmission stiffness recomputes the mechanics' constants from
     out = outside_consts(e)
-    return (bc, mc, cog, p[P_PP], quad, hfric, dt, on, c, out,
+    return (bc, mc, cog, p[P_PP], quad, hfric, dt, on, c, inv_kt, out,
             (p, x[F_FST], x[F_BLK], c_visc, k_aero, ks_scale))
 
 
@@ -61,7 +61,7 @@ def reference_init(pc):
 def reference_step(th_m, w_m, th_u, w_u, ps, i_ref, pc):
     """One 1 microsecond step of the reference plant (see
     :mod:`ema_bench.physics.integrator`)."""
-    bc, _, cog, pp, quad, hfric, dt, on, c, (f_s, k_pos, k_sat), mk = pc
+    bc, _, cog, pp, quad, hfric, dt, on, c, inv_kt, (f_s, k_pos, k_sat), mk = pc
     ia, ib, ic, sa, sb, sc, mc, level = ps
     ia, ib, ic, sa, sb, sc, t_mean, t_start, t_end, i_eq = bldc_step(ia, ib, ic, sa, sb, sc,
                                                                      i_ref, th_m, w_m, bc, dt)
@@ -71,7 +71,7 @@ def reference_step(th_m, w_m, th_u, w_u, ps, i_ref, pc):
     t_cog = cogging_torque(cog, th_m + 0.5 * dt * w_m, pp)
     t_ext = hinge_extra(w_u, quad, hfric)
     if on:
-        t_m_x, t_u_x = extra_torques(th_m, w_m, th_u, w_u, i_eq, pp, c)
+        t_m_x, t_u_x = extra_torques(th_m, w_m, th_u, w_u, t_mean * inv_kt, pp, c)
         t_cog += t_m_x
         t_ext += t_u_x
     if f_s != 0.0:

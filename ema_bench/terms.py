@@ -2,15 +2,16 @@
 outside the library that the blind suite builds from them.
 
 Each dictionary term is ``c * phi(state)``, a torque (N m) added to one equation of the block
-diagram: the **motor** torque balance (rotor side, states ``th_m``, ``w_m`` and the drive
-current ``i``) or the **surface** torque balance (load side, ``th_u``, ``w_u``).  The terms
-are state polynomials to degree 2, odd powers with ``|x|``, a smoothed sign and harmonics of
-the mechanical and electrical angles; the linear terms the library already holds (motor
-viscous friction ``w_m``, the aero spring ``th_u``) are left out.  Each coefficient is one
-slot of the effects vector (:mod:`ema_bench.effects`, after the library and the decoys), so
-the reference and the monitor evaluate the same term in the same compiled function
-(:func:`ema_bench.physics.extra_terms.extra_torques`) and the workflow fits it by name like an
-effect (:mod:`ema_bench.diagnosis.discovery`).
+diagram: the **motor** torque balance (rotor side, states ``th_m``, ``w_m`` and the drive's
+torque current ``i``, signed: its torque over the nominal torque constant ``2 Ke``) or the
+**surface** torque balance (load side, ``th_u``, ``w_u``).  The terms are state polynomials
+to degree 2, odd powers with ``|x|``, a smoothed sign and harmonics of the mechanical and
+electrical angles; the linear terms the library already holds (motor viscous friction
+``w_m``, the aero spring ``th_u``) are left out.  Each coefficient is one slot of the effects
+vector (:mod:`ema_bench.effects`, after the library and the decoys), so the reference and
+the monitor evaluate the same term in the same compiled function
+(:func:`ema_bench.physics.extra_terms.extra_torques`) and the workflow fits it by name like
+an effect (:mod:`ema_bench.diagnosis.discovery`).
 
 The coefficient bounds are a reference torque over the basis function's typical size (the
 motor ``0.5 N m``, a quarter of its torque limit; the surface ``300 N m``, about the hinge

@@ -517,6 +517,7 @@ static bool integrate(const double *p, const int64_t *ix, const double *x, const
     double c_visc = e[ix[IDX_E_VISC]], k_aero = e[ix[IDX_E_AERO]], cog = e[ix[IDX_E_COG]];
     double quad = e[ix[IDX_E_QDAMP]], hfric = e[ix[IDX_E_HFRIC]];
     const double *tc = e + ix[IDX_E_TERM0];   /* term_consts */
+    double inv_kt = 1.0 / (2.0 * p[ix[IDX_KE]]);
     bool on = false;
     for (int j = 0; j < N_TERMS; j++) if (tc[j] != 0.0) on = true;
     Drive dc = drive_consts(p, ix, x[0], zeta, r_scale, v_dc, dt);
@@ -545,7 +546,7 @@ static bool integrate(const double *p, const int64_t *ix, const double *x, const
                 double t_ext = hinge_extra(w_u, quad, hfric);
                 if (on) {
                     double t_m_x, t_u_x;
-                    extra_torques(th_m, w_m, th_u, w_u, d.i_eq, pp, tc, &t_m_x, &t_u_x);
+                    extra_torques(th_m, w_m, th_u, w_u, d.t_mean * inv_kt, pp, tc, &t_m_x, &t_u_x);
                     t_cog += t_m_x;
                     t_ext += t_u_x;
                 }

@@ -15,6 +15,7 @@ import math
 from numba import njit
 
 from ..effects import E_KPOS, E_KTSAT, E_STRIBECK, E_TERM0
+from ..params import P_KE
 from ..terms import (
     N_TERMS,
     SIGN_SPEED_MOTOR,
@@ -26,15 +27,17 @@ from .trig import poly_sincos
 
 
 @njit(cache=True, error_model="numpy")
-def term_consts(e):
-    """``(on, c)``: whether any dictionary term is on, and the coefficients (a view of the
-    effects vector ``e``, :data:`~ema_bench.terms.TERMS` order)."""
+def term_consts(e, p):
+    """``(on, c, 1/K_t)``: whether any dictionary term is on, the coefficients (a view of the
+    effects vector ``e``, :data:`~ema_bench.terms.TERMS` order) and the inverse of the
+    nominal torque constant ``2 Ke`` (A/N m; the terms' current is the drive's torque over
+    it, signed, where the recorded ``i_eq`` is a magnitude)."""
     c = e[E_TERM0:E_TERM0 + N_TERMS]
     on = False
     for v in c:
         if v != 0.0:
             on = True
-    return on, c
+    return on, c, 1.0 / (2.0 * p[P_KE])
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -42,7 +45,8 @@ def extra_torques(th_m, w_m, th_u, w_u, i, pp, c):
     """The dictionary's torques at the step-start state, N m: ``(motor, surface)``.
 
     ``th_m``, ``w_m``: motor angle (rad) and speed (rad/s); ``th_u``, ``w_u``: the surface's;
-    ``i``: the drive's equivalent current (A); ``pp``: pole pairs (the electrical angle is
+    ``i``: the drive's torque current (A, signed: its step-mean torque over the nominal
+    torque constant); ``pp``: pole pairs (the electrical angle is
     ``pp th_m``); ``c``: the coefficients (:data:`~ema_bench.terms.TERMS` order: each term's
     basis function times its coefficient, summed per equation)."""
     s1, c1 = poly_sincos(th_m)
