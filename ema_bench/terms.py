@@ -74,6 +74,14 @@ TERMS: tuple[Term, ...] = (
     Term("surface_sign", "surface", f"tanh(w_u / {SIGN_SPEED_SURFACE:g})", "N m", 1.0),
 )
 TERM_NAMES: tuple[str, ...] = tuple(t.name for t in TERMS)
+#: Kinematic twins: a speed term at the motor and the same term at the surface (``w_m = w_u
+#: / tau`` through the gear, the sign terms' speeds matched) differ in the data only through
+#: the transmission's twist, which the linearised selection may not resolve; the workflow
+#: fits both and lets the training fit decide.
+TWINS: dict[str, str] = {a: b for p in (("motor_wm2", "surface_wu2"),
+                                         ("motor_wm_abs", "surface_wu_abs"),
+                                         ("motor_sign", "surface_sign"))
+                         for a, b in (p, p[::-1])}
 TERM_INDEX: dict[str, int] = {n: i for i, n in enumerate(TERM_NAMES)}
 N_TERMS = len(TERMS)
 

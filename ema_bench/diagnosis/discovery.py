@@ -37,7 +37,7 @@ import numpy as np
 from ..effects import EFFECT_INDEX, EFFECTS
 from ..monitor import simulate_monitor
 from ..objective import KNOWN_TESTS, N_FAULTS
-from ..terms import EQUATIONS, TERM_NAMES, term
+from ..terms import EQUATIONS, TERM_NAMES, TWINS, term
 from . import acquisition as acq
 from .fitting import _fit_weights, _jacobian, effect_bounds
 from .results import TRAIN, Fit, TermFinding, Trial
@@ -135,6 +135,18 @@ def finding(name: str, value: float, interval: list[float], gap_before: float,
                        partial)
 
 
+def _across(name: str, c: float) -> float:
+    """The coefficient of ``name``'s kinematic twin giving the same torque across a rigid
+    gear (surface torque = motor torque / tau, w_m = w_u / tau)."""
+    from ..params import DEFAULT_PARAMS
+
+    tau = DEFAULT_PARAMS.tau
+    power = {"motor_wm2": 2, "motor_wm_abs": 2, "motor_sign": 0,
+             "surface_wu2": 2, "surface_wu_abs": 2, "surface_sign": 0}[name]
+    to_surface = 1.0 / tau ** (power + 1)     # c_m w_m^k / tau = c_m / tau^(k+1) w_u^k
+    return c * to_surface if name.startswith("motor") else c / to_surface
+
+
 def discover(search, against: Trial | None) -> Trial | None:
     """The best accepted set of dictionary terms for the search ``search`` (a
     :class:`~ema_bench.diagnosis.workflow._Search`), fitted from its base model, or ``None``.
@@ -150,6 +162,16 @@ def discover(search, against: Trial | None) -> Trial | None:
     for n in sel.names:
         start = search.start((n,), {n: sel.coefficients[n]}, base.x[:N_FAULTS])
         trials.append(search.run((n,), start, None, sel.shares[n]))
+    # a kinematic twin of an accepted term (the same speed term across the gear) is fitted
+    # too, from the accepted fit's faults and the coefficient the gear maps it to: only
+    # the training fit (the transmission's twist) tells the two balances apart
+    for t in [t for t in trials if t.accepted]:
+        (n,) = t.effects
+        twin = TWINS.get(n)
+        if twin and twin not in sel.names:
+            start = search.start((twin,), {twin: _across(n, t.values[n])},
+                                 search.fits[t.name].x[:N_FAULTS])
+            trials.append(search.run((twin,), start, None, t.score))
     ok = [t for t in trials if t.accepted]
     if len(ok) >= 2 and s.max_terms >= 2:
         a, b = sorted(ok, key=lambda t: t.train_fitness[1])[:2]
