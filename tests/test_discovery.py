@@ -100,8 +100,9 @@ def test_the_verdict_phrase_names_equation_form_and_interval():
     assert term("motor_i_abs").equation == "motor"
 
 
-# slow: a full diagnosis (about 120 CPU-s): the workflow fits the library first, finds no
-# set that closes the gap, and names the term
+# slow: a full diagnosis (about 80 CPU-s): the workflow fits the library first, finds no set
+# that closes the gap, and names the term; at this noise seed the linearised selection
+# picks the motor-side twin w_m |w_m|, and the twin's fit (the surface one) wins on the data
 @pytest.mark.slow
 def test_quadratic_damping_is_discovered_in_the_surface_balance_with_its_coefficient():
     truth = 20.0   # N m s^2/rad^2 on -c w_u |w_u|: 4x the decoy's detection threshold
@@ -116,12 +117,12 @@ def test_quadratic_damping_is_discovered_in_the_surface_balance_with_its_coeffic
     assert "unnamed term in the surface torque balance: c w_u |w_u|" in d.message
 
 
-# slow: a base fit and its assessment (about 25 CPU-s)
-@pytest.mark.slow
 @pytest.mark.parametrize("seed", [5])
 def test_a_null_case_discovers_nothing(seed):
+    """Reference data with nothing outside the monitor (a base fit and its assessment, about
+    5 CPU-s): nothing detected, so no term is searched or named."""
     tr = simulate_reference(NOMINAL, tests=TESTS, seed=seed)
     d = diagnose(tr, Settings(), seed=seed)
-    assert d.terms == [] and d.verdict in ("none", "unexplained")
-    assert not any(t.effects[0] in TERM_NAMES and t.accepted for t in d.candidates)
+    assert d.verdict == "none" and d.terms == []
+    assert not any(n in TERM_NAMES for t in d.candidates for n in t.effects)
 
