@@ -15,7 +15,8 @@ accounts for the residuals:
 2. **Selection**: sequentially thresholded least squares as in SINDy (:func:`stlsq`): the
    residual is regressed on the normalised columns, every term explaining less than
    ``term_threshold`` of the fitted part of the residual is dropped, and the regression is
-   repeated on the rest until nothing changes; the ``term_top_k`` largest remain.  pysindy's
+   repeated on the rest until nothing changes; the ``term_top_k`` largest remain (five:
+   at a strong torque-constant saturation the right ``i |i|`` ranked fourth).  pysindy's
    ``STLSQ`` does the same loop on a library of measured-state functions against measured
    derivatives; our columns are sensitivities of a simulated closed loop and the faults'
    columns must stay unpenalised, so the twenty lines are written here instead of adding
