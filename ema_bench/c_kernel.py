@@ -25,6 +25,7 @@ from . import params as _params
 from .effects import N_EFFECTS
 from .params import DEFAULT_PARAMS, EMAParams
 from .protocol import STANDARD_TESTS, TestSpec, steps_per
+from .terms import TERM_NAMES
 from .traces import OUTPUT_DT
 
 SOURCE_NAME = "benchmarks/c/monitor.c"
@@ -40,7 +41,7 @@ _PARAM_ORDER = ("V_dc", "R", "L", "Ke", "pole_pairs", "hyst_band", "J_m", "J_u",
                 "dt_ctrl", "kt_factor", "locate_commutation")
 _EFFECT_ORDER = ("eccentricity", "sensor_offset", "viscous_friction", "aero_spring", "delay",
                  "current_gain", "resistance_rise", "cogging", "voltage_sag", "gear_stiffness",
-                 "quadratic_damping", "hinge_friction")
+                 "quadratic_damping", "hinge_friction", TERM_NAMES[0])
 
 
 class CKernelUnavailable(RuntimeError):

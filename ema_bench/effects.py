@@ -13,6 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .terms import EQUATIONS, TERM_NAMES, TERMS
+
 
 @dataclass(frozen=True)
 class Effect:
@@ -27,6 +29,10 @@ class Effect:
     trivial: float = 0.0  # |value| below this is physically negligible
     detect: float = 0.0   # |value| the workflow reliably detects and names (inf: it cannot)
     signature: str = ""   # where it shows in the residuals
+    # "" (the library or a decoy, by ``library``), "outside" (reference-model physics of a
+    # known form, the blind suite's outside-library cases: the monitor ignores it) or "term"
+    # (a coefficient of the term dictionary, :mod:`ema_bench.terms`)
+    kind: str = ""
 
 
 EFFECTS: tuple[Effect, ...] = (
@@ -71,7 +77,25 @@ EFFECTS: tuple[Effect, ...] = (
     Effect("hinge_friction", "N m", 0.0, 20.0,
            "dry friction in the surface hinge bearing (smoothed Coulomb)", library=False,
            trivial=0.1, detect=1.0, signature="current step at each surface speed reversal"),
-)
+    # outside the library and the decoys: reference-model physics of a known form, which
+    # the monitor does not compute (only the term dictionary can stand in for it)
+    Effect("stribeck_friction", "N m", 0.0, 0.3,
+           "Stribeck peak of the motor's dry friction: -F exp(-(w_m/w_s)^2) tanh(w_m/w_0)",
+           library=False, kind="outside", trivial=0.005, detect=0.03,
+           signature="extra friction torque at low motor speed, vanishing at speed"),
+    Effect("stiffness_position", "-", 0.0, 0.9,
+           "transmission stiffness falling with surface position, "
+           "K_s (1 - x min((th_u/0.2)^2, 1))",
+           library=False, kind="outside", trivial=0.05, detect=0.5,
+           signature="motor-to-surface angle difference growing with |th_u|"),
+    Effect("torque_saturation", "1/A", 0.0, 0.03,
+           "torque constant falling with current, K_t (1 - x |i|)", library=False,
+           kind="outside", trivial=5e-4, detect=5e-3,
+           signature="current excess growing with |current|^2 under load"),
+) + tuple(Effect(t.name, t.unit, -t.bound, t.bound,
+                 f"dictionary term of the {EQUATIONS[t.equation]}: c {t.form}",
+                 library=False, kind="term", trivial=2e-3 * t.bound, detect=2e-2 * t.bound,
+                 signature="a term no library effect holds") for t in TERMS)
 EFFECT_NAMES: tuple[str, ...] = tuple(e.name for e in EFFECTS)
 EFFECT_INDEX: dict[str, int] = {n: i for i, n in enumerate(EFFECT_NAMES)}
 # positions in an effects vector, by name (numba folds the module-level ints as constants)
@@ -81,7 +105,11 @@ EFFECT_INDEX: dict[str, int] = {n: i for i, n in enumerate(EFFECT_NAMES)}
     "resistance_rise", "cogging", "voltage_sag", "gear_stiffness", "quadratic_damping",
     "hinge_friction"))
 LIBRARY: tuple[str, ...] = tuple(e.name for e in EFFECTS if e.library)
-DECOYS: tuple[str, ...] = tuple(e.name for e in EFFECTS if not e.library)
+DECOYS: tuple[str, ...] = tuple(e.name for e in EFFECTS if not e.library and not e.kind)
+OUTSIDE: tuple[str, ...] = tuple(e.name for e in EFFECTS if e.kind == "outside")
+E_STRIBECK, E_KPOS, E_KTSAT = (EFFECT_INDEX[n] for n in OUTSIDE)
+#: the first dictionary term's slot: the terms are the effects vector's last N_TERMS entries
+E_TERM0 = EFFECT_INDEX[TERM_NAMES[0]]
 N_EFFECTS = len(EFFECTS)
 MAX_DELAY_SAMPLES = 64  # controller samples kept for the delay effect (3.2 ms at 20 kHz)
 

@@ -32,6 +32,7 @@ from .monitor import simulate_monitor
 from .params import DEFAULT_PARAMS, EMAParams
 from .physics.sensors import SENSORS
 from .protocol import HOLDOUT_TESTS, STANDARD_TESTS, TestSpec
+from .terms import TERM_NAMES
 from .traces import OUTPUT_DT, SIGNALS, Traces
 
 #: Fitness of a failed simulation; valid values are clipped below ``VALID_CAP``.
@@ -94,13 +95,14 @@ class SearchSpace:
 
     @classmethod
     def of(cls, augment: Sequence[str] = ()) -> SearchSpace:
-        """The faults plus the named library effects (zero = off, so the augmented monitor
-        contains the base model)."""
+        """The faults plus the named library effects or dictionary terms
+        (:mod:`ema_bench.terms`; zero = off, so the augmented monitor contains the base
+        model)."""
         augment = tuple(augment)
-        bad = [n for n in augment if n not in LIBRARY]
+        bad = [n for n in augment if n not in LIBRARY and n not in TERM_NAMES]
         if bad or len(set(augment)) != len(augment):
-            raise ProblemError(f"augment takes distinct library effects {list(LIBRARY)}, "
-                               f"got {list(augment)}")
+            raise ProblemError(f"augment takes distinct library effects {list(LIBRARY)} "
+                               f"(or dictionary terms), got {list(augment)}")
         specs = [EFFECTS[EFFECT_NAMES.index(n)] for n in augment]
         arrays = (np.r_[LOWER, [e.lower for e in specs]], np.r_[UPPER, [e.upper for e in specs]],
                   np.r_[NOMINAL, np.zeros(len(specs))])

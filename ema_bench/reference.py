@@ -19,6 +19,13 @@ from .faults import F_BLK, F_FST, F_NA, check_faults, faults_to_dict
 from .params import DEFAULT_PARAMS, P_PP, EMAParams
 from .physics.bldc import bldc_consts, bldc_step
 from .physics.effect_terms import cogging_torque, plant_terms
+from .physics.extra_terms import (
+    extra_torques,
+    outside_consts,
+    stiffness_level,
+    stribeck,
+    term_consts,
+)
 from .physics.integrator import integrate
 from .physics.load import hinge_extra
 from .physics.mechanics import mech_consts, mech_step
@@ -35,28 +42,52 @@ def reference_consts(p, x, e, dt):
     zeta, v_dc, r_scale, ks_scale, c_visc, k_aero, cog, quad, hfric = plant_terms(e, p)
     bc = bldc_consts(p, x[F_NA], zeta, r_scale, v_dc)
     mc = mech_consts(p, x[F_FST], x[F_BLK], c_visc, k_aero, ks_scale, dt)
-    return bc, mc, cog, p[P_PP], quad, hfric, dt
+    on, c, inv_kt = term_consts(e, p)
+    # the outside-library physics (the monitor has none of it) and what a position-dependent
+    # transmission stiffness recomputes the mechanics' constants from
+    out = outside_consts(e)
+    return (bc, mc, cog, p[P_PP], quad, hfric, dt, on, c, inv_kt, out,
+            (p, x[F_FST], x[F_BLK], c_visc, k_aero, ks_scale))
 
 
 @njit(cache=True, error_model="numpy")
 def reference_init(pc):
-    """Drive state at rest: no phase current, every leg off."""
-    return 0.0, 0.0, 0.0, 0, 0, 0
+    """Drive state at rest: no phase current, every leg off; the mechanics' constants at
+    stiffness level 0."""
+    return 0.0, 0.0, 0.0, 0, 0, 0, pc[1], 0.0
 
 
 @njit(cache=True, inline="always", error_model="numpy")
 def reference_step(th_m, w_m, th_u, w_u, ps, i_ref, pc):
     """One 1 microsecond step of the reference plant (see
     :mod:`ema_bench.physics.integrator`)."""
-    bc, mc, cog, pp, quad, hfric, dt = pc
-    ia, ib, ic, sa, sb, sc = ps
+    bc, _, cog, pp, quad, hfric, dt, on, c, inv_kt, (f_s, k_pos, k_sat), mk = pc
+    ia, ib, ic, sa, sb, sc, mc, level = ps
     ia, ib, ic, sa, sb, sc, t_mean, t_start, t_end, i_eq = bldc_step(ia, ib, ic, sa, sb, sc,
                                                                      i_ref, th_m, w_m, bc, dt)
+    if k_sat != 0.0:   # torque constant K_t (1 - k_sat |i|)
+        f = 1.0 - k_sat * abs(i_eq)
+        t_mean, t_start, t_end = t_mean * f, t_start * f, t_end * f
     t_cog = cogging_torque(cog, th_m + 0.5 * dt * w_m, pp)
+    t_ext = hinge_extra(w_u, quad, hfric)
+    if on:
+        t_m_x, t_u_x = extra_torques(th_m, w_m, th_u, w_u, t_mean * inv_kt, pp, c)
+        t_cog += t_m_x
+        t_ext += t_u_x
+    if f_s != 0.0:
+        t_cog -= stribeck(f_s, w_m)
+    if k_pos != 0.0:
+        # the stiffness in 256 levels of (th_u / angle)^2: the constants are recomputed
+        # only when the surface crosses a level
+        new = stiffness_level(th_u)
+        if new != level:
+            level = new
+            mc = mech_consts(mk[0], mk[1], mk[2], mk[3], mk[4],
+                             mk[5] * (1.0 - k_pos * level), dt)
     th_m, w_m, th_u, w_u, m_thm, m_wm, m_thu = mech_step(
         th_m, w_m, th_u, w_u, t_mean + t_cog, t_start + t_cog, t_end + t_cog, 0.0,
-        hinge_extra(w_u, quad, hfric), mc)
-    return th_m, w_m, th_u, w_u, (ia, ib, ic, sa, sb, sc), m_thu, m_thm, m_wm, i_eq
+        t_ext, mc)
+    return th_m, w_m, th_u, w_u, (ia, ib, ic, sa, sb, sc, mc, level), m_thu, m_thm, m_wm, i_eq
 
 
 @njit(cache=True, error_model="numpy")

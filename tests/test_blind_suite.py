@@ -797,3 +797,81 @@ def test_the_third_round_categories_end_to_end_reproduce_the_committed_verdicts(
         assert not r["misnamed"]
     assert r["named_acquisition"] == [] and c["named_acquisition"] == []
     assert committed[8]["named_acquisition"] == ["mains_hum(i_eq)"]   # case 8's hum, named
+
+
+# --- outside-library physics (issue 46 item 4) ----------------------------------------------
+
+def test_outside_cases_leave_the_suite_drawn_before_and_cycle_every_physics():
+    before = draw_cases(64, 0, extra=2, fourth=2)
+    drawn = draw_cases(64, 0, extra=2, fourth=2, outside=5)
+    assert drawn[:len(before)] == before
+    new = drawn[len(before):]
+    assert [c.index for c in new] == list(range(72, 87))
+    assert Counter(c.category for c in new) == {c: 5 for c in blind.OUTSIDE_CATEGORIES}
+    phys = [c for c in new if c.category == "outside_library"]
+    assert sorted(next(iter(c.effects)) for c in phys) == sorted(blind.OUTSIDE_PHYSICS)
+    for c in phys:
+        (n, v), = c.effects.items()
+        assert c.kind == "outside" and c.decoy is None
+        assert 1.0 - 1e-9 <= detects(n, v) <= 4.0 + 1e-9 or v == EFFECTS[EFFECT_INDEX[n]].upper
+    assert all(c.kind == "null" and not c.effects for c in new if c not in phys)
+
+
+def _term(name: str):
+    return SimpleNamespace(name=name)
+
+
+def test_scores_of_outside_library_and_outside_null_cases():
+    qd = case("outside_library", {"quadratic_damping": 20.0})
+    right = diagnosis("term")
+    right.terms = [_term("surface_wu_abs")]
+    assert score(qd, right) == {"term_named": True, "discoveries": 1, "right_term": True,
+                                "misnamed": []}
+    motor = diagnosis("term")
+    motor.terms = [_term("motor_wm_abs")]      # the right form in the wrong equation
+    assert not score(qd, motor)["right_term"]
+    lib = diagnosis("effect", finding("viscous_friction", 1e-4, (5e-5, 2e-4)))
+    lib.terms = []
+    assert score(qd, lib) == {"term_named": False, "discoveries": 0, "right_term": False,
+                              "misnamed": ["viscous_friction"]}
+    # the stiffness law is no torque of either balance: right when no term is named
+    kpos = case("outside_library", {"stiffness_position": 0.6})
+    quiet = diagnosis("unexplained")
+    quiet.terms = []
+    assert score(kpos, quiet)["right_term"] and not score(kpos, right)["right_term"]
+    null = diagnosis("term")
+    null.terms = [_term("motor_i")]
+    assert score(case("outside_monitor_null"), null) == {"false_alarm": True, "discoveries": 1}
+
+
+def test_summary_of_the_outside_categories_by_hand():
+    recs = [{"category": "outside_library", "effects": {"quadratic_damping": 20.0},
+             "right_term": True, "term_named": True, "gap_closed": 0.98, "cpu_s": 100.0},
+            {"category": "outside_library", "effects": {"torque_saturation": 0.01},
+             "right_term": False, "term_named": True, "gap_closed": 0.8, "cpu_s": 140.0},
+            {"category": "outside_null", "verdict": "none", "false_alarm": False,
+             "discoveries": 0},
+            {"category": "outside_monitor_null", "verdict": "term", "false_alarm": True,
+             "discoveries": 1}]
+    from ema_bench.diagnosis.blind_summary import _BLOCKS
+
+    block = _BLOCKS["outside_library"](recs[:2])
+    assert block["right_term"] == 1 and block["right_term_rate"] == 0.5
+    assert block["median_gap_closed_when_named"] == 0.98 and block["median_cpu_s"] == 120.0
+    assert block["right_by_physics"] == {"quadratic_damping": "1/1", "torque_saturation": "0/1"}
+    assert _BLOCKS["outside_null"](recs[2:3])["discoveries"] == 0
+    assert _BLOCKS["outside_monitor_null"](recs[3:])["discoveries"] == 1
+
+
+def test_cli_runs_an_outside_null_case_and_prints_its_discoveries(tmp_path, capsys):
+    """A real run (the monitor's own data, about 4 CPU-s): no term discovered."""
+    assert main(["blind", "--cases", "0", "--outside", "1", "--seed", "3", "--only",
+                 "outside_monitor_null", "--out", str(tmp_path), "-q"]) == 0
+    out = capsys.readouterr().out
+    line = next(s for s in out.splitlines() if s.strip().startswith("outside_monitor_null"))
+    assert "terms discovered 0, false alarms 0/1" in line
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["per_category"]["outside_monitor_null"]["discoveries"] == 0
+    (rec,) = map(json.loads, (tmp_path / "blind.jsonl").read_text().splitlines())
+    (case,) = [c for c in draw_cases(0, 3, outside=1) if c.category == "outside_monitor_null"]
+    assert rec["terms_named"] == [] and rec["discoveries"] == 0 and rec["seed"] == case.index

@@ -25,10 +25,14 @@ enum {
     IDX_CM, IDX_CU, IDX_KAERO, IDX_THSTOP, IDX_KSTOP, IDX_CSTOP, IDX_FDYN, IDX_WSTICK, IDX_KGP,
     IDX_WMAX, IDX_KPV, IDX_KIV, IDX_TMAX, IDX_DTC, IDX_KTF, IDX_LOCATE,
     IDX_E_ECC, IDX_E_OFFSET, IDX_E_VISC, IDX_E_AERO, IDX_E_DELAY, IDX_E_IGAIN, IDX_E_RRISE,
-    IDX_E_COG, IDX_E_VSAG, IDX_E_GEAR, IDX_E_QDAMP, IDX_E_HFRIC, IDX_N
+    IDX_E_COG, IDX_E_VSAG, IDX_E_GEAR, IDX_E_QDAMP, IDX_E_HFRIC, IDX_E_TERM0, IDX_N
 };
 #define MAX_DELAY_SAMPLES 64
 #define HINGE_FRICTION_SPEED 0.01
+/* ema_bench.terms: the dictionary's size and its sign terms' smoothing speeds */
+#define N_TERMS 19
+#define SIGN_SPEED_MOTOR 3.0
+#define SIGN_SPEED_SURFACE 0.01
 
 static const double SIXTH = M_PI / 6.0;
 
@@ -512,6 +516,21 @@ static inline double hinge_extra(double w_u, double quad, double hfric) {
     return m;
 }
 
+/* physics/extra_terms.py: the term dictionary's torques on the motor and the surface */
+static inline void extra_torques(double th_m, double w_m, double th_u, double w_u, double i,
+                                 double pp, const double *c, double *motor, double *surface) {
+    double s1, c1, se, ce, s2, c2;
+    poly_sincos(th_m, &s1, &c1);
+    poly_sincos(pp * th_m, &se, &ce);
+    poly_sincos(2.0 * pp * th_m, &s2, &c2);
+    *motor = c[0] * (w_m * w_m) + c[1] * (w_m * fabs(w_m)) + c[2] * tanh(w_m / SIGN_SPEED_MOTOR)
+             + c[3] * i + c[4] * (i * i) + c[5] * (i * fabs(i)) + c[6] * s1 + c[7] * c1
+             + c[8] * se + c[9] * ce + c[10] * s2 + c[11] * c2;
+    *surface = c[12] * w_u + c[13] * (th_u * th_u) + c[14] * (th_u * w_u) + c[15] * (w_u * w_u)
+               + c[16] * (th_u * fabs(th_u)) + c[17] * (w_u * fabs(w_u))
+               + c[18] * tanh(w_u / SIGN_SPEED_SURFACE);
+}
+
 /* one candidate, one test (integrator.integrate with the monitor plant) */
 static bool integrate(const double *p, const int64_t *ix, const double *x, const double *e,
                       const double *cmd, int64_t n_out, int64_t ticks_out, int64_t steps_tick,
@@ -521,6 +540,10 @@ static bool integrate(const double *p, const int64_t *ix, const double *x, const
     double r_scale = 1.0 + e[ix[IDX_E_RRISE]], ks_scale = 1.0 - e[ix[IDX_E_GEAR]];
     double c_visc = e[ix[IDX_E_VISC]], k_aero = e[ix[IDX_E_AERO]], cog = e[ix[IDX_E_COG]];
     double quad = e[ix[IDX_E_QDAMP]], hfric = e[ix[IDX_E_HFRIC]];
+    const double *tc = e + ix[IDX_E_TERM0];   /* term_consts */
+    double inv_kt = 1.0 / (2.0 * p[ix[IDX_KE]]);
+    bool on = false;
+    for (int j = 0; j < N_TERMS; j++) if (tc[j] != 0.0) on = true;
     Drive dc = drive_consts(p, ix, x[0], zeta, r_scale, v_dc, dt);
     Mech mc = mech_consts(p, ix, x[1], x[2], c_visc, k_aero, ks_scale, dt);
     double pp = p[ix[IDX_PP]];
@@ -544,9 +567,16 @@ static bool integrate(const double *p, const int64_t *ix, const double *x, const
                 DOut d;
                 drive_step(&ps, i_ref, th_m, w_m, &dc, &d);
                 double t_cog = cogging_torque(cog, th_m + 0.5 * dc.h * w_m, pp);
+                double t_ext = hinge_extra(w_u, quad, hfric);
+                if (on) {
+                    double t_m_x, t_u_x;
+                    extra_torques(th_m, w_m, th_u, w_u, d.t_mean * inv_kt, pp, tc, &t_m_x, &t_u_x);
+                    t_cog += t_m_x;
+                    t_ext += t_u_x;
+                }
                 MOut m;
                 mech_step(th_m, w_m, th_u, w_u, d.t_mean + t_cog, d.t_start + t_cog,
-                          d.t_end + t_cog, d.t_rip, hinge_extra(w_u, quad, hfric), &mc, &m);
+                          d.t_end + t_cog, d.t_rip, t_ext, &mc, &m);
                 th_m = m.th_m; w_m = m.w_m; th_u = m.th_u; w_u = m.w_u;
                 a0 += m.m_th_u; a1 += m.m_th_m; a2 += m.m_w_m; a3 += d.i_eq;
             }

@@ -18,7 +18,11 @@ acquisition-chain fault, three effects) and of each fourth-round one (an effect 
 acquisition fault sized at 1-4x and at 1-1.5x its measured detection threshold) after the
 N, which they leave as drawn; --chain K adds K cases of each whole-chain category (an effect
 beside one fault kind on several channels at once, and beside heavy-tailed noise on every
-channel) after those.
+channel) after those.  --outside K adds K cases of each outside-library category after
+those: physics of a known form no library effect holds (the two decoys, a Stribeck
+friction peak, a position-dependent transmission stiffness, a saturating torque constant),
+judged on the dictionary term the diagnosis names (its equation and form), and nulls made by
+the reference and by the monitor, on which no term may be discovered.
 
 --calibrate fits the true effect sets of the effect cases of the suite of root seed 1 (never
 a reported seed) and writes the nonconformity scores of their intervals to
@@ -64,6 +68,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "of the whole recording chain sized at 1-4x its threshold, and "
                         "beside heavy-tailed noise on every channel), after the others, "
                         "which they leave as they were (default 0)")
+    p.add_argument("--outside", type=count(0, 1000), default=0, metavar="K",
+                   help="K more cases of each outside-library category (physics of a known "
+                        "form no library effect holds, judged on the term the diagnosis "
+                        "names; nulls made by the reference and by the monitor, judged on "
+                        "discovering nothing), after the others, which they leave as they "
+                        "were (default 0)")
     p.add_argument("--only", default=None, metavar="CATEGORIES",
                    help="comma-separated categories: run and summarise only their cases of "
                         "the suite drawn (e.g. a rerun of part of a committed suite)")
@@ -85,17 +95,19 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def default_out(seed: int, cases: int, extra: int = 0, fourth: int = 0, chain: int = 0) -> str:
+def default_out(seed: int, cases: int, extra: int = 0, fourth: int = 0, chain: int = 0,
+                outside: int = 0) -> str:
     """The folder a blind suite writes to without ``--out``: named by what it holds, so the
     same command resumes and another seed or size never mixes in."""
     return (f"ema-bench-blind-seed{seed}-n{cases}" + (f"-x{extra}" if extra else "")
-            + (f"-f{fourth}" if fourth else "") + (f"-c{chain}" if chain else ""))
+            + (f"-f{fourth}" if fourth else "") + (f"-c{chain}" if chain else "")
+            + (f"-o{outside}" if outside else ""))
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.cases + args.extra + args.fourth + args.chain < 1:   # each >= 0 by their types
-        raise CLIError("--cases, --extra, --fourth and --chain must be >= 0 (not all 0), "
-                       "--workers >= 1")
+    if args.cases + args.extra + args.fourth + args.chain + args.outside < 1:   # each >= 0
+        raise CLIError("--cases, --extra, --fourth, --chain and --outside must be >= 0 (not "
+                       "all 0), --workers >= 1")
     only = None
     if args.only is not None:
         from ..diagnosis.blind import KINDS
@@ -125,11 +137,12 @@ def _run(args: argparse.Namespace, only: list[str] | None) -> int:
 
     # before any work: the suite takes minutes per case
     out = check_output(args.out or default_out(args.seed, args.cases, args.extra, args.fourth,
-                                               args.chain), "--out", folder=True)
+                                               args.chain, args.outside), "--out", folder=True)
     if args.out is None and not args.quiet:
         print(f"writing to {out}/ (rerun the same command to resume)", file=sys.stderr)
     res = run_blind(args.cases, args.seed, out, quiet=args.quiet, workers=args.workers,
-                    extra=args.extra, only=only, fourth=args.fourth, chain=args.chain)
+                    extra=args.extra, only=only, fourth=args.fourth, chain=args.chain,
+                    outside=args.outside)
     res["summary"]["interval_calibration"] = source()
     text = dumps({"command": "ema-bench " + " ".join(sys.argv[1:]), **res["summary"]},
                  indent=1)
@@ -145,9 +158,10 @@ def _calibrate(args: argparse.Namespace) -> int:
     from ..interval_calibration_files import inside_package
 
     if args.seed not in (0, ic.CALIBRATION_SEED) or args.calibration or args.extra or \
-            args.only or args.fourth or args.chain:
+            args.only or args.fourth or args.chain or args.outside:
         raise CLIError(f"--calibrate runs the cases of root seed {ic.CALIBRATION_SEED}; drop "
-                       "--seed, --calibration, --extra, --fourth, --chain and --only")
+                       "--seed, --calibration, --extra, --fourth, --chain, --outside and "
+                       "--only")
     if args.out is None:
         raise CLIError("--calibrate writes OUT/interval_calibration.json: give --out DIR (the "
                        "shipped table is read-only)")
@@ -194,6 +208,14 @@ def _category_line(name: str, b: dict) -> str:
                 f"  {b['per_acquisition']}")
     if name in ("null", "monitor_null"):
         return f"false alarms {b['false_alarms']}/{n}  {b['by_verdict']}"
+    if name == "outside_library":
+        return (f"right term (equation and form) {b['right_term']}/{n} "
+                f"({_pct(b['right_term_rate'])}), a term named {b['term_named']}/{n}, gap "
+                f"closed when right {_pct(b['median_gap_closed_when_named'])}, median "
+                f"{b['median_cpu_s']:.0f} CPU-s  {b['right_by_physics']}")
+    if name in ("outside_null", "outside_monitor_null"):
+        return (f"terms discovered {b['discoveries']}, false alarms {b['false_alarms']}/{n}  "
+                f"{b['by_verdict']}")
     o = b["by_outcome"]
     return (f"handled {b['ok']}/{n} (unexplained {o['unexplained']}, named but partial "
             f"{o['named_partial']}, acquisition fault named "

@@ -103,10 +103,13 @@ from .blind_categories import (
     CATEGORIES,
     CHAIN_CATEGORIES,
     EFFECT_ACQUISITION,
+    EXPECTED_TERMS,
     EXTRA_CATEGORIES,
     FOURTH_CATEGORIES,
     KINDS,
     MAGNITUDES,
+    OUTSIDE_CATEGORIES,
+    OUTSIDE_PHYSICS,
 )
 from .blind_summary import summarise
 from .results import Settings
@@ -140,6 +143,8 @@ CASE_SCHEMA = {
     "one_named": _FLAG, "all_named": _FLAG, "named_partial": _FLAG, "false_alarm": _FLAG,
     "decoy_ok": _FLAG, "effect_named": _FLAG, "acquisition_named": _FLAG,
     "acquisition_ok": _FLAG, "interval_covers": opt("dict|bool"),
+    "terms_named": opt("list"), "term_named": _FLAG, "right_term": _FLAG,
+    "discoveries": opt("int"),
 }
 
 
@@ -221,7 +226,7 @@ def _chain_orders(rng: np.random.Generator) -> dict[str, list[tuple[str, ...]]]:
 
 
 def draw_cases(n: int, seed: int, extra: int = 0, fourth: int = 0,
-               chain: int = 0) -> list[BlindCase]:
+               chain: int = 0, outside: int = 0) -> list[BlindCase]:
     """``n`` hidden cases of the suite of root seed ``seed``, laid out in the fixed shares of
     :data:`CATEGORIES`, then ``extra`` cases of each of :data:`EXTRA_CATEGORIES` (indices
     ``n`` on, shuffled); each category cycles through its effects, pairs, triples or decoys
@@ -233,10 +238,11 @@ def draw_cases(n: int, seed: int, extra: int = 0, fourth: int = 0,
     (``run_seed(seed, i)``), an acquisition fault's channel and magnitude from its
     ``acquisition`` stream.  ``fourth`` cases of each of :data:`FOURTH_CATEGORIES` follow
     (indices ``n + 2 extra`` on; their layout from ``plan`` stream number 2), then
-    ``chain`` cases of each of :data:`CHAIN_CATEGORIES` (``plan`` stream number 3)."""
-    if min(n, extra, fourth, chain) < 0:
-        raise ValueError(f"cases, extra, fourth-round and chain cases must be >= 0, got {n}, "
-                         f"{extra}, {fourth} and {chain}")
+    ``chain`` cases of each of :data:`CHAIN_CATEGORIES` (``plan`` stream number 3), then
+    ``outside`` cases of each of :data:`OUTSIDE_CATEGORIES` (``plan`` stream number 4)."""
+    if min(n, extra, fourth, chain, outside) < 0:
+        raise ValueError(f"cases, extra, fourth-round, chain and outside cases must be >= 0, "
+                         f"got {n}, {extra}, {fourth}, {chain} and {outside}")
     rng = np.random.default_rng(stream(seed, "plan"))
     layout = [c for c, k in category_counts(n).items() for _ in range(k)]
     rng.shuffle(layout)
@@ -253,12 +259,18 @@ def draw_cases(n: int, seed: int, extra: int = 0, fourth: int = 0,
         rng.shuffle(layout)
         cases += _draw(layout, n + len(EXTRA_CATEGORIES) * extra, seed, rng,
                        _fourth_orders(rng), Counter())
+    first = n + len(EXTRA_CATEGORIES) * extra + len(FOURTH_CATEGORIES) * fourth
     if chain:
         rng = np.random.default_rng(stream(seed, "plan", 3))
         layout = [c for c in CHAIN_CATEGORIES for _ in range(chain)]
         rng.shuffle(layout)
-        cases += _draw(layout, n + len(EXTRA_CATEGORIES) * extra
-                       + len(FOURTH_CATEGORIES) * fourth, seed, rng, _chain_orders(rng),
+        cases += _draw(layout, first, seed, rng, _chain_orders(rng), Counter())
+    if outside:
+        rng = np.random.default_rng(stream(seed, "plan", 4))
+        layout = [c for c in OUTSIDE_CATEGORIES for _ in range(outside)]
+        rng.shuffle(layout)
+        cases += _draw(layout, first + len(CHAIN_CATEGORIES) * chain, seed, rng,
+                       {"outside_library": [(n,) for n in _perm(rng, OUTSIDE_PHYSICS)]},
                        Counter())
     return cases
 
@@ -317,7 +329,7 @@ def measured_traces(case: BlindCase, seed: int) -> Traces:
     acquisition fault applied."""
     node = run_seed(seed, case.index)
     x = np.array(list(case.faults.values()))
-    if case.category == "monitor_null":
+    if case.category in ("monitor_null", "outside_monitor_null"):
         tr = twin_traces(x, effects_vector({}), stream(node, "noise"), TESTS)
         return tr.with_meta(model=None)
     tr = simulate_reference(x, case.effects, tests=TESTS, seed=stream(node, "noise"))
@@ -341,6 +353,7 @@ def run_case(case: BlindCase, seed: int, settings: Settings) -> dict:
                  seed=stream(node, "diagnosis"))
     return {**case_record(case, seed), "verdict": d.verdict, "named": [e.name for e in d.effects],
             "named_acquisition": [a.name for a in getattr(d, "acquisition", [])],
+            "terms_named": [t.name for t in getattr(d, "terms", [])],
             "partial": d.gap.get("partial"), "gap_closed": d.gap.get("closed", 0.0),
             "gap_before": d.gap["before"], "gap_after": d.gap["after"],
             "message": d.message, "evaluations": d.evaluations, **score(case, d),
@@ -353,7 +366,11 @@ def score(case: BlindCase, d: Any) -> dict:
     """The scores of diagnosis ``d`` (a :class:`~ema_bench.diagnosis.results.Diagnosis`)
     of ``case``: by kind, see the module's docstring."""
     if case.kind == "null":
-        return {"false_alarm": d.verdict != "none"}
+        return {"false_alarm": d.verdict != "none",
+                **({"discoveries": len(d.terms)} if case.category in OUTSIDE_CATEGORIES
+                   else {})}
+    if case.kind == "outside":
+        return outside_score(case, d)
     fault = acquisition_truth(case)
     findings = list(d.effects) + list(getattr(d, "acquisition", []))
     # a verdict flagged partial claims no suspect as the whole answer
@@ -381,6 +398,19 @@ def score(case: BlindCase, d: Any) -> dict:
         rec["correct"] = bool(found)
     rec["named_partial"] = any(e.partial for e in d.effects if e.name in found)
     return {**rec, **_estimates(case.effects, d.effects, found)}
+
+
+def outside_score(case: BlindCase, d: Any) -> dict:
+    """An outside-library case's scores: whether a term was named, whether the right one
+    (:data:`~ema_bench.diagnosis.blind_categories.EXPECTED_TERMS`: its equation and form;
+    for physics no term has the form, that none was named) and the library effects named
+    without a partial flag (``misnamed``)."""
+    terms = [t.name for t in d.terms]
+    want = EXPECTED_TERMS[next(iter(case.effects))]
+    flagged = bool(d.gap.get("partial")) or any(e.partial for e in d.effects)
+    return {"term_named": bool(terms), "discoveries": len(terms),
+            "right_term": want in terms if want else not terms,
+            "misnamed": [] if flagged else sorted(e.name for e in d.effects)}
 
 
 def acquisition_truth(case: BlindCase) -> str | None:
@@ -422,10 +452,11 @@ def run_blind(n: int, seed: int, out: str | Path | None = None,
               settings: Settings | None = None, quiet: bool = True, workers: int = 1,
               runner: Runner | None = None, extra: int = 0,
               only: Sequence[str] | None = None, fourth: int = 0,
-              chain: int = 0) -> dict[str, object]:
+              chain: int = 0, outside: int = 0) -> dict[str, object]:
     """Run (or resume, with ``out``) a blind suite of ``n`` cases (and ``extra`` of each
-    third-round category, :func:`draw_cases`) and summarise it; progress as
-    :func:`~ema_bench.progress.progress` shows it unless ``quiet``.  ``only``: run and
+    third-round category, ``fourth`` of each fourth-round one, ``chain`` of each whole-chain
+    one and ``outside`` of each outside-library one, :func:`draw_cases`) and summarise it;
+    progress as :func:`~ema_bench.progress.progress` shows it unless ``quiet``.  ``only``: run and
     summarise the cases of these categories alone (the others are drawn, not run).
 
     The cases run on the sweep engine (:func:`~ema_bench.sweep.loop.run_sweep`): ``workers``
@@ -434,7 +465,7 @@ def run_blind(n: int, seed: int, out: str | Path | None = None,
     runs exactly the cases missing, and the records come back in case order.  ``runner``
     replaces :func:`run_case` (a module-level function, for the processes)."""
     settings = settings or Settings()
-    cases = draw_cases(n, seed, extra, fourth, chain)
+    cases = draw_cases(n, seed, extra, fourth, chain, outside)
     if only is not None:
         unknown = sorted(set(only) - set(KINDS))
         if unknown:

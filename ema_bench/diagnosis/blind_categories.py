@@ -40,3 +40,25 @@ MAGNITUDES: dict[str, tuple[float, float]] = {
 }
 #: Categories whose data go through an acquisition fault (the case's ``decoy``).
 ACQUIRED = ("acquisition_decoy", *EFFECT_ACQUISITION)
+
+# --- outside-library physics (issue 46, item 4: terms no library holds) --------------------
+#: ``outside`` cases of each after the fourth-round ones (``ema-bench blind --outside K``):
+#: physics of a known form that no library effect holds, and nulls made by the reference and
+#: by the monitor, on which nothing may be discovered.
+OUTSIDE_CATEGORIES: tuple[str, ...] = ("outside_library", "outside_null",
+                                       "outside_monitor_null")
+#: The physics the outside-library cases cycle through: the two decoys and the
+#: reference-only effects (:data:`~ema_bench.effects.OUTSIDE`).
+OUTSIDE_PHYSICS: tuple[str, ...] = ("quadratic_damping", "hinge_friction",
+                                    "stribeck_friction", "stiffness_position",
+                                    "torque_saturation")
+#: The dictionary term (:mod:`ema_bench.terms`) each is right to be named as: its equation
+#: and form.  ``None``: no dictionary term has its form (a stiffness law acts inside the
+#: transmission, a torque in neither balance): right when no term is named.
+EXPECTED_TERMS: dict[str, str | None] = {
+    "quadratic_damping": "surface_wu_abs", "hinge_friction": "surface_sign",
+    "stribeck_friction": "motor_sign", "stiffness_position": None,
+    "torque_saturation": "motor_i_abs"}
+KINDS.update({"outside_library": "outside", "outside_null": "null",
+              "outside_monitor_null": "null"})
+MAGNITUDES["outside_library"] = (1.0, 4.0)

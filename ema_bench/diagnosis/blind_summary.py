@@ -15,6 +15,7 @@ from .blind_categories import (
     EFFECT_ACQUISITION,
     EXTRA_CATEGORIES,
     FOURTH_CATEGORIES,
+    OUTSIDE_CATEGORIES,
 )
 
 
@@ -130,12 +131,32 @@ def _decoy_block(rs: list[dict]) -> dict[str, object]:
             "ok_by_decoy": _tally([(r["decoy"], r["decoy_ok"]) for r in rs])}
 
 
+def _outside_block(rs: list[dict]) -> dict[str, object]:
+    """Outside-library physics: the right term named (equation and form), the gap closed
+    when it is, and the outcome per physics."""
+    right = [r for r in rs if r["right_term"]]
+    return {"cases": len(rs), "right_term": len(right),
+            "right_term_rate": _rate(len(right), len(rs)),
+            "term_named": sum(r["term_named"] for r in rs),
+            "median_gap_closed_when_named": _median(
+                [r["gap_closed"] for r in right if r["term_named"]]),
+            "right_by_physics": _tally([(next(iter(r["effects"])), r["right_term"])
+                                        for r in rs]),
+            "median_cpu_s": _median([r["cpu_s"] for r in rs if "cpu_s" in r])}
+
+
+def _outside_null_block(rs: list[dict]) -> dict[str, object]:
+    return {**_null_block(rs), "discoveries": sum(r["discoveries"] for r in rs)}
+
+
 _BLOCKS: dict[str, Callable[[list[dict]], dict[str, object]]] = {
     "single": _single_block, "near_threshold": _single_block, "two_effect": _pair_block,
     "null": _null_block, "monitor_null": _null_block, "physical_decoy": _decoy_block,
     "acquisition_decoy": _decoy_block, "effect_acquisition": _effect_acquisition_block,
     "three_effect": _triple_block,
     **{c: _effect_acquisition_block for c in FOURTH_CATEGORIES + CHAIN_CATEGORIES},
+    "outside_library": _outside_block, "outside_null": _outside_null_block,
+    "outside_monitor_null": _outside_null_block,
 }
 
 
@@ -165,7 +186,7 @@ def summarise(records: list[dict]) -> dict[str, object]:
     present = {r["category"] for r in records}
     by = {c: [r for r in records if r["category"] == c]
           for c in (*CATEGORIES, *(c for c in EXTRA_CATEGORIES + FOURTH_CATEGORIES
-                                   + CHAIN_CATEGORIES if c in present))}
+                                   + CHAIN_CATEGORIES + OUTSIDE_CATEGORIES if c in present))}
     named = by["single"] + by["near_threshold"]
     effect = named + by["two_effect"] + by.get("three_effect", []) + [
         r for c in EFFECT_ACQUISITION for r in by.get(c, [])]

@@ -12,7 +12,9 @@
    grows by one effect while a discrepancy remains (up to ``max_effects``); every added
    effect must close ``pair_penalty`` more than the set without it, and lie outside its
    trivial band with a 95 % interval excluding zero, so noise and decoys do not buy names.
-4. Verdict ``effect`` (named), or ``unexplained`` with the discrepancy left open (and the
+4. When no library set closes it, search the dictionary of terms no library holds
+   (:mod:`.discovery`): verdict ``term`` when one is accepted.
+5. Verdict ``effect`` (named), or ``unexplained`` with the discrepancy left open (and the
    nearest candidate flagged ``partial`` when it closes part of it).  A named set is flagged
    ``partial`` too when the model with it still leaves the bootstrap envelopes: it explains
    much of the discrepancy, not all of it (a decoy outside the library ends so, as does a
@@ -34,6 +36,8 @@ from ..traces import Traces
 from . import acquisition as acq
 from . import tails
 from .acquisition import Acquisition
+from .discovery import discover, is_term
+from .discovery import finding as term_finding
 from .fitting import (
     assess,
     effect_bounds,
@@ -301,6 +305,9 @@ def diagnose(measured: Traces, settings: Settings | None = None, seed: SeedLike 
     chosen = None
     if first.detected:
         chosen = _search(search, result)
+        if settings.discover and (chosen is None or chosen.still_detected):
+            # no library set closes it: a term no library holds may
+            chosen = discover(search, chosen) or chosen
     result.candidates = list(search.trials)
     result.evaluations = search.evaluations
     _conclude(result, search, chosen)
@@ -454,13 +461,18 @@ def _conclude(result: Diagnosis, search: _Search, chosen: Trial | None) -> None:
     missing = tuple(n for n in chosen.effects if n not in ivs)
     if missing:
         ivs.update(search.intervals(f, missing))
-    phys = physical(chosen.effects)
+    phys = tuple(n for n in physical(chosen.effects) if not is_term(n))
     result.verdict = "effect" if phys else "acquisition"
     result.effects = [EffectFinding(n, {n: f.effects[n]}, ivs[n], d0.gap, d1.gap, closed,
                                     partial=chosen.partial) for n in phys]
+    result.terms = [term_finding(n, f.effects[n], ivs[n], d0.gap, d1.gap, closed,
+                                 chosen.partial) for n in chosen.effects if is_term(n)]
     result.acquisition = [_finding(a, ivs.get(a.name, f.acq_intervals.get(a.name)),
                                    chosen.partial) for a in f.acquisition]
-    if not result.acquisition:
+    if result.terms:
+        result.verdict = "term"
+        named = " + ".join(t.description for t in result.terms)
+    elif not result.acquisition:
         named = " + ".join(phys)
     else:
         named = (f"the actuator: {' + '.join(phys) or 'nothing the library holds'}; the "

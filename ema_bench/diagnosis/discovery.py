@@ -1,0 +1,192 @@
+"""Terms no library holds: sparse selection from the term dictionary, then fits and the
+verdict's rules as for library effects.
+
+When no library set closes the discrepancy (the search ends with no set, or a set that still
+leaves the envelopes), the workflow (:mod:`.workflow`) asks which term of the dictionary
+(:mod:`ema_bench.terms`: candidate torques in the motor and the surface torque balances)
+accounts for the residuals:
+
+1. **Columns**: each term's *output sensitivity*, the change of the monitor's whitened outputs
+   on the training tests when the term enters its equation with a small coefficient (its
+   ``detect`` step), per unit coefficient; beside them the Jacobian of the faults (they are
+   refitted with any term).  The monitor computes each term in its own compiled step
+   (:func:`ema_bench.physics.extra_terms.extra_torques`), so a column is what the term does
+   to the closed loop, not a regression on measured derivatives.
+2. **Selection**: sequentially thresholded least squares as in SINDy (:func:`stlsq`): the
+   residual is regressed on the normalised columns, every term explaining less than
+   ``term_threshold`` of the fitted part of the residual is dropped, and the regression is
+   repeated on the rest until nothing changes; the ``term_top_k`` largest remain (five:
+   at a strong torque-constant saturation the right ``i |i|`` ranked fourth).  pysindy's
+   ``STLSQ`` does the same loop on a library of measured-state functions against measured
+   derivatives; our columns are sensitivities of a simulated closed loop and the faults'
+   columns must stay unpenalised, so the twenty lines are written here instead of adding
+   the dependency.
+3. **Fits**: each selected term is fitted jointly with the faults (the workflow's
+   :meth:`~ema_bench.diagnosis.workflow._Search.run`: the same solver, assessment against
+   its own bootstrap, held-out check, trivial band and 95 % interval excluding zero), and
+   the best two together with the price per added term (``pair_penalty``).  Between
+   accepted terms the training fit decides: a torque at the motor and one at the surface
+   differ only through the transmission's twist, which the held-out test may not see.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..effects import EFFECT_INDEX, EFFECTS
+from ..monitor import simulate_monitor
+from ..objective import KNOWN_TESTS, N_FAULTS
+from ..terms import EQUATIONS, TERM_NAMES, TWINS, term
+from . import acquisition as acq
+from .fitting import _fit_weights, _jacobian, effect_bounds
+from .results import TRAIN, Fit, TermFinding, Trial
+from .screening import stack
+
+
+def is_term(name: str) -> bool:
+    """Whether ``name`` is a coefficient of the term dictionary."""
+    return name in TERM_NAMES
+
+
+def sensitivities(measured, model: Fit, names: tuple[str, ...] = TERM_NAMES,
+                  tests: tuple[str, ...] = TRAIN
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The selection's regression at the fitted ``model``: the whitened residual
+    ``r`` (m,), the faults' (and the model's effects') Jacobian ``J`` (m, k) and the terms'
+    output sensitivities ``S`` (m, len(names)) per unit coefficient, on ``tests``; the
+    samples the fit weighs zero (a stuck rotor's current, spikes) are dropped."""
+    lo, hi = effect_bounds(model.augment)
+    y0, J = _jacobian(model.x, model.augment, lo, hi, tests, faults=model.acquisition)
+    sw = _fit_weights(measured, model.acquisition)
+    keep = np.concatenate([sw[t].ravel() for t in tests])
+    data = stack({t: measured.data[t][None] for t in tests}, tests)[0]
+    E = np.tile(model.effects_vector(), (len(names), 1))
+    steps = np.array([EFFECTS[EFFECT_INDEX[n]].detect for n in names])
+    E[np.arange(len(names)), [EFFECT_INDEX[n] for n in names]] += steps
+    X = np.tile(model.x[:N_FAULTS], (len(names), 1))
+    out, _ = simulate_monitor(X, E, tests=tuple(KNOWN_TESTS[t] for t in tests), check=False)
+    ys = stack(acq.carry(out, model.acquisition), tests)
+    S = ((ys - y0) / steps[:, None]).T
+    return (data - y0) * keep, J * keep[:, None], S * keep[:, None]
+
+
+@dataclass(frozen=True)
+class Selection:
+    """What the sparse regression kept: term names, largest share first, with their
+    linearised coefficients (their units) and the share of the residual's fitted part each
+    explains."""
+
+    names: tuple[str, ...]
+    coefficients: dict[str, float]
+    shares: dict[str, float]
+
+
+def stlsq(r: np.ndarray, J: np.ndarray, S: np.ndarray, names: tuple[str, ...],
+          threshold: float, keep: int, ridge: float = 1e-6, rounds: int = 10) -> Selection:
+    """Sequentially thresholded least squares (SINDy's STLSQ) of ``r`` on the columns ``J``
+    (unpenalised, never dropped) and ``S`` (one per term of ``names``).
+
+    Every column is scaled to unit norm, so a term's coefficient is the norm of what it adds
+    to the fit; a term whose share of the norm of the fitted part (``J a + S c``) is below
+    ``threshold`` is dropped, and the regression is repeated until the set is stable; then
+    the ``keep`` largest remain.  ``ridge``: the (relative) Tikhonov weight on the terms'
+    coefficients, which keeps near-collinear columns from cancelling each other."""
+    def scaled(A):
+        n = np.linalg.norm(A, axis=0)
+        return A / np.where(n > 0, n, 1.0), n
+
+    Jn, _ = scaled(J)
+    Sn, norms = scaled(S)
+    active = [k for k in range(len(names)) if norms[k] > 0]
+    coef = np.zeros(len(names))
+    for _ in range(rounds):
+        A = np.hstack([Jn, Sn[:, active]])
+        reg = np.r_[np.zeros(Jn.shape[1]), np.full(len(active), ridge)]
+        sol = np.linalg.solve(A.T @ A + np.diag(reg * np.trace(A.T @ A) / A.shape[1]), A.T @ r)
+        coef[:] = 0.0
+        coef[active] = sol[Jn.shape[1]:]
+        fitted = np.linalg.norm(A @ sol)
+        share = np.abs(coef) / max(fitted, 1e-300)
+        kept = [k for k in active if share[k] >= threshold]
+        if kept == active:
+            break
+        active = kept
+    best = sorted(active, key=lambda k: -abs(coef[k]))[:keep]
+    return Selection(tuple(names[k] for k in best),
+                     {names[k]: float(coef[k] / norms[k]) for k in best},
+                     {names[k]: float(share[k]) for k in best})
+
+
+def describe(name: str, value: float, interval: list[float] | None = None) -> str:
+    """The verdict's phrase for a fitted term: its equation, form and coefficient."""
+    t = term(name)
+    iv = f" [{interval[0]:.3g}, {interval[1]:.3g}]" if interval else ""
+    return (f"unnamed term in the {EQUATIONS[t.equation]}: c {t.form}, c = {value:.3g}{iv} "
+            f"{t.unit}")
+
+
+def finding(name: str, value: float, interval: list[float], gap_before: float,
+            gap_after: float, closed: float, partial: bool) -> TermFinding:
+    """A :class:`~ema_bench.diagnosis.results.TermFinding` of a fitted term."""
+    t = term(name)
+    return TermFinding(name, t.equation, t.form, t.unit, float(value), list(interval),
+                       describe(name, value, interval), gap_before, gap_after, closed,
+                       partial)
+
+
+def _across(name: str, c: float) -> float:
+    """The coefficient of ``name``'s kinematic twin giving the same torque across a rigid
+    gear (surface torque = motor torque / tau, w_m = w_u / tau)."""
+    from ..params import DEFAULT_PARAMS
+
+    tau = DEFAULT_PARAMS.tau
+    power = {"motor_wm2": 2, "motor_wm_abs": 2, "motor_sign": 0,
+             "surface_wu2": 2, "surface_wu_abs": 2, "surface_sign": 0}[name]
+    to_surface = 1.0 / tau ** (power + 1)     # c_m w_m^k / tau = c_m / tau^(k+1) w_u^k
+    return c * to_surface if name.startswith("motor") else c / to_surface
+
+
+def discover(search, against: Trial | None) -> Trial | None:
+    """The best accepted set of dictionary terms for the search ``search`` (a
+    :class:`~ema_bench.diagnosis.workflow._Search`), fitted from its base model, or ``None``.
+
+    ``against``: the library set the search ended with (``None``: none); a term set replaces
+    it only when it closes at least as much of the base discrepancy."""
+    s = search.settings
+    base = search.base
+    sel = stlsq(*sensitivities(search.measured, base), TERM_NAMES, s.term_threshold,
+                s.term_top_k)
+    search.stage(f"term dictionary: selected {', '.join(sel.names) or 'nothing'}")
+    trials = []
+    for n in sel.names:
+        start = search.start((n,), {n: sel.coefficients[n]}, base.x[:N_FAULTS])
+        trials.append(search.run((n,), start, None, sel.shares[n]))
+    # a kinematic twin of an accepted term (the same speed term across the gear) is fitted
+    # too, from the accepted fit's faults and the coefficient the gear maps it to: only
+    # the training fit (the transmission's twist) tells the two balances apart
+    for t in [t for t in trials if t.accepted]:
+        (n,) = t.effects
+        twin = TWINS.get(n)
+        if twin and twin not in sel.names:
+            start = search.start((twin,), {twin: _across(n, t.values[n])},
+                                 search.fits[t.name].x[:N_FAULTS])
+            trials.append(search.run((twin,), start, None, t.score))
+    ok = [t for t in trials if t.accepted]
+    if len(ok) >= 2 and s.max_terms >= 2:
+        a, b = sorted(ok, key=lambda t: t.train_fitness[1])[:2]
+        effects = tuple(sorted(a.effects + b.effects))
+        f = search.fits[a.name]
+        start = search.start(effects, {**a.values, **b.values}, f.x[:N_FAULTS])
+        pair = search.run(effects, start, None, a.score + b.score,
+                          siblings={a.name: a, b.name: b})
+        if pair.accepted:
+            ok.append(pair)
+    if not ok:
+        return None
+    # the data decide between forms: no discrepancy left first, then the training fit
+    best = min(ok, key=lambda t: (t.still_detected, t.train_fitness[1]))
+    if against is not None and best.closed_total < against.closed_total:
+        return None
+    return best

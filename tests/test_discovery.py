@@ -1,0 +1,128 @@
+"""Terms no library holds (issue 46 item 4): the dictionary inside the kernels, its output
+sensitivities, the sparse selection and the workflow naming a term."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ema_bench.diagnosis.blind import TESTS
+from ema_bench.diagnosis.discovery import describe, sensitivities, stlsq
+from ema_bench.diagnosis.features import whiten
+from ema_bench.diagnosis.results import Fit, Settings
+from ema_bench.diagnosis.stiction import stick_weights
+from ema_bench.diagnosis.workflow import diagnose
+from ema_bench.effects import EFFECT_INDEX, EFFECTS, N_EFFECTS
+from ema_bench.faults import NOMINAL
+from ema_bench.monitor import simulate_monitor
+from ema_bench.objective import KNOWN_TESTS
+from ema_bench.physics.extra_terms import extra_torques
+from ema_bench.reference import simulate_reference
+from ema_bench.terms import EQUATIONS, N_TERMS, TERM_NAMES, TERMS, term
+
+
+def _basis(th_m, w_m, th_u, w_u, i, pp):
+    """Every term's basis function written out from its form, TERMS order."""
+    return {"motor_wm2": w_m ** 2, "motor_wm_abs": w_m * abs(w_m),
+            "motor_sign": np.tanh(w_m / 3.0), "motor_i": i, "motor_i2": i ** 2,
+            "motor_i_abs": i * abs(i), "motor_sin_m": np.sin(th_m),
+            "motor_cos_m": np.cos(th_m), "motor_sin_e": np.sin(pp * th_m),
+            "motor_cos_e": np.cos(pp * th_m), "motor_sin_2e": np.sin(2 * pp * th_m),
+            "motor_cos_2e": np.cos(2 * pp * th_m), "surface_wu": w_u,
+            "surface_thu2": th_u ** 2, "surface_thu_wu": th_u * w_u, "surface_wu2": w_u ** 2,
+            "surface_thu_abs": th_u * abs(th_u), "surface_wu_abs": w_u * abs(w_u),
+            "surface_sign": np.tanh(w_u / 0.01)}
+
+
+def test_each_term_enters_its_equation_with_its_form():
+    """A unit coefficient of each term gives its basis function, in its equation only."""
+    state = (7.3, -212.0, -0.137, 0.61, -4.2, 2.0)
+    want = _basis(*state)
+    assert list(want) == list(TERM_NAMES) and N_TERMS == len(TERMS)
+    for k, t in enumerate(TERMS):
+        c = np.zeros(N_TERMS)
+        c[k] = 1.0
+        motor, surface = extra_torques(*state, c)
+        got, other = (motor, surface) if t.equation == "motor" else (surface, motor)
+        assert got == pytest.approx(want[t.name], rel=1e-12, abs=1e-15), t.name
+        assert other == 0.0
+        assert t.equation in EQUATIONS and EFFECTS[EFFECT_INDEX[t.name]].kind == "term"
+
+
+def test_the_surface_wu_abs_column_is_the_quadratic_damping_decoys():
+    """The dictionary's ``c w_u |w_u|`` in the surface torque balance is the quadratic-damping
+    decoy's ``-c w_u |w_u|`` (written in the hinge moment itself) with the sign turned: the
+    monitor's outputs agree; its column is the whitened forward difference of the monitor
+    per unit coefficient, the stuck rotor's current dropped, and matches the decoy's
+    backward difference on the whole (the dry friction makes the model non-smooth, so the
+    two one-sided differences part where the stick-slip events move)."""
+    base = Fit((), NOMINAL.copy(), 0.0, {}, 0)
+    sine = (KNOWN_TESTS["sine"],)
+    measured = simulate_reference(NOMINAL, tests=sine, noise=False, adc=False)
+    _, _, S = sensitivities(measured, base, ("surface_wu_abs",), ("sine",))
+    h = EFFECTS[EFFECT_INDEX["surface_wu_abs"]].detect
+    E = np.zeros((4, N_EFFECTS))
+    E[1, EFFECT_INDEX["quadratic_damping"]] = h
+    E[2, EFFECT_INDEX["surface_wu_abs"]] = -h
+    E[3, EFFECT_INDEX["surface_wu_abs"]] = h
+    y = simulate_monitor(np.tile(NOMINAL, (4, 1)), E, tests=sine)[0]["sine"]
+    np.testing.assert_allclose(y[2], y[1], rtol=1e-9, atol=1e-12)
+    keep = stick_weights(measured)["sine"].ravel()
+    forward = (whiten(y[3]) - whiten(y[0])).ravel() / h * keep
+    np.testing.assert_allclose(S[:, 0], forward, rtol=1e-9, atol=1e-9 * np.abs(forward).max())
+    assert np.abs(forward).max() > 1.0   # noise units per unit coefficient: it shows
+    backward = -(whiten(y[1]) - whiten(y[0])).ravel() / h * keep
+    assert np.corrcoef(forward, backward)[0, 1] > 0.95
+
+
+def test_stlsq_keeps_the_term_that_made_the_residual_and_its_coefficient():
+    """Twelve columns, two near-collinear with the true one, the faults' columns free: the
+    thresholded regression keeps the true term, with its coefficient."""
+    rng = np.random.default_rng(3)
+    m = 4000
+    J = rng.normal(size=(m, 4))
+    S = rng.normal(size=(m, 12))
+    S[:, 5] = S[:, 4] + 0.3 * rng.normal(size=m)     # a near twin of the true column
+    names = tuple(f"t{k}" for k in range(12))
+    r = J @ np.array([1.0, -2.0, 0.5, 0.0]) + 0.8 * S[:, 4] + 0.1 * rng.normal(size=m)
+    sel = stlsq(r, J, S, names, threshold=0.1, keep=3)
+    assert sel.names == ("t4",)
+    assert sel.coefficients["t4"] == pytest.approx(0.8, rel=0.02)
+    # noise alone explains nothing: what is kept is small against the fitted faults
+    noise = J @ np.array([1.0, -2.0, 0.5, 0.0]) + 0.1 * rng.normal(size=m)
+    assert stlsq(noise, J, S, names, threshold=0.1, keep=3).names == ()
+
+
+def test_the_verdict_phrase_names_equation_form_and_interval():
+    assert describe("surface_wu_abs", -12.3, [-13.6, -11.1]) == (
+        "unnamed term in the surface torque balance: c w_u |w_u|, c = -12.3 [-13.6, -11.1] "
+        "N m s^2/rad^2")
+    assert term("motor_i_abs").equation == "motor"
+
+
+# slow: a full diagnosis (about 80 CPU-s): the workflow fits the library first, finds no set
+# that closes the gap, and names the term; at this noise seed the linearised selection
+# picks the motor-side twin w_m |w_m|, and the twin's fit (the surface one) wins on the data
+@pytest.mark.slow
+def test_quadratic_damping_is_discovered_in_the_surface_balance_with_its_coefficient():
+    truth = 20.0   # N m s^2/rad^2 on -c w_u |w_u|: 4x the decoy's detection threshold
+    tr = simulate_reference(NOMINAL, {"quadratic_damping": truth}, tests=TESTS, seed=11)
+    d = diagnose(tr, Settings(), seed=0)
+    assert d.verdict == "term" and d.effects == []
+    (t,) = d.terms
+    assert (t.equation, t.form) == ("surface", "w_u |w_u|")
+    lo, hi = t.interval
+    assert lo <= -truth <= hi and hi - lo < 0.2 * truth
+    assert t.gap_closed >= 0.9 and not t.partial
+    assert "unnamed term in the surface torque balance: c w_u |w_u|" in d.message
+
+
+@pytest.mark.parametrize("seed", [5])
+def test_a_null_case_discovers_nothing(seed):
+    """Reference data with nothing outside the monitor (a base fit and its assessment, about
+    5 CPU-s): nothing detected, so no term is searched or named."""
+    tr = simulate_reference(NOMINAL, tests=TESTS, seed=seed)
+    d = diagnose(tr, Settings(), seed=seed)
+    assert d.verdict == "none" and d.terms == []
+    assert not any(n in TERM_NAMES for t in d.candidates for n in t.effects)
+
