@@ -225,6 +225,11 @@ def _chain_orders(rng: np.random.Generator) -> dict[str, list[tuple[str, ...]]]:
             "chain_kind": [(n,) for n in _perm(rng, tuple(sized.CHAIN_CHANNELS))]}
 
 
+def _outside_orders(rng: np.random.Generator) -> dict[str, list[tuple[str, ...]]]:
+    """The order the outside-library category cycles its physics in."""
+    return {"outside_library": [(n,) for n in _perm(rng, OUTSIDE_PHYSICS)]}
+
+
 def draw_cases(n: int, seed: int, extra: int = 0, fourth: int = 0,
                chain: int = 0, outside: int = 0) -> list[BlindCase]:
     """``n`` hidden cases of the suite of root seed ``seed``, laid out in the fixed shares of
@@ -248,30 +253,19 @@ def draw_cases(n: int, seed: int, extra: int = 0, fourth: int = 0,
     rng.shuffle(layout)
     orders, taken = _orders(rng), Counter()
     cases = _draw(layout, 0, seed, rng, orders, taken)
-    if extra:
-        rng = np.random.default_rng(stream(seed, "plan", 1))
-        layout = [c for c in EXTRA_CATEGORIES for _ in range(extra)]
-        rng.shuffle(layout)
-        cases += _draw(layout, n, seed, rng, _extra_orders(rng), Counter())
-    if fourth:
-        rng = np.random.default_rng(stream(seed, "plan", 2))
-        layout = [c for c in FOURTH_CATEGORIES for _ in range(fourth)]
-        rng.shuffle(layout)
-        cases += _draw(layout, n + len(EXTRA_CATEGORIES) * extra, seed, rng,
-                       _fourth_orders(rng), Counter())
-    first = n + len(EXTRA_CATEGORIES) * extra + len(FOURTH_CATEGORIES) * fourth
-    if chain:
-        rng = np.random.default_rng(stream(seed, "plan", 3))
-        layout = [c for c in CHAIN_CATEGORIES for _ in range(chain)]
-        rng.shuffle(layout)
-        cases += _draw(layout, first, seed, rng, _chain_orders(rng), Counter())
-    if outside:
-        rng = np.random.default_rng(stream(seed, "plan", 4))
-        layout = [c for c in OUTSIDE_CATEGORIES for _ in range(outside)]
-        rng.shuffle(layout)
-        cases += _draw(layout, first + len(CHAIN_CATEGORIES) * chain, seed, rng,
-                       {"outside_library": [(n,) for n in _perm(rng, OUTSIDE_PHYSICS)]},
-                       Counter())
+    # the later rounds: each its own plan stream (number k), after the cases before it, so
+    # adding one leaves every case drawn before as it was
+    rounds = ((extra, EXTRA_CATEGORIES, _extra_orders), (fourth, FOURTH_CATEGORIES,
+              _fourth_orders), (chain, CHAIN_CATEGORIES, _chain_orders),
+              (outside, OUTSIDE_CATEGORIES, _outside_orders))
+    first = n
+    for k, (count, categories, order) in enumerate(rounds, start=1):
+        if count:
+            rng = np.random.default_rng(stream(seed, "plan", k))
+            layout = [c for c in categories for _ in range(count)]
+            rng.shuffle(layout)
+            cases += _draw(layout, first, seed, rng, order(rng), Counter())
+        first += len(categories) * count
     return cases
 
 
