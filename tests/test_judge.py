@@ -160,6 +160,48 @@ def test_the_escape_chance_is_the_hypergeometric_one():
     assert math.isclose(escape_chance(50, 10, 5), math.comb(45, 10) / math.comb(50, 10))
 
 
+
+def test_sample_seeds_span_63_bits_and_a_given_seed_is_checked():
+    """A fresh seed is a 63-bit number (64 draws: one at least 2**62, each below 2**63); a
+    maintainer's seed is returned as a plain int, and anything but a non-negative integer is
+    refused in one line."""
+    import numpy as np
+
+    seeds = [sample_seed() for _ in range(64)]
+    assert max(seeds) >= 2**62 and max(seeds) < 2**63
+    assert sample_seed(0) == 0 and type(sample_seed(np.int64(5))) is int
+    assert type(sample_seed(5.0)) is int and sample_seed(5.0) == 5
+    for bad in (-1, 1.5, True):
+        with pytest.raises(ValueError) as exc:
+            sample_seed(bad)
+        assert str(exc.value) == f"sample seed must be a non-negative integer, got {bad!r}"
+
+
+def test_a_sample_is_the_documented_draw_of_its_seed():
+    """``k`` distinct indices, sorted: numpy's ``choice`` without replacement from the seed's
+    SeedSequence (the recipe a maintainer can repeat by hand), all of them for None or
+    ``k >= n``."""
+    import numpy as np
+
+    want = np.random.default_rng(np.random.SeedSequence(2024)).choice(100, 50, replace=False)
+    got = sample_indices(100, 50, 2024)
+    assert got == sorted(int(i) for i in want) and len(set(got)) == 50
+    assert all(type(i) is int for i in got)
+    assert sample_indices(100, 50, 2025) != got
+    assert sample_indices(7, None, 3) == sample_indices(7, 7, 3) == list(range(7))
+    assert sample_indices(3, 0, 3) == []
+
+
+def test_the_escape_chance_at_its_edges():
+    # one item, sampled: no escape; a sample larger than the file holds everything; more
+    # forged items than records are all the records; an empty file hides nothing
+    assert escape_chance(1, 1) == 0.0 and escape_chance(1, 0) == 1.0
+    assert escape_chance(5, 12) == 0.0
+    assert escape_chance(5, 2, forged=10) == 0.0
+    assert escape_chance(5, 0, forged=10) == 1.0
+    assert escape_chance(0, 3) == 1.0 and escape_chance(-1, 3) == 1.0
+    assert escape_chance(2, 1) == 0.5
+
 # --- attacks 6 and 8: submitted code in the verdict's process; a private objective --------------
 def test_replay_runs_the_solver_in_its_own_process_and_catches_a_memory_reader(redteam):
     rec = run_task(Task("rt-truth-peeker", "seeded", "twin", 3, 5))
@@ -331,3 +373,34 @@ def test_no_counted_entry_point_is_called_inside_compiled_code():
     calls = {(n, f) for n, obj in compiled for f in obj.py_func.__code__.co_names
              if f in wrapped}
     assert calls == set()
+
+
+def test_the_replay_worker_sends_back_the_log_and_counts_every_model_evaluation(fresh,
+                                                                                 monkeypatch):
+    """The worker's job run here, in the test's process (replay runs it in a fresh one): the
+    honest run's log comes back whole, the kernels' count equals the declared evaluations,
+    and the comparison finds nothing; scopes come from the registry, ``unclassified`` for a
+    name nothing registers."""
+    import importlib
+
+    from ema_bench.faults import FAULT_NAMES
+    from ema_bench.leaderboard.replay import _finding, _job
+    from ema_bench.leaderboard.replay_worker import _ENTRY_POINTS, replay_job, scopes_job
+    from ema_bench.registry import get_solver
+    from ema_bench.sweep.executors import Job
+
+    for mod_name, entries in _ENTRY_POINTS.items():     # the wrappers are undone afterwards
+        mod = importlib.import_module(mod_name)
+        for name in entries:
+            monkeypatch.setattr(mod, name, getattr(mod, name))
+    out = replay_job(_job(3, fresh))
+    assert out["key"] == "3" and out["evaluations"] == fresh["evaluations"] == 40
+    assert out["model_evaluations"] == 40
+    assert len(out["fitness"]) == len(out["best"]) == len(out["x_hist"]) == 40
+    assert out["best"][-1] == fresh["fitness"] and out["wall_s"] > 0
+    assert out["x"][:len(FAULT_NAMES)] == [fresh["x"][n] for n in FAULT_NAMES]
+    assert _finding(fresh, out) is None
+    assert _finding(fresh, {**out, "model_evaluations": 41}).startswith(
+        "the replayed run made 41 model evaluations, 40 of them counted")
+    scopes = scopes_job(Job("scopes", "scopes", ["random", "no-such-solver"]))
+    assert scopes == {"random": get_solver("random").scope, "no-such-solver": "unclassified"}
