@@ -404,3 +404,91 @@ def test_the_replay_worker_sends_back_the_log_and_counts_every_model_evaluation(
         "the replayed run made 41 model evaluations, 40 of them counted")
     scopes = scopes_job(Job("scopes", "scopes", ["random", "no-such-solver"]))
     assert scopes == {"random": get_solver("random").scope, "no-such-solver": "unclassified"}
+
+
+# --- the judge's refusals, one by one ------------------------------------------------------------
+def test_read_runs_refuses_what_is_not_a_file_of_run_records(fresh, tmp_path):
+    def refusal(path) -> str:
+        with pytest.raises(JudgeError) as exc:
+            read_runs([path])
+        return str(exc.value)
+
+    assert refusal(tmp_path / "none.jsonl") == f"{tmp_path / 'none.jsonl'}: no such file"
+    assert refusal(tmp_path) == (f"{tmp_path}: not a file (give the runs.jsonl inside a "
+                                 "leaderboard folder)")
+    typed = tmp_path / "typed.jsonl"
+    typed.write_text(json.dumps({**fresh, "solver": 1}) + "\n")
+    assert refusal(typed) == (f"{typed}, line 1: field 'solver' must be str, got 1 (not a "
+                              "file of run records: one JSON object per line, as 'ema-bench "
+                              "leaderboard' writes)")
+    broken = tmp_path / "broken.jsonl"
+    broken.write_text("nope\n" + json.dumps(fresh) + "\n")
+    assert refusal(broken).startswith(f"{broken}: not a file of run records ({broken}: "
+                                      "broken record at byte 0 (")
+    # every line of every file, in order, nothing dropped or merged
+    a = _write(tmp_path / "a.jsonl", [fresh, fresh])
+    b = _write(tmp_path / "b.jsonl", [{**fresh, "seed": 1}])
+    assert [r["seed"] for r in read_runs([a, b])] == [0, 0, 1]
+    assert read_runs([]) == []
+
+
+def test_judge_keeps_one_record_per_run_and_names_the_copy(fresh):
+    err = error_record(Task("random", "s00", "twin", 0, 40), RuntimeError("boom"))
+    retry = error_record(Task("random", "s00", "twin", 0, 40), RuntimeError("again"))
+    # a finished run followed by an error record of its identity: the run stands
+    v = judge([fresh, err], reevaluate=False, complete=False)
+    assert v.records == [fresh] and v.accepted
+    # two error records: the later one (the last attempt) is kept, no finding
+    v = judge([err, retry], reevaluate=False, complete=False)
+    assert v.records == [retry] and v.findings == [] and v.legacy == 0
+    copy_ = {**fresh, "key": "the copy"}
+    (f,) = judge([fresh, copy_], reevaluate=False, complete=False).findings
+    assert str(f) == ("the copy: two records of one run identity (a run is recorded once; "
+                      "remove the copy that is not the run's)")
+    # a record without a key is named by its place among the kept records
+    nokey = {k: v for k, v in fresh.items() if k != "key"}
+    other = error_record(Task("random", "s00", "twin", 5, 40), RuntimeError("boom"))
+    (f,) = judge([other, {**nokey, "success": not fresh["success"]}],
+                 reevaluate=False, complete=False).findings
+    assert f.key == "record 1" and f.problem.startswith("success: claimed ")
+
+
+def test_judge_counts_legacy_records_and_checks_error_records_for_their_fields(legacy):
+    v = judge(legacy[:3], reevaluate=False, complete=False)
+    assert v.legacy == 3 and not v.accepted and len(v.findings) == 3
+    assert str(v.findings[0]) == (f"{legacy[0]['key']}: legacy record (schema 1, no "
+                                  "trajectory vectors): its hits cannot be proven, so it is "
+                                  "not ranked (rerun it, or --legacy for a labelled legacy "
+                                  "view)")
+    v = judge(legacy[:3], reevaluate=False, complete=False, legacy=True)
+    assert v.legacy == 3 and v.accepted and v.records == legacy[:3]
+    # an error record (no seed scheme, no schema) is no legacy record and needs no scheme
+    err = error_record(Task("random", "s00", "twin", 0, 40), RuntimeError("boom"))
+    err.pop("seed_scheme", None)
+    v = judge([err], reevaluate=False, complete=False)
+    assert v.accepted and v.legacy == 0
+    (f,) = judge([{**err, "success": True}], reevaluate=False, complete=False).findings
+    assert str(f) == f"{err['key']}: error record carries a score: success=True"
+
+
+def test_admitted_passes_its_options_on_and_names_the_first_finding(fresh, legacy):
+    assert admitted([fresh], "export", complete=False) == [fresh]
+    with pytest.raises(JudgeError) as exc:                  # complete by default
+        admitted([fresh], "report")
+    assert str(exc.value).startswith("report: 1 finding(s) in 1 records, nothing written "
+                                     "(first: *: random on the twin track lacks ")
+    assert str(exc.value).endswith("); 'ema-bench validate' lists them")
+    assert admitted(legacy[:2], "check", complete=False, legacy=True) == legacy[:2]
+    # per_tier reaches the completeness check: the first 8 of each v2 tier asked (7 lacking
+    # beside the one run), not every instance (22 lacking)
+    v2 = _lines(ROOT / "leaderboards" / "runs.jsonl", '"solver": "random"')[:1]
+    for per_tier, lacking in ((8, 7), (None, 22)):
+        (f,) = judge(v2, reevaluate=False, per_tier=per_tier).findings
+        assert f.problem.startswith(f"random on the reference track lacks {lacking} runs ")
+
+
+def test_is_suite_case_names_the_instances_a_suite_ranks():
+    from ema_bench.leaderboard.judge import is_suite_case
+
+    assert is_suite_case("s00") and is_suite_case("small")
+    assert not is_suite_case("seeded") and not is_suite_case(None) and not is_suite_case(3)
