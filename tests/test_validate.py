@@ -13,6 +13,7 @@ from inprocess import CliRun, run_cli
 
 from ema_bench.leaderboard.tasks import Task, error_record, run_task
 from ema_bench.leaderboard.validate import check_complete, check_record, validate
+from ema_bench.suites import DEFAULT
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -361,3 +362,103 @@ def test_a_vector_exactly_on_a_target_edge_reaches_it():
     legacy = {k: v for k, v in r.items() if k not in ("schema", "trajectory")}
     d = derive(legacy)
     assert d.success is True and d.parameter_hits["0.01"] == 1
+
+
+# --- every refusal of check_record, by its exact line ------------------------------------------
+def _hand_made() -> dict:
+    """A schema-2 record on ``small`` (twin, seed 0): improvements at evaluations 1 and 7,
+    the last evaluation 100 of a budget of 100."""
+    at = lambda p: evidence.level("small", "twin", 0, p)   # noqa: E731
+    return evidence.record([(1, at(0.5), evidence.vector("small", 0.3)),
+                            (7, at(0.1), evidence.vector("small", 0.3))])
+
+
+def _with(r: dict, **change) -> dict:
+    out = json.loads(json.dumps(r))
+    out.update(change)
+    return out
+
+
+def test_each_malformed_field_is_refused_by_its_own_line():
+    r = _hand_made()
+    f1, f7 = r["trace"][0][1], r["trace"][1][1]
+    tj = r["trajectory"]
+    v = tj[0][2]
+    check = lambda rec: check_record(rec, reevaluate=False)   # noqa: E731
+    assert check(r) == [] and check([r]) == ["not a record: list"]
+    assert check({k: x for k, x in r.items() if k not in ("trace", "fitness")}) == [
+        "missing field(s) ['fitness', 'trace']"]
+    assert check({k: x for k, x in r.items() if k != "trajectory"}) == [
+        "missing field(s) ['trajectory']"]
+    legacy = {k: x for k, x in r.items() if k not in ("schema", "trajectory")}
+    assert check(legacy) == []
+    # versions, schema and seed scheme: each named, all of them listed
+    assert check(_with(r, suite="emafdi-v0", model_version="1", schema=3, seed_scheme=7)) == [
+        "suite version 'emafdi-v0', expected 'emafdi-v1'",
+        "model version '1', expected '3' (or a compatible '2')",
+        "record schema 3, expected 2 (or legacy)",
+        "seed scheme 7, expected one of [1, 2]"]
+    for scheme in ("2", True, None):
+        assert check(_with(r, seed_scheme=scheme)) == [
+            f"seed scheme {scheme!r}, expected one of [1, 2]"]
+    assert check(_with(r, model_version="2")) == []          # the compatible one
+    where = ("(instances: " + ", ".join(DEFAULT.case_order()) + ", or instance@condition; "
+             "tracks: reference, twin)")
+    assert check(_with(r, case="s42", suite="emafdi-v0")) == [
+        "suite version 'emafdi-v0', expected 'emafdi-v1'",
+        f"not an instance of suite emafdi-v1 or emafdi-v2 or emafdi-v3: case 's42', track "
+        f"'twin' {where}"]
+    assert check(_with(r, track="moon"))[-1].endswith(f"case 'small', track 'moon' {where}")
+    # an error record: its identity only, and no score (the first one named)
+    err = evidence.record([], status="error")
+    assert check(err) == [] and check(_with(err, success=False, x=None)) == []
+    assert check({k: x for k, x in err.items() if k != "seed"}) == ["missing field(s) ['seed']"]
+    assert check(_with(err, accuracy={"Na": 0.1}, success=True)) == [
+        "error record carries a score: success=True"]
+    assert check(_with(err, x={"Na": 1.0})) == ["error record carries a score: x={'Na': 1.0}"]
+    # manifest and budget
+    assert check(_with(r, manifest="x")) == [
+        "manifest lacks ['ema_bench', 'python', 'numpy', 'scipy', 'numba', 'platform', 'cpu', "
+        "'threads', 'libraries']"]
+    assert check(_with(r, evaluations=0)) == [
+        "0 evaluations with a budget of 100",
+        "trace: evaluation 100 beyond the run's 0 evaluations (budget 100)"]
+    assert check(_with(r, budget=90)) == [
+        "100 evaluations with a budget of 90",
+        "trace: evaluation 100 beyond the run's 100 evaluations (budget 90)"]
+    assert check(_with(r, evaluations=50)) == [
+        "trace: evaluation 100 beyond the run's 50 evaluations (budget 100)"]
+    # the trace's and the trajectory's points
+    for bad in ([[True, f1], [7, f7], [100, f7]], [[1, f1], [7, float("nan")], [100, f7]],
+                [[1, f1], [7, "x"], [100, f7]], [[1.0, f1], [7, f7], [100, f7]],
+                [[1, f1], [7, float("inf")], [100, f7]]):
+        assert check(_with(r, trace=bad)) == [
+            "trace: evaluations must be integers and fitness finite numbers"], bad
+    assert check(_with(r, trace=[[2, f1], [7, f7], [100, f7]])) == [
+        "trace: starts at evaluation 2, not 1 (the first evaluation is always an improvement)"]
+    assert check(_with(r, trace=[[1, f1], [7, f7], [5, f7], [100, f7]])) == [
+        "trace: evaluations not increasing (7 then 5)"]
+    assert check(_with(r, trace=[[1, f1], [7, f7], [7, f7], [100, f7]])) == [
+        "trace: evaluations not increasing (7 then 7)"]
+    assert check(_with(r, trace=[[1, f7], [7, f1], [100, f1]], fitness=f1)) == [
+        "trace: best-so-far fitness does not decrease"]
+    assert check(_with(r, fitness=f7 * 1.01)) == [
+        f"fitness: claimed {f7 * 1.01!r}, re-derived {f7!r} (the trace's best)"]
+    assert check(_with(r, fitness=f7 * (1 + 1e-7))) == []   # within FITNESS_RTOL
+    for bad in ("x", [], [[1]], [[1, f1, f1]]):
+        assert check(_with(r, trace=bad)) == ["empty or malformed trace"], bad
+        assert check(_with(r, trajectory=bad)) == ["empty or malformed trajectory"], bad
+    assert check(_with(r, trajectory=[[1, f1, v], [7, f1, v]], trace=[[1, f1], [7, f1]],
+                       fitness=f1)) == ["trajectory: best-so-far fitness does not decrease"]
+    assert check(_with(r, trajectory=[[1, f1, v], [7, f7, v[:3]]])) == [
+        "trajectory vectors of lengths [3, 4]"]
+    assert check(_with(r, trajectory=[[1, f1, v[:3]], [7, f7, v[:3]]])) == [
+        "trajectory vectors of lengths [3]"]
+    # the trace is the trajectory's points, with or without the last evaluation
+    assert check(_with(r, trace=r["trace"][:2])) == []
+    assert check(_with(r, trace=[[1, f1], [7, f7], [99, f7]])) == [
+        "trace: not the trajectory's evaluations and fitness (and the last evaluation)"]
+    moved = {**r["x"], "Na": r["x"]["Na"] * 1.5}
+    final = dict(zip(("Na", "Fst", "BLK", "Gprop"), tj[-1][2][:4]))
+    assert check(_with(r, x=moved)) == [f"x: claimed {moved!r}, re-derived {final!r}"]
+    assert check(_with(r, x=None)) == [f"x: claimed None, re-derived {final!r}"]
