@@ -462,3 +462,63 @@ def test_each_malformed_field_is_refused_by_its_own_line():
     final = dict(zip(("Na", "Fst", "BLK", "Gprop"), tj[-1][2][:4]))
     assert check(_with(r, x=moved)) == [f"x: claimed {moved!r}, re-derived {final!r}"]
     assert check(_with(r, x=None)) == [f"x: claimed None, re-derived {final!r}"]
+
+
+def _legacy_of(r: dict) -> dict:
+    return {k: x for k, x in r.items() if k not in ("schema", "trajectory")}
+
+
+def test_legacy_claims_at_the_edges_of_their_bounds():
+    check = lambda rec: check_record(rec, reevaluate=False)   # noqa: E731
+    at = lambda p: evidence.level("small", "twin", 0, p)      # noqa: E731
+    x = evidence.vector("small", 0.3)                          # 30 % off: no parameter hit
+    # a trace point exactly at the 0.1 level reaches it there (7), not one later
+    r = _legacy_of(_hand_made())
+    assert r["targets"]["fitness"]["0.1"] == 7 and check(r) == []
+    # a first point already below the 0.1 level: its hit is evaluation 1 exactly
+    below = _legacy_of(evidence.record([(1, at(0.05), x), (7, at(0.005), x)]))
+    assert below["targets"]["fitness"]["0.1"] == 1 and check(below) == []
+    assert check(_with(below, targets={**below["targets"],
+                                       "fitness": {**below["targets"]["fitness"],
+                                                   "0.1": 2}})) == [
+        "targets.fitness.0.1: claimed 2, re-derived 1 (from the trace)"]
+    # claims that are not a mapping are claims of nothing, refused where a hit is due
+    assert check(_with(r, targets={**r["targets"], "fitness": None})) == [
+        "targets.fitness.0.1: claimed None, re-derived '2..7' (from the trace)"]
+    assert check(_with(r, targets={**r["targets"], "parameters": None})) == []
+    # a parameter hit outside 1..evaluations: named, and every target still checked
+    p = r["targets"]["parameters"]
+    assert check(_with(r, targets={**r["targets"], "parameters": {**p, "0.1": 0, "0.03": 0}})) \
+        == ["targets.parameters.0.1: claimed 0, re-derived '1..100'",
+            "targets.parameters.0.03: claimed 0, re-derived '1..100'"]
+    # at the last evaluation: within 1..evaluations, but after the final vector was found
+    assert check(_with(r, targets={**r["targets"], "parameters": {**p, "0.1": 100}})) == [
+        "targets.parameters.0.1: claimed 100, re-derived 'None or 1..6' (the final vector, "
+        "found at evaluation 7, is not within the target)"]
+
+
+def test_validate_re_evaluates_and_checks_completeness_by_default(records):
+    r = dict(records[0])
+    f = r["fitness"] * 0.999                  # a fitness its vector does not have
+    r.update(fitness=f, trajectory=[*r["trajectory"][:-1], [*r["trajectory"][-1][:1], f,
+                                                            r["trajectory"][-1][2]]])
+    r["trace"] = [[p[0], p[1]] for p in r["trajectory"]]
+    if records[0]["trace"][-1][0] != r["trace"][-1][0]:
+        r["trace"].append([records[0]["trace"][-1][0], f])
+    r["best_at"] = [[b, f if b >= r["trajectory"][-1][0] else v] for b, v in r["best_at"]]
+    found = validate([r])
+    assert [x.key for x in found] == [r["key"], "*"]
+    assert found[0].problem.startswith(f"fitness at evaluation {r['trajectory'][-1][0]}: ")
+    assert validate([r], reevaluate=False, complete=False) == []
+    assert [x.key for x in validate([r], complete=False)] == [r["key"]]
+    # completeness: a record without a track (a blind-suite case) counts for no solver
+    blind = {"key": "case 3", "solver": "powell", "case": "s00", "seed": 0}
+    assert check_complete([*records, blind]) == check_complete(records)
+    # per_tier reaches the check: v2's first 8 instances of each tier, not all 23
+    v2 = [json.loads(line) for line in open(ROOT / "leaderboards" / "runs.jsonl")
+          if '"solver": "random"' in line][:1]
+    for per_tier, lacking in ((8, 7), (None, 22)):
+        for found in (check_complete(v2, per_tier),
+                      validate(v2, reevaluate=False, per_tier=per_tier)):
+            (x,) = [y for y in found if y.key == "*"]
+            assert x.problem.startswith(f"random on the reference track lacks {lacking} runs ")
