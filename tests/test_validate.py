@@ -522,3 +522,21 @@ def test_validate_re_evaluates_and_checks_completeness_by_default(records):
                       validate(v2, reevaluate=False, per_tier=per_tier)):
             (x,) = [y for y in found if y.key == "*"]
             assert x.problem.startswith(f"random on the reference track lacks {lacking} runs ")
+
+
+def test_a_trajectory_longer_than_the_default_budget_is_re_evaluated_whole():
+    """1001 improvements (more than ``make_problem``'s default budget of 1000): every vector
+    is re-evaluated, none refused for want of budget."""
+    import numpy as np
+
+    from ema_bench.faults import LOWER, UPPER
+    from ema_bench.seeding import run_seed
+    from ema_bench.suites.problem import make_problem
+
+    p = make_problem("small", track="twin", seed=run_seed(0, 0), budget=2000)
+    X = np.random.default_rng(5).uniform(LOWER, UPPER, (1001, len(LOWER)))
+    f = p.evaluate(X)
+    order = np.argsort(-f)
+    assert np.all(np.diff(f[order]) < 0)                  # distinct: strictly improving
+    r = evidence.record([(i + 1, f[j], X[j]) for i, j in enumerate(order)], budget=2000)
+    assert len(r["trajectory"]) == 1001 and check_record(r) == []
