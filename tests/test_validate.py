@@ -540,3 +540,31 @@ def test_a_trajectory_longer_than_the_default_budget_is_re_evaluated_whole():
     assert np.all(np.diff(f[order]) < 0)                  # distinct: strictly improving
     r = evidence.record([(i + 1, f[j], X[j]) for i, j in enumerate(order)], budget=2000)
     assert len(r["trajectory"]) == 1001 and check_record(r) == []
+
+
+def test_re_evaluation_of_a_one_point_trajectory_and_its_tolerances():
+    """A run whose only improvement is its first evaluation (the start vector), its fitness
+    computed here: accepted within FITNESS_RTOL (1e-6), refused beyond it with both values;
+    the same for a claimed fitness at the truth; vectors of another dimension named."""
+    from ema_bench.seeding import run_seed
+    from ema_bench.suites.problem import make_problem
+
+    p = make_problem("small", track="twin", seed=run_seed(0, 0), budget=10)
+    x = [float(v) for v in p.start]
+    f = float(p.evaluate(x))
+    g = float(p.fitness_at_truth())
+    one = lambda fit, **kw: evidence.record([(1, fit, x)], **kw)   # noqa: E731
+    assert check_record(one(f)) == []
+    assert check_record(one(f * (1 + 1e-7))) == []
+    assert check_record(one(f * 1.01)) == [
+        f"fitness at evaluation 1: claimed {f * 1.01!r}, re-derived {f!r} (re-evaluated "
+        "from its vector)"]
+    assert check_record({**one(f), "fitness_at_truth": g * (1 + 1e-7)}) == []
+    assert check_record({**one(f), "fitness_at_truth": g * 1.01}) == [
+        f"fitness_at_truth: claimed {g * 1.01!r}, re-derived {g!r}"]
+    r = one(f)
+    wide = _with(r, trajectory=[[1, f, [*x, 0.5]]])
+    assert check_record(wide) == ["vectors of dimension 5, the problem's is 4"]
+    for bad in (None, "1.0", True, [1.0]):
+        assert check_record(_with(r, trajectory=[[1, f, [bad, *x[1:]]]])) == [
+            "trajectory: vector entries must be numbers"], bad
