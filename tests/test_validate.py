@@ -232,6 +232,9 @@ def test_the_exact_claims_of_a_schema_2_record_are_compared_one_by_one():
     r = evidence.record([(1, evidence.level("small", "twin", 0, 0.5), x)])
     assert check_record({**r, "evals_to_success": 5}, reevaluate=False) == [
         "evals_to_success: claimed 5, re-derived None"]
+    moved = [[b, f * 0.5] for b, f in r["best_at"]]
+    assert check_record({**r, "best_at": moved}, reevaluate=False) == [
+        f"best_at: claimed {moved!r}, re-derived {r['best_at']!r}"]
 
 
 def test_validate_names_each_record_and_passes_its_switches_on(records):
@@ -568,3 +571,36 @@ def test_re_evaluation_of_a_one_point_trajectory_and_its_tolerances():
     for bad in (None, "1.0", True, [1.0]):
         assert check_record(_with(r, trajectory=[[1, f, [bad, *x[1:]]]])) == [
             "trajectory: vector entries must be numbers"], bad
+
+
+def test_a_run_without_prior_that_holds_the_nominal_vector_is_refused():
+    from ema_bench.faults import NOMINAL
+
+    at = lambda p: evidence.level("small", "twin", 0, p)   # noqa: E731
+    x, nom = evidence.vector("small", 0.3), [float(v) for v in NOMINAL]
+    first = evidence.record([(1, at(0.5), nom), (3, at(0.2), nom), (7, at(0.1), x)])
+    later = evidence.record([(1, at(0.5), x), (3, at(0.2), nom), (7, at(0.1), x)])
+    v2 = lambda r, case: {**r, "case": case, "suite": "emafdi-v2"}   # noqa: E731
+    assert check_record(v2(first, "small@no-prior"), reevaluate=False) == [
+        "evaluation 1 is the nominal vector, which a run without prior is not given"]
+    assert check_record(v2(later, "small@no-prior"), reevaluate=False) == [
+        "evaluation 3 is the nominal vector, which a run without prior is not given"]
+    # with a prior (v1's instances, v2's @prior) the nominal vector is the start it is given
+    assert check_record(v2(first, "small@prior"), reevaluate=False) == []
+    assert check_record(first, reevaluate=False) == []
+    # a legacy record keeps no vectors but its final one: nothing to check here
+    legacy = _legacy_of(v2(first, "small@no-prior"))
+    assert check_record(legacy, reevaluate=False) == []
+
+
+def test_a_legacy_start_point_fixes_the_parameter_hits_at_evaluation_1(quick_legacy):
+    """The committed least-squares run on ``nominal`` (its start is the truth): its first
+    trace point is the start (1e-9 apart, within FITNESS_RTOL), so every parameter target is
+    hit at evaluation 1, not at 2 as a claim within the trace's bounds could say."""
+    r = quick_legacy["least-squares|nominal|twin|0"]
+    assert r["trace"][1][0] == 3 and check_record(r) == []
+    late = {**r, "evals_to_success": 2,
+            "targets": {**r["targets"], "parameters": {"0.1": 2, "0.03": 2, "0.01": 2}}}
+    assert check_record(late, reevaluate=False) == []        # the bounds allow it
+    assert check_record(late) == ["targets.parameters.0.1: claimed 2, re-derived 1 "
+                                  "(evaluation 1 was the start point)"]
