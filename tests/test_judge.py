@@ -17,6 +17,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import evidence
 import pytest
 
 from ema_bench.cli import main
@@ -44,7 +45,7 @@ def legacy() -> list[dict]:
 @pytest.fixture(scope="module")
 def fresh() -> dict:
     """A real schema-2 record (random search, 40 evaluations)."""
-    return run_task(Task("random", "s00", "twin", 0, 40))
+    return evidence.real_run("random", "s00", "twin", 0, 40)
 
 
 @pytest.fixture

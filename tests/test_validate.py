@@ -11,7 +11,7 @@ import evidence
 import pytest
 from inprocess import CliRun, run_cli
 
-from ema_bench.leaderboard.tasks import Task, error_record, run_task
+from ema_bench.leaderboard.tasks import Task, error_record
 from ema_bench.leaderboard.validate import check_complete, check_record, validate
 from ema_bench.suites import DEFAULT
 
@@ -21,7 +21,7 @@ ROOT = Path(__file__).resolve().parents[1]
 @pytest.fixture(scope="module")
 def records() -> list[dict]:
     # real runs: a seeded instance and a paper case on both tracks
-    return [run_task(Task("powell", c, t, 0, 60)) for c in ("s01", "small")
+    return [evidence.real_run("powell", c, t, 0, 60) for c in ("s01", "small")
             for t in ("twin", "reference")]
 
 
@@ -454,9 +454,9 @@ def test_each_malformed_field_is_refused_by_its_own_line():
     assert check(_with(r, trajectory=[[1, f1, v], [7, f1, v]], trace=[[1, f1], [7, f1]],
                        fitness=f1)) == ["trajectory: best-so-far fitness does not decrease"]
     assert check(_with(r, trajectory=[[1, f1, v], [7, f7, v[:3]]])) == [
-        "trajectory vectors of lengths [3, 4]"]
+        "trajectory vectors of lengths [3, 4], the instance's of at least 4"]
     assert check(_with(r, trajectory=[[1, f1, v[:3]], [7, f7, v[:3]]])) == [
-        "trajectory vectors of lengths [3]"]
+        "trajectory vectors of lengths [3], the instance's of at least 4"]
     # the trace is the trajectory's points, with or without the last evaluation
     assert check(_with(r, trace=r["trace"][:2])) == []
     assert check(_with(r, trace=[[1, f1], [7, f7], [99, f7]])) == [
@@ -604,3 +604,54 @@ def test_a_legacy_start_point_fixes_the_parameter_hits_at_evaluation_1(quick_leg
     assert check_record(late, reevaluate=False) == []        # the bounds allow it
     assert check_record(late) == ["targets.parameters.0.1: claimed 2, re-derived 1 "
                                   "(evaluation 1 was the start point)"]
+
+
+def test_claimed_figures_are_named_with_the_re_derived_values():
+    r = _hand_made()
+    check = lambda rec: check_record(rec, reevaluate=False)   # noqa: E731
+    acc = {**r["accuracy"], "Na": 0.5}
+    assert check(_with(r, accuracy=acc)) == [
+        f"accuracy: claimed {acc!r}, re-derived {r['accuracy']!r}"]
+    t = r["targets"]
+    assert check(_with(r, targets=None)) == [
+        f"targets.f_star: claimed None, re-derived {t['f_star']!r} (the suite's)",
+        f"targets.f_nominal: claimed None, re-derived {t['f_nominal']!r} (the suite's)",
+        f"targets.fitness: claimed None, re-derived {t['fitness']!r}",
+        f"targets.parameters: claimed None, re-derived {t['parameters']!r}"]
+
+
+def test_a_record_of_an_earlier_model_version_is_judged_on_its_own_entry():
+    """Tier 12's best-known entries of model version 2 were superseded by version 3's: a
+    version-2 record is held to the table's version-2 f*."""
+    table = json.loads((ROOT / "ema_bench" / "suite_targets_v2.json").read_text())
+    key = "t12-s00@prior|twin|0"
+    old, new = table["superseded"]["2"][key]["f_star"], table["entries"][key]["f_star"]
+    assert old != new
+    r = _with(_hand_made(), case="t12-s00@prior", suite="emafdi-v2")
+    r["targets"]["f_star"] = new
+    # its vectors are of v1's four faults; the instance searches 12 parameters
+    assert check_record(r, reevaluate=False) == [
+        "trajectory vectors of lengths [4], the instance's of at least 12"]
+    x_star = [float(v) for v in table["entries"][key]["x_star"].values()]
+    for p in r["trajectory"]:
+        p[2] = p[2] + x_star[len(p[2]):]
+    claim = f"targets.f_star: claimed {new!r}, re-derived {old!r} (the suite's)"
+    assert claim in check_record({**r, "model_version": "2"}, reevaluate=False)
+    assert not any(m.startswith("targets.f_star") for m in check_record(r, reevaluate=False))
+
+
+def test_the_best_known_tolerance_at_its_edge():
+    """Exactly 1e-4 of the f*-to-nominal gap below f*: within the tolerance; f* - 1e-4 of
+    f_nominal (a little further, by 1e-4 of f*): beyond it, with both values named."""
+    from ema_bench.suites.v1 import best_known
+
+    k = best_known("small", "twin", 0)
+    x = evidence.vector("small", 0.3)
+    edge = evidence.record([(1, evidence.level("small", "twin", 0, 0.5), x),
+                            (5, evidence.level("small", "twin", 0, -1e-4), x)])
+    assert check_record(edge, reevaluate=False) == []
+    f = k["f_star"] - 1e-4 * k["f_nominal"]
+    past = evidence.record([(1, evidence.level("small", "twin", 0, 0.5), x), (5, f, x)])
+    assert check_record(past, reevaluate=False) == [
+        f"fitness {f:.10g} beats the suite's best known {k['f_star']:.10g}: confirm it "
+        "(re-evaluation) and report it"]

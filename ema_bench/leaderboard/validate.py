@@ -40,7 +40,7 @@ from ..suites.targets import (
     precision_key,
 )
 from ..trace_cache import COMPATIBLE_VERSIONS, MODEL_VERSION, is_comparable
-from .derive import DerivationError, Derived, derive, truth_of
+from .derive import DerivationError, Derived, derive, frame_of, truth_of
 from .run_store import IDENTITY_FIELDS, is_error, model_version
 
 #: A fitness this far (in units of the instance's f*-to-nominal gap) below the suite's
@@ -160,8 +160,10 @@ def _check_evidence(r: dict) -> list[str]:
     if out:
         return out
     dims = {len(p[2]) for p in tj}
-    if len(dims) != 1 or dims.pop() < N_FAULTS:
-        return [f"trajectory vectors of lengths {sorted({len(p[2]) for p in tj})}"]
+    need = max(N_FAULTS, frame_of(r)[0].size)     # every parameter the instance searches
+    if len(dims) != 1 or dims.pop() < need:
+        return [f"trajectory vectors of lengths {sorted({len(p[2]) for p in tj})}, the "
+                f"instance's of at least {need}"]
     if not all(type(v) in (int, float) for p in tj for v in p[2]):
         return ["trajectory: vector entries must be numbers"]
     proj = [[p[0], p[1]] for p in tj]
