@@ -655,3 +655,47 @@ def test_the_best_known_tolerance_at_its_edge():
     assert check_record(past, reevaluate=False) == [
         f"fitness {f:.10g} beats the suite's best known {k['f_star']:.10g}: confirm it "
         "(re-evaluation) and report it"]
+
+
+def test_a_claimed_truth_must_be_the_instances_own():
+    r = _hand_made()
+    truth = r["truth"]
+    check = lambda rec: check_record(rec, reevaluate=False)   # noqa: E731
+    # Gprop (1e5): relative agreement 1e-12 decides, not numpy's absolute 1e-8
+    assert check(_with(r, truth={**truth, "Gprop": truth["Gprop"] * (1 + 1e-13)})) == []
+    for lie in ({**truth, "Gprop": truth["Gprop"] * (1 + 1e-8)},
+                {n: v for n, v in truth.items() if n != "Na"}, [1.0]):
+        assert check(_with(r, truth=lie)) == [f"truth: claimed {lie!r}, re-derived {truth!r}"]
+
+
+@pytest.mark.slow
+def test_a_trajectory_longer_than_the_suite_budget_is_re_evaluated_whole():
+    """5001 points (more than the 5000 of v1's budget): every vector is re-evaluated (here
+    the first point's claimed fitness is off, which only the re-evaluation can tell), none
+    refused for want of budget.  About 5 CPU-s of simulations."""
+    import numpy as np
+
+    from ema_bench.faults import LOWER, UPPER
+
+    X = np.random.default_rng(6).uniform(LOWER, UPPER, (5001, len(LOWER)))
+    r = evidence.record([(i + 1, 1.0 - 1e-6 * i, x) for i, x in enumerate(X)], budget=6000)
+    (msg,) = check_record(r)
+    assert msg.startswith("fitness at evaluation 1: claimed 1.0, re-derived ")
+
+
+def test_legacy_best_at_at_a_trace_point_and_past_the_last_one():
+    at = lambda p: evidence.level("small", "twin", 0, p)   # noqa: E731
+    x = evidence.vector("small", 0.3)
+    r = _legacy_of(evidence.record([(1, at(0.5), x), (10, at(0.2), x), (30, at(0.1), x)]))
+    r["trace"] = r["trace"][:3]                 # a trace may end at its last improvement
+    f1, f10, f30 = (p[1] for p in r["trace"])
+    assert r["best_at"] == [[10, f10], [20, f10], [50, f30], [100, f30]]
+    assert check_record(r, reevaluate=False) == []
+    # at checkpoint 10 a trace point stands: exactly its fitness, not the one before
+    ba = [[10, f1], *r["best_at"][1:]]
+    assert check_record({**r, "best_at": ba}, reevaluate=False) == [
+        f"best_at.10: claimed {f1!r}, re-derived {f10!r} (from the trace)"]
+    # past the last trace point (50, 100): the last fitness, exactly
+    ba = [*r["best_at"][:2], [50, f10], r["best_at"][3]]
+    assert check_record({**r, "best_at": ba}, reevaluate=False) == [
+        f"best_at.50: claimed {f10!r}, re-derived {f30!r} (from the trace)"]
