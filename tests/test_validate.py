@@ -699,3 +699,52 @@ def test_legacy_best_at_at_a_trace_point_and_past_the_last_one():
     ba = [*r["best_at"][:2], [50, f10], r["best_at"][3]]
     assert check_record({**r, "best_at": ba}, reevaluate=False) == [
         f"best_at.50: claimed {f10!r}, re-derived {f30!r} (from the trace)"]
+
+
+def test_claimed_accuracy_and_range_errors_within_their_tolerances():
+    r = _hand_made()
+    check = lambda rec: check_record(rec, reevaluate=False)   # noqa: E731
+    re_ = r["range_error"]
+    assert re_["Fst"] == 0.0 and re_["Na"] > 0.25
+    # an exact zero claimed as 1e-13 is the same figure (absolute 1e-12); 0.5 off is not
+    assert check(_with(r, range_error={**re_, "Fst": 1e-13})) == []
+    off = {**re_, "Na": re_["Na"] + 0.5}
+    assert check(_with(r, range_error=off)) == [
+        f"range_error: claimed {off!r}, re-derived {re_!r}"]
+    nothing = {**r["accuracy"], "Na": None}
+    assert check(_with(r, accuracy=nothing)) == [
+        f"accuracy: claimed {nothing!r}, re-derived {r['accuracy']!r}"]
+    # a fault whose truth is 0 has no paper accuracy (None) once the estimate is not 0
+    nom = evidence.record([(1, 1.0, evidence.vector("nominal", 0.3, fault="BLK"))],
+                          case="nominal")
+    assert nom["accuracy"]["BLK"] is None and check(nom) == []
+    forged = {**nom["accuracy"], "BLK": 50.0}
+    assert check(_with(nom, accuracy=forged)) == [
+        f"accuracy: claimed {forged!r}, re-derived {nom['accuracy']!r}"]
+
+
+def test_more_refusals_by_their_exact_line():
+    check = lambda rec: check_record(rec, reevaluate=False)   # noqa: E731
+    at = lambda p: evidence.level("small", "twin", 0, p)   # noqa: E731
+    x = evidence.vector("small", 0.3)
+    r = _hand_made()
+    # a v2 instance filed under v1's suite id: the instance's own suite is named
+    assert check(_with(r, case="small@prior"))[0] == (
+        "suite version 'emafdi-v1', expected 'emafdi-v2'")
+    assert check(_with(r, manifest="python numpy"))[0] == (
+        "manifest lacks ['ema_bench', 'python', 'numpy', 'scipy', 'numba', 'platform', 'cpu', "
+        "'threads', 'libraries']")
+    # one evaluation of a budget of one is a run
+    assert check(evidence.record([(1, at(0.5), x)], budget=1)) == []
+    # the fitness named is the trace's last (its best), not another point's
+    three = evidence.record([(1, at(0.5), x), (7, at(0.1), x), (9, at(0.05), x)])
+    three["trace"] = three["trace"][:3]
+    f9 = three["trace"][2][1]
+    assert check(_with(three, fitness=f9 * 1.01)) == [
+        f"fitness: claimed {f9 * 1.01!r}, re-derived {f9!r} (the trace's best)"]
+    # a derivation that fails is the record's one line, after what was found before
+    legacy = _legacy_of(r)
+    (msg,) = check(_with(legacy, x=None))
+    assert msg.startswith("final vector x unreadable (")
+    found = check(_with(legacy, x=None, suite="emafdi-v0"))
+    assert found[0] == "suite version 'emafdi-v0', expected 'emafdi-v1'" and found[1] == msg
