@@ -86,6 +86,8 @@ def test_completeness_is_checked_per_suite(legacy):
     # v1's instances are required of the v1 run (and v2's of the v2 run): both suites checked
     assert any("s01/" in p for p in lacking), lacking
     assert any("@prior/" in p for p in lacking), lacking
+    # one finding per suite, in the suites' order (emafdi-v1, then emafdi-v2)
+    assert len(lacking) == 2 and "s01/" in lacking[0] and "@prior/" in lacking[1]
 
 
 # --- attack 4: duplicates chosen by file order --------------------------------------------------
