@@ -118,8 +118,10 @@ def test_export_refuses_a_record_validate_refuses(fresh, tmp_path, capsys):
 def test_a_last_line_without_a_newline_is_refused_not_dropped(fresh, tmp_path, capsys,
                                                                  command):
     runs = _write(tmp_path / "runs.jsonl", [fresh, {**fresh, "seed": 1}], newline=False)
-    with pytest.raises(JudgeError, match="line 2: incomplete last line"):
+    with pytest.raises(JudgeError) as exc:
         read_runs([runs])
+    assert str(exc.value) == (f"{runs}, line 2: incomplete last line (no newline at its end, "
+                              "or not JSON: a torn write or an edit); complete or remove it")
     argv = [str(tmp_path / "o") if a == "OUT" else a for a in command] + [str(runs)]
     assert main(argv) == 2
     err = capsys.readouterr().err.strip()
@@ -396,7 +398,11 @@ def test_the_replay_worker_sends_back_the_log_and_counts_every_model_evaluation(
         mod = importlib.import_module(mod_name)
         for name in entries:
             monkeypatch.setattr(mod, name, getattr(mod, name))
+    import time
+
+    t0 = time.perf_counter()
     out = replay_job(_job(3, fresh))
+    assert 0 < out["wall_s"] <= time.perf_counter() - t0
     assert out["key"] == "3" and out["evaluations"] == fresh["evaluations"] == 40
     assert out["model_evaluations"] == 40
     assert len(out["fitness"]) == len(out["best"]) == len(out["x_hist"]) == 40
@@ -405,6 +411,10 @@ def test_the_replay_worker_sends_back_the_log_and_counts_every_model_evaluation(
     assert _finding(fresh, out) is None
     assert _finding(fresh, {**out, "model_evaluations": 41}).startswith(
         "the replayed run made 41 model evaluations, 40 of them counted")
+    # the record's seed scheme reaches the solver: read as scheme 1, the run is another
+    job = _job(3, fresh)
+    old = replay_job(Job(job.key, job.identity, (*job.data[:4], 1)))
+    assert _finding(fresh, old) is not None and old["evaluations"] == 40
     scopes = scopes_job(Job("scopes", "scopes", ["random", "no-such-solver"]))
     assert scopes == {"random": get_solver("random").scope, "no-such-solver": "unclassified"}
 
@@ -495,3 +505,23 @@ def test_is_suite_case_names_the_instances_a_suite_ranks():
 
     assert is_suite_case("s00") and is_suite_case("small")
     assert not is_suite_case("seeded") and not is_suite_case(None) and not is_suite_case(3)
+
+
+def test_keyless_records_are_named_by_their_place_and_judged_as_asked(legacy, fresh):
+    nokey = {k: v for k, v in legacy[0].items() if k != "key"}
+    (f,) = judge([nokey], reevaluate=False, complete=False).findings
+    assert f.key == "record 0" and f.problem.startswith("legacy record (schema 1")
+    old = {k: v for k, v in fresh.items() if k not in ("key", "seed_scheme")}
+    (f,) = judge([old], reevaluate=False, complete=False).findings
+    assert f.key == "record 0" and f.problem.startswith("seed scheme 1 ")
+    # reevaluate=False reaches check_record: a fitness its vector does not have goes unseen
+    r = copy.deepcopy(fresh)
+    r["trajectory"][-1][1] *= 0.999
+    r["fitness"] = r["trajectory"][-1][1]
+    r["best_at"] = [[b, r["fitness"] if b >= r["trajectory"][-1][0] else f]
+                    for b, f in r["best_at"]]
+    r["trace"] = [[p[0], p[1]] for p in r["trajectory"]] + (
+        [[r["evaluations"], r["fitness"]]] if r["trajectory"][-1][0] != r["evaluations"] else [])
+    assert judge([r], reevaluate=False, complete=False).findings == []
+    (f,) = judge([r], complete=False).findings
+    assert f.problem.startswith(f"fitness at evaluation {r['trajectory'][-1][0]}: ")

@@ -138,6 +138,9 @@ def test_the_one_way_seed_follows_its_recipe_for_every_kind_of_node():
     got = one_way(node, "tracker")
     assert got.entropy == by_hand("tracker", [5, 6], [1, 2], 8) and got.spawn_key == ()
     assert one_way(3, "solver").entropy == by_hand("solver", 3, [], 4)
+    # entropy given as a numpy array: its entries, as plain ints
+    arr = np.random.SeedSequence(np.array([5, 6]), spawn_key=(1, 2), pool_size=8)
+    assert one_way(arr, "tracker").entropy == got.entropy
     assert solver_seed(node).entropy == one_way(node, "solver").entropy != got.entropy
     assert solver_seed(node, 2).entropy == solver_seed(node).entropy
     old = solver_seed(node, 1)
