@@ -8,10 +8,14 @@ of the scores, which never read those claims.
 
 from __future__ import annotations
 
+import functools
+import json
+
 import numpy as np
 
 from ema_bench.faults import FAULT_NAMES, LOWER, UPPER, faults_to_dict
 from ema_bench.leaderboard.derive import derive
+from ema_bench.leaderboard.tasks import Task, run_task
 from ema_bench.manifest import manifest
 from ema_bench.records import RECORD_SCHEMA
 from ema_bench.seeding import SEED_SCHEME
@@ -81,3 +85,17 @@ def from_hits(f_hits=(None,) * 4, p_hits=(None,) * 3, budget: int = 100, **kw) -
         fit = level(case, track, seed, q) if best_known(case, track, seed) else 1.0 + q
         pts.append((e, fit, vector(case, 0.5 * min(p_done) if p_done else 0.3)))
     return record(pts, budget=budget, **kw)
+
+
+def real_run(solver: str, case: str, track: str, seed: int, budget: int) -> dict:
+    """The record of a real run (``run_task``), made once per process; each call returns a
+    fresh copy (read back from JSON, as from a file).  Under mutmut the child forked for each
+    mutant inherits the runs the clean test run made instead of making them again (they were
+    most of a mutant's test time in tests/test_validate.py, test_integrity.py, test_judge.py).
+    """
+    return json.loads(_real_run(solver, case, track, seed, budget))
+
+
+@functools.cache
+def _real_run(solver: str, case: str, track: str, seed: int, budget: int) -> str:
+    return json.dumps(run_task(Task(solver, case, track, seed, budget)))

@@ -52,7 +52,7 @@ def legacy() -> list[dict]:
 @pytest.fixture(scope="module")
 def fresh() -> dict:
     """A real schema-2 record (random search, 40 evaluations)."""
-    return run_task(Task("random", "s00", "twin", 0, 40))
+    return evidence.real_run("random", "s00", "twin", 0, 40)
 
 
 def _one(legacy: list[dict], solver: str, track: str = "reference") -> dict:

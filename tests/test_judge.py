@@ -17,6 +17,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import evidence
 import pytest
 
 from ema_bench.cli import main
@@ -44,7 +45,7 @@ def legacy() -> list[dict]:
 @pytest.fixture(scope="module")
 def fresh() -> dict:
     """A real schema-2 record (random search, 40 evaluations)."""
-    return run_task(Task("random", "s00", "twin", 0, 40))
+    return evidence.real_run("random", "s00", "twin", 0, 40)
 
 
 @pytest.fixture
@@ -85,6 +86,8 @@ def test_completeness_is_checked_per_suite(legacy):
     # v1's instances are required of the v1 run (and v2's of the v2 run): both suites checked
     assert any("s01/" in p for p in lacking), lacking
     assert any("@prior/" in p for p in lacking), lacking
+    # one finding per suite, in the suites' order (emafdi-v1, then emafdi-v2)
+    assert len(lacking) == 2 and "s01/" in lacking[0] and "@prior/" in lacking[1]
 
 
 # --- attack 4: duplicates chosen by file order --------------------------------------------------
@@ -115,8 +118,10 @@ def test_export_refuses_a_record_validate_refuses(fresh, tmp_path, capsys):
 def test_a_last_line_without_a_newline_is_refused_not_dropped(fresh, tmp_path, capsys,
                                                                  command):
     runs = _write(tmp_path / "runs.jsonl", [fresh, {**fresh, "seed": 1}], newline=False)
-    with pytest.raises(JudgeError, match="line 2: incomplete last line"):
+    with pytest.raises(JudgeError) as exc:
         read_runs([runs])
+    assert str(exc.value) == (f"{runs}, line 2: incomplete last line (no newline at its end, "
+                              "or not JSON: a torn write or an edit); complete or remove it")
     argv = [str(tmp_path / "o") if a == "OUT" else a for a in command] + [str(runs)]
     assert main(argv) == 2
     err = capsys.readouterr().err.strip()
@@ -159,6 +164,48 @@ def test_the_escape_chance_is_the_hypergeometric_one():
     assert escape_chance(4, 4) == 0.0
     assert math.isclose(escape_chance(50, 10, 5), math.comb(45, 10) / math.comb(50, 10))
 
+
+
+def test_sample_seeds_span_63_bits_and_a_given_seed_is_checked():
+    """A fresh seed is a 63-bit number (64 draws: one at least 2**62, each below 2**63); a
+    maintainer's seed is returned as a plain int, and anything but a non-negative integer is
+    refused in one line."""
+    import numpy as np
+
+    seeds = [sample_seed() for _ in range(64)]
+    assert max(seeds) >= 2**62 and max(seeds) < 2**63
+    assert sample_seed(0) == 0 and type(sample_seed(np.int64(5))) is int
+    assert type(sample_seed(5.0)) is int and sample_seed(5.0) == 5
+    for bad in (-1, 1.5, True):
+        with pytest.raises(ValueError) as exc:
+            sample_seed(bad)
+        assert str(exc.value) == f"sample seed must be a non-negative integer, got {bad!r}"
+
+
+def test_a_sample_is_the_documented_draw_of_its_seed():
+    """``k`` distinct indices, sorted: numpy's ``choice`` without replacement from the seed's
+    SeedSequence (the recipe a maintainer can repeat by hand), all of them for None or
+    ``k >= n``."""
+    import numpy as np
+
+    want = np.random.default_rng(np.random.SeedSequence(2024)).choice(100, 50, replace=False)
+    got = sample_indices(100, 50, 2024)
+    assert got == sorted(int(i) for i in want) and len(set(got)) == 50
+    assert all(type(i) is int for i in got)
+    assert sample_indices(100, 50, 2025) != got
+    assert sample_indices(7, None, 3) == sample_indices(7, 7, 3) == list(range(7))
+    assert sample_indices(3, 0, 3) == []
+
+
+def test_the_escape_chance_at_its_edges():
+    # one item, sampled: no escape; a sample larger than the file holds everything; more
+    # forged items than records are all the records; an empty file hides nothing
+    assert escape_chance(1, 1) == 0.0 and escape_chance(1, 0) == 1.0
+    assert escape_chance(5, 12) == 0.0
+    assert escape_chance(5, 2, forged=10) == 0.0
+    assert escape_chance(5, 0, forged=10) == 1.0
+    assert escape_chance(0, 3) == 1.0 and escape_chance(-1, 3) == 1.0
+    assert escape_chance(2, 1) == 0.5
 
 # --- attacks 6 and 8: submitted code in the verdict's process; a private objective --------------
 def test_replay_runs_the_solver_in_its_own_process_and_catches_a_memory_reader(redteam):
@@ -331,3 +378,150 @@ def test_no_counted_entry_point_is_called_inside_compiled_code():
     calls = {(n, f) for n, obj in compiled for f in obj.py_func.__code__.co_names
              if f in wrapped}
     assert calls == set()
+
+
+def test_the_replay_worker_sends_back_the_log_and_counts_every_model_evaluation(fresh,
+                                                                                 monkeypatch):
+    """The worker's job run here, in the test's process (replay runs it in a fresh one): the
+    honest run's log comes back whole, the kernels' count equals the declared evaluations,
+    and the comparison finds nothing; scopes come from the registry, ``unclassified`` for a
+    name nothing registers."""
+    import importlib
+
+    from ema_bench.faults import FAULT_NAMES
+    from ema_bench.leaderboard.replay import _finding, _job
+    from ema_bench.leaderboard.replay_worker import _ENTRY_POINTS, replay_job, scopes_job
+    from ema_bench.registry import get_solver
+    from ema_bench.sweep.executors import Job
+
+    for mod_name, entries in _ENTRY_POINTS.items():     # the wrappers are undone afterwards
+        mod = importlib.import_module(mod_name)
+        for name in entries:
+            monkeypatch.setattr(mod, name, getattr(mod, name))
+    import time
+
+    t0 = time.perf_counter()
+    out = replay_job(_job(3, fresh))
+    assert 0 < out["wall_s"] <= time.perf_counter() - t0
+    assert out["key"] == "3" and out["evaluations"] == fresh["evaluations"] == 40
+    assert out["model_evaluations"] == 40
+    assert len(out["fitness"]) == len(out["best"]) == len(out["x_hist"]) == 40
+    assert out["best"][-1] == fresh["fitness"] and out["wall_s"] > 0
+    assert out["x"][:len(FAULT_NAMES)] == [fresh["x"][n] for n in FAULT_NAMES]
+    assert _finding(fresh, out) is None
+    assert _finding(fresh, {**out, "model_evaluations": 41}).startswith(
+        "the replayed run made 41 model evaluations, 40 of them counted")
+    # the record's seed scheme reaches the solver: read as scheme 1, the run is another
+    job = _job(3, fresh)
+    old = replay_job(Job(job.key, job.identity, (*job.data[:4], 1)))
+    assert _finding(fresh, old) is not None and old["evaluations"] == 40
+    scopes = scopes_job(Job("scopes", "scopes", ["random", "no-such-solver"]))
+    assert scopes == {"random": get_solver("random").scope, "no-such-solver": "unclassified"}
+
+
+# --- the judge's refusals, one by one ------------------------------------------------------------
+def test_read_runs_refuses_what_is_not_a_file_of_run_records(fresh, tmp_path):
+    def refusal(path) -> str:
+        with pytest.raises(JudgeError) as exc:
+            read_runs([path])
+        return str(exc.value)
+
+    assert refusal(tmp_path / "none.jsonl") == f"{tmp_path / 'none.jsonl'}: no such file"
+    assert refusal(tmp_path) == (f"{tmp_path}: not a file (give the runs.jsonl inside a "
+                                 "leaderboard folder)")
+    typed = tmp_path / "typed.jsonl"
+    typed.write_text(json.dumps({**fresh, "solver": 1}) + "\n")
+    assert refusal(typed) == (f"{typed}, line 1: field 'solver' must be str, got 1 (not a "
+                              "file of run records: one JSON object per line, as 'ema-bench "
+                              "leaderboard' writes)")
+    broken = tmp_path / "broken.jsonl"
+    broken.write_text("nope\n" + json.dumps(fresh) + "\n")
+    assert refusal(broken).startswith(f"{broken}: not a file of run records ({broken}: "
+                                      "broken record at byte 0 (")
+    # every line of every file, in order, nothing dropped or merged
+    a = _write(tmp_path / "a.jsonl", [fresh, fresh])
+    b = _write(tmp_path / "b.jsonl", [{**fresh, "seed": 1}])
+    assert [r["seed"] for r in read_runs([a, b])] == [0, 0, 1]
+    assert read_runs([]) == []
+
+
+def test_judge_keeps_one_record_per_run_and_names_the_copy(fresh):
+    err = error_record(Task("random", "s00", "twin", 0, 40), RuntimeError("boom"))
+    retry = error_record(Task("random", "s00", "twin", 0, 40), RuntimeError("again"))
+    # a finished run followed by an error record of its identity: the run stands
+    v = judge([fresh, err], reevaluate=False, complete=False)
+    assert v.records == [fresh] and v.accepted
+    # two error records: the later one (the last attempt) is kept, no finding
+    v = judge([err, retry], reevaluate=False, complete=False)
+    assert v.records == [retry] and v.findings == [] and v.legacy == 0
+    copy_ = {**fresh, "key": "the copy"}
+    (f,) = judge([fresh, copy_], reevaluate=False, complete=False).findings
+    assert str(f) == ("the copy: two records of one run identity (a run is recorded once; "
+                      "remove the copy that is not the run's)")
+    # a record without a key is named by its place among the kept records
+    nokey = {k: v for k, v in fresh.items() if k != "key"}
+    other = error_record(Task("random", "s00", "twin", 5, 40), RuntimeError("boom"))
+    (f,) = judge([other, {**nokey, "success": not fresh["success"]}],
+                 reevaluate=False, complete=False).findings
+    assert f.key == "record 1" and f.problem.startswith("success: claimed ")
+
+
+def test_judge_counts_legacy_records_and_checks_error_records_for_their_fields(legacy):
+    v = judge(legacy[:3], reevaluate=False, complete=False)
+    assert v.legacy == 3 and not v.accepted and len(v.findings) == 3
+    assert str(v.findings[0]) == (f"{legacy[0]['key']}: legacy record (schema 1, no "
+                                  "trajectory vectors): its hits cannot be proven, so it is "
+                                  "not ranked (rerun it, or --legacy for a labelled legacy "
+                                  "view)")
+    v = judge(legacy[:3], reevaluate=False, complete=False, legacy=True)
+    assert v.legacy == 3 and v.accepted and v.records == legacy[:3]
+    # an error record (no seed scheme, no schema) is no legacy record and needs no scheme
+    err = error_record(Task("random", "s00", "twin", 0, 40), RuntimeError("boom"))
+    err.pop("seed_scheme", None)
+    v = judge([err], reevaluate=False, complete=False)
+    assert v.accepted and v.legacy == 0
+    (f,) = judge([{**err, "success": True}], reevaluate=False, complete=False).findings
+    assert str(f) == f"{err['key']}: error record carries a score: success=True"
+
+
+def test_admitted_passes_its_options_on_and_names_the_first_finding(fresh, legacy):
+    assert admitted([fresh], "export", complete=False) == [fresh]
+    with pytest.raises(JudgeError) as exc:                  # complete by default
+        admitted([fresh], "report")
+    assert str(exc.value).startswith("report: 1 finding(s) in 1 records, nothing written "
+                                     "(first: *: random on the twin track lacks ")
+    assert str(exc.value).endswith("); 'ema-bench validate' lists them")
+    assert admitted(legacy[:2], "check", complete=False, legacy=True) == legacy[:2]
+    # per_tier reaches the completeness check: the first 8 of each v2 tier asked (7 lacking
+    # beside the one run), not every instance (22 lacking)
+    v2 = _lines(ROOT / "leaderboards" / "runs.jsonl", '"solver": "random"')[:1]
+    for per_tier, lacking in ((8, 7), (None, 22)):
+        (f,) = judge(v2, reevaluate=False, per_tier=per_tier).findings
+        assert f.problem.startswith(f"random on the reference track lacks {lacking} runs ")
+
+
+def test_is_suite_case_names_the_instances_a_suite_ranks():
+    from ema_bench.leaderboard.judge import is_suite_case
+
+    assert is_suite_case("s00") and is_suite_case("small")
+    assert not is_suite_case("seeded") and not is_suite_case(None) and not is_suite_case(3)
+
+
+def test_keyless_records_are_named_by_their_place_and_judged_as_asked(legacy, fresh):
+    nokey = {k: v for k, v in legacy[0].items() if k != "key"}
+    (f,) = judge([nokey], reevaluate=False, complete=False).findings
+    assert f.key == "record 0" and f.problem.startswith("legacy record (schema 1")
+    old = {k: v for k, v in fresh.items() if k not in ("key", "seed_scheme")}
+    (f,) = judge([old], reevaluate=False, complete=False).findings
+    assert f.key == "record 0" and f.problem.startswith("seed scheme 1 ")
+    # reevaluate=False reaches check_record: a fitness its vector does not have goes unseen
+    r = copy.deepcopy(fresh)
+    r["trajectory"][-1][1] *= 0.999
+    r["fitness"] = r["trajectory"][-1][1]
+    r["best_at"] = [[b, r["fitness"] if b >= r["trajectory"][-1][0] else f]
+                    for b, f in r["best_at"]]
+    r["trace"] = [[p[0], p[1]] for p in r["trajectory"]] + (
+        [[r["evaluations"], r["fitness"]]] if r["trajectory"][-1][0] != r["evaluations"] else [])
+    assert judge([r], reevaluate=False, complete=False).findings == []
+    (f,) = judge([r], complete=False).findings
+    assert f.problem.startswith(f"fitness at evaluation {r['trajectory'][-1][0]}: ")

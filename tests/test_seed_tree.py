@@ -27,8 +27,10 @@ def test_streams_are_distinct_children_with_indexed_families():
         ss.generate_state(4).tolist()
     draws = {np.random.default_rng(stream(node, n)).random() for n in STREAMS}
     assert len(draws) == len(STREAMS)
-    with pytest.raises(KeyError, match="unknown seed stream"):
+    with pytest.raises(KeyError) as exc:
         stream(node, "nosuch")
+    assert exc.value.args[0] == f"unknown seed stream 'nosuch'; known: {list(STREAMS)}"
+    assert stream(node, "noise").spawn_key == (7, 1)      # no index: the child itself
 
 
 def test_a_blind_case_is_run_k_of_its_root_seed():
@@ -82,3 +84,68 @@ def test_diagnose_seed_is_the_diagnosis_stream_of_the_run(case_file, capsys):
     other = diagnose(load_traces(path), Settings(budget=100, n_boot=10),
                      seed=stream(run_seed(4, 3), "diagnosis"))
     assert other.faults != api.faults   # the seed reaches the fits
+
+
+def test_seeds_are_checked_and_recorded_as_given():
+    from ema_bench.seeding import as_seed_sequence, child, children, seed_repr
+
+    node = np.random.SeedSequence(11, spawn_key=(2,), pool_size=8)
+    assert as_seed_sequence(node) is node
+    assert as_seed_sequence(0).entropy == 0 and as_seed_sequence(np.int64(9)).entropy == 9
+    assert as_seed_sequence(None).entropy != as_seed_sequence(None).entropy   # fresh entropy
+    for bad in (-1, 2.5, True):
+        with pytest.raises(ValueError) as exc:
+            as_seed_sequence(bad)
+        assert str(exc.value) == f"seed must be a non-negative integer, got {bad!r}"
+    # a record of a seed: enough to recreate it, plain JSON
+    assert seed_repr(node) == {"entropy": "11", "spawn_key": [2]}
+    assert seed_repr(None) is None and seed_repr(7) == 7 and type(seed_repr(np.int64(7))) is int
+    # a child keeps the parent's entropy and pool size, appends its index, and leaves the
+    # parent unspawned; children(n) are a first spawn(n)
+    c = child(node, 3)
+    assert (c.entropy, c.spawn_key, c.pool_size) == (11, (2, 3), 8)
+    assert node.n_children_spawned == 0
+    fresh = np.random.SeedSequence(11, spawn_key=(2,), pool_size=8)
+    assert [k.generate_state(2).tolist() for k in children(node, 3)] == \
+        [k.generate_state(2).tolist() for k in fresh.spawn(3)]
+
+
+def test_a_run_node_is_checked_and_built_from_its_root_and_seed():
+    node = run_seed(0, 0)
+    assert (node.entropy, node.spawn_key) == (0, (0,))
+    assert (run_seed(5, 9).entropy, run_seed(5, 9).spawn_key) == (5, (9,))
+    for args, name, bad in (((-1, 0), "root seed", -1), ((0, -2), "seed", -2),
+                            ((1.5, 0), "root seed", 1.5), ((0, True), "seed", True),
+                            ((False, 0), "root seed", False)):
+        with pytest.raises(ValueError) as exc:
+            run_seed(*args)
+        assert str(exc.value) == f"{name} must be a non-negative integer, got {bad!r}"
+
+
+def test_the_one_way_seed_follows_its_recipe_for_every_kind_of_node():
+    """The recipe (SHA-256 of the JSON of a label, the name, the node's entropy, spawn key
+    and pool size) computed here by hand: a node whose entropy is a list, another pool size,
+    another name each give their own seed, with no spawn key."""
+    import hashlib
+
+    from ema_bench.seeding import one_way, solver_seed
+
+    def by_hand(name, entropy, key, pool):
+        text = json.dumps(["ema-bench one-way seed", name, entropy, key, pool])
+        return int.from_bytes(hashlib.sha256(text.encode()).digest(), "big")
+
+    node = np.random.SeedSequence([5, 6], spawn_key=(1, 2), pool_size=8)
+    got = one_way(node, "tracker")
+    assert got.entropy == by_hand("tracker", [5, 6], [1, 2], 8) and got.spawn_key == ()
+    assert one_way(3, "solver").entropy == by_hand("solver", 3, [], 4)
+    # entropy given as a numpy array: its entries, as plain ints
+    arr = np.random.SeedSequence(np.array([5, 6]), spawn_key=(1, 2), pool_size=8)
+    assert one_way(arr, "tracker").entropy == got.entropy
+    assert solver_seed(node).entropy == one_way(node, "solver").entropy != got.entropy
+    assert solver_seed(node, 2).entropy == solver_seed(node).entropy
+    old = solver_seed(node, 1)
+    assert (old.entropy, old.spawn_key, old.pool_size) == ([5, 6], (1, 2, STREAMS["solver"]), 8)
+    for scheme in (0, 3):
+        with pytest.raises(ValueError) as exc:
+            solver_seed(node, scheme)
+        assert str(exc.value) == f"unknown seed scheme {scheme!r}; known: [1, 2]"

@@ -26,6 +26,7 @@ import numpy as np
 from ..faults import FAULT_NAMES, N_FAULTS, NOMINAL, faults_to_dict
 from ..instances import TRACKS
 from ..manifest import REQUIRED_MANIFEST_KEYS
+from ..problem import MAX_BUDGET
 from ..records import RECORD_SCHEMA, schema, seed_scheme
 from ..scoring import SUCCESS_RANGE_ERROR, range_error
 from ..seeding import SEED_SCHEMES, run_seed
@@ -39,7 +40,7 @@ from ..suites.targets import (
     precision_key,
 )
 from ..trace_cache import COMPATIBLE_VERSIONS, MODEL_VERSION, is_comparable
-from .derive import DerivationError, Derived, derive, truth_of
+from .derive import DerivationError, Derived, derive, frame_of, truth_of
 from .run_store import IDENTITY_FIELDS, is_error, model_version
 
 #: A fitness this far (in units of the instance's f*-to-nominal gap) below the suite's
@@ -159,8 +160,12 @@ def _check_evidence(r: dict) -> list[str]:
     if out:
         return out
     dims = {len(p[2]) for p in tj}
-    if len(dims) != 1 or dims.pop() < N_FAULTS:
-        return [f"trajectory vectors of lengths {sorted({len(p[2]) for p in tj})}"]
+    need = max(N_FAULTS, frame_of(r)[0].size)     # every parameter the instance searches
+    if len(dims) != 1 or dims.pop() < need:
+        return [f"trajectory vectors of lengths {sorted({len(p[2]) for p in tj})}, the "
+                f"instance's of at least {need}"]
+    if not all(type(v) in (int, float) for p in tj for v in p[2]):
+        return ["trajectory: vector entries must be numbers"]
     proj = [[p[0], p[1]] for p in tj]
     if tr != proj and tr != [*proj, [r["evaluations"], tj[-1][1]]]:
         return ["trace: not the trajectory's evaluations and fitness (and the last "
@@ -317,8 +322,10 @@ def _reevaluate(r: dict, d: Derived) -> list[str]:
     the final vector and the start (legacy: the trace's first point at evaluation 1 is the
     start point when their fitness agree, which fixes the parameter hits at 1); and the
     truth, for ``fitness_at_truth``."""
+    # the largest budget: no record's evidence is refused for want of one (a trajectory
+    # holds at most the record's budget of points)
     problem = make_problem(r["case"], track=r["track"],
-                           seed=run_seed(r["root_seed"], r["seed"]), budget=10**6)
+                           seed=run_seed(r["root_seed"], r["seed"]), budget=MAX_BUDGET)
     if d.schema >= 2:
         tj = r["trajectory"]
         X, claimed, ev = np.array([p[2] for p in tj], float), [p[1] for p in tj], \
