@@ -42,28 +42,22 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from ..traces import SIGNALS, UNITS
-from . import acquisition as acq
-from .acquisition import KINDS, NOISE_STD, Acquisition, Estimate
+from .channel_faults import (  # noqa: F401  (GROUPED, group_label, is_group: chain.<name> too)
+    _FITS,
+    GROUPED,
+    KINDS,
+    NOISE_STD,
+    Acquisition,
+    Estimate,
+    _channel,
+    estimate_channel,
+    group_label,
+    is_group,
+)
 
-#: The kinds a whole-chain group may have: whether its parameter is shared by the channels.
-GROUPED: dict[str, bool] = {"lowpass": True, "time_shift": True, "drift": False,
-                            "mains_hum": False, "heavy_tailed": True}
 #: Score each member channel needs alone for its group to be screened (the workflow's
 #: ``Settings.min_score``: what a one-channel suspect needs for a fit).
 GROUP_SCORE = 50.0
-
-
-def group_label(channels: Sequence[str]) -> str:
-    """``all``, or the channels in :data:`SIGNALS` order joined by commas."""
-    chosen = [c for c in SIGNALS if c in channels]
-    return "all" if len(chosen) == len(SIGNALS) else ",".join(chosen)
-
-
-def is_group(label: str) -> bool:
-    """Whether ``label`` names a whole-chain group (``all`` or 2-3 channels, in order)."""
-    parts = label.split(",")
-    return label == "all" or (1 < len(parts) < len(SIGNALS) and set(parts) <= set(SIGNALS)
-                              and group_label(parts) == label)
 
 
 def _size(e: Estimate) -> tuple[float, float, float]:
@@ -85,14 +79,15 @@ def estimate_group(kind: str, label: str, raw: Mapping[str, np.ndarray],
 
         return estimate_tails(channels, raw, measured, w, train, others)
     if GROUPED[kind]:
-        ch = acq._channel(raw, measured, others, w, [SIGNALS.index(c) for c in channels],
+        ch = _channel(raw, measured, others, w, [SIGNALS.index(c) for c in channels],
                           train)
-        value, _, drop, iv = acq._FITS[kind](ch)
+        value, _, drop, iv = _FITS[kind](ch)
         value = float(np.clip(value, KINDS[kind].lower, KINDS[kind].upper))
         parts = tuple(Acquisition(kind, c, value) for c in channels)
         return Estimate(Acquisition(kind, label, value, {"parts": parts}), max(drop, 0.0),
                         [float(v) for v in iv])
-    members = [acq.estimate(f"{kind}({c})", raw, measured, w, train, others)
+    members = [estimate_channel(kind, c, raw, measured, w, train,
+                                [o for o in others if o.name != f"{kind}({c})"])
                for c in channels]
     sizes = np.array([_size(e) for e in members])
     value, lo, hi = sizes.min(axis=0)

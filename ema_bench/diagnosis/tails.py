@@ -37,8 +37,7 @@ import numpy as np
 from scipy.ndimage import median_filter
 
 from ..traces import SIGNALS
-from . import acquisition as acq
-from .acquisition import SPIKE_SD, Acquisition, Estimate
+from .channel_faults import SPIKE_SD, Acquisition, Estimate, _channel, group_label
 
 #: Share of a channel's training samples that must be tail samples.
 TAIL_SHARE = 0.01
@@ -52,7 +51,7 @@ def _tail(raw: Mapping[str, np.ndarray], measured: Mapping[str, np.ndarray],
           others: Sequence[Acquisition]) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
     """Per test (every one), (n_samples, 4): the tail samples (booleans) and the whitened
     residual (0 where weighted 0)."""
-    ch = acq._channel(raw, measured, others, w, list(range(len(SIGNALS))), train)
+    ch = _channel(raw, measured, others, w, list(range(len(SIGNALS))), train)
     hits, res = {}, {}
     for t in ch.pred:
         r = np.where(ch.w[t] > 0, ch.data[t] - ch.pred[t], 0.0)
@@ -78,8 +77,6 @@ def estimate_tails(channels: Sequence[str], raw: Mapping[str, np.ndarray],
     """The suspect ``heavy_tailed(channels)`` at ``raw``: its tail samples on those channels
     in every test (their weights 0), the share of the training samples rejected, the
     sum of squares they held (its score) and the Poisson interval of the share."""
-    from .chain import group_label
-
     hits, res = _tail(raw, measured, w, train, others)
     cols = [SIGNALS.index(c) for c in channels]
     keep = {}
