@@ -102,6 +102,14 @@ def test_the_oracle_policy_is_never_worse_than_a_threshold_policy():
     at_cut = expected_costs(dict.fromkeys(futures, 0.0), futures, truth, every)
     assert at_cut["cost"].mean() < o["cost"].mean()
     assert rate(at_cut) > rate(o)
+    # degenerate predictors cannot meet the 1.2x target: one that never calls a
+    # replacement (every unit flies to failure) and one that calls it at once
+    never = {u: _rows(range(0, truth[u]["last_flight"] + 1, every),
+                      [math.inf] * (truth[u]["last_flight"] // every + 1)) for u in truth}
+    for degenerate in (never, {u: _rows([r["flight"] for r in steps[u]], [0.0] * len(steps[u]))
+                               for u in steps}):
+        assert rate(tracker_rate(degenerate, futures, truth, every, "rul_low", 50.0)) \
+            > 1.2 * rate(o)
 
 
 def test_a_unit_without_a_step_at_its_cut_never_replaces():
