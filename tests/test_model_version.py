@@ -201,3 +201,29 @@ def test_a_record_is_replayed_and_reevaluated_on_its_own_model_version():
     (res,) = replay([{**rec, "model_version": "9"}], None, 0)
     assert res.finding == ("replay failed: ValueError: model version '9': this installation "
                            "builds versions 2, 3, 4")
+
+
+#: The record issue 48's ``validate --per-tier 8 --replay 12 --replay-seed 1`` refused while
+#: replay ran version-2 records on version 3 (trace at evaluation 79: recorded 0.012257,
+#: replayed 0.012371): a finite-difference solver on a tier-12 case with eccentricity.
+DIVERGED_ON_V3 = "least-squares|t12-s03@surface-current|reference|0"
+
+
+@pytest.mark.slow
+def test_the_committed_record_that_diverged_on_version_3_replays_on_its_own(capsys):
+    """``validate --replay-key`` on the committed board re-runs that record on version 2 in
+    a worker process and reproduces it (about 2 CPU-minutes: 15,000 tier-12 evaluations on
+    libm's scalar trigonometry)."""
+    from ema_bench.cli import main
+    from ema_bench.manifest import blas_kernel
+
+    rec = _committed_record(DIVERGED_ON_V3)
+    assert rec["model_version"] == "2" and rec["solver"] == "least-squares"
+    if rec["manifest"].get("blas") != blas_kernel():
+        pytest.skip(f"made under BLAS kernel {rec['manifest'].get('blas')}, this machine's is "
+                    f"{blas_kernel()} (OPENBLAS_CORETYPE picks it)")
+    runs = str(ROOT / "leaderboards" / "runs.jsonl")
+    assert main(["validate", runs, "--partial", "--no-reevaluate",
+                 "--replay-key", DIVERGED_ON_V3]) == 0
+    out = capsys.readouterr().out
+    assert "replay: 1/1 records reproduced" in out and "accepted: 1920 records" in out
