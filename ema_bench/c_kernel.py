@@ -38,7 +38,7 @@ CFLAGS = ("-O3", "-march=native", "-ffp-contract=off", "-fno-trapping-math", "-f
 _PARAM_ORDER = ("V_dc", "R", "L", "Ke", "pole_pairs", "hyst_band", "J_m", "J_u", "tau", "K_s",
                 "C_s", "C_m", "C_u", "K_aero", "theta_stop", "K_stop", "C_stop",
                 "friction_dyn_ratio", "stick_speed", "K_GP", "w_max", "Kpv", "Kiv", "T_max",
-                "dt_ctrl", "kt_factor", "locate_commutation")
+                "dt_ctrl", "kt_factor", "locate_commutation", "libm_trig")
 _EFFECT_ORDER = ("eccentricity", "sensor_offset", "viscous_friction", "aero_spring", "delay",
                  "current_gain", "resistance_rise", "cogging", "voltage_sag", "gear_stiffness",
                  "quadratic_damping", "hinge_friction", TERM_NAMES[0])

@@ -13,8 +13,10 @@ again, it only drops digests: a record added to a committed file later is never
 grandfathered).
 A copy of a committed record with any field changed (its solver, a hit, a vector) has another
 digest and is refused; a verbatim copy is the committed run itself, a duplicate of its
-identity on a board that holds it.  Tracking runs (``campaign score``) are bound the same
-way, by :func:`track_digest` of their manifest and steps.
+identity on a board that holds it.  The committed records are model version 2's too, and
+that earlier, compatible version is accepted for them only (:mod:`ema_bench.leaderboard.
+judge`): a new run is made on this installation's version.  Tracking runs (``campaign
+score``) are bound the same way, by :func:`track_digest` of their manifest and steps.
 """
 
 from __future__ import annotations
@@ -64,10 +66,15 @@ def _shipped() -> tuple[frozenset[str], frozenset[str]]:
     return frozenset(data["records"]), frozenset(data["track_runs"])
 
 
+def committed_record(record: dict) -> bool:
+    """Whether ``record`` is one of the committed files' (its digest is shipped)."""
+    return record_digest(record) in _shipped()[0]
+
+
 def accepted_record(record: dict) -> bool:
     """Whether ``record``'s seed scheme is accepted: the current one always, scheme 1 for a
     committed record only."""
-    return seed_scheme(record) != 1 or record_digest(record) in _shipped()[0]
+    return seed_scheme(record) != 1 or committed_record(record)
 
 
 def _read_lines(path: Path) -> list[dict]:

@@ -14,7 +14,7 @@ from .effects import EFFECT_INDEX, effects_to_dict, effects_vector
 from .faults import check_faults, faults_to_dict
 from .monitor import simulate_monitor
 from .objective import KNOWN_TESTS, ProblemError, signal_mask
-from .params import DEFAULT_PARAMS
+from .params import DEFAULT_PARAMS, EMAParams
 from .physics.sensors import measure
 from .problem import Problem
 from .protocol import STANDARD_TESTS, TestSpec
@@ -28,21 +28,23 @@ TRACKS = ("reference", "twin")
 
 @functools.lru_cache(maxsize=32)
 def _reference_traces(x: tuple, e: tuple, seed_entropy: int, spawn_key: tuple,
-                      tests: tuple[TestSpec, ...]) -> Traces:
+                      tests: tuple[TestSpec, ...],
+                      params: EMAParams = DEFAULT_PARAMS) -> Traces:
     """Measured reference traces, cached in memory and on disk (:mod:`~ema_bench.trace_cache`)."""
     ss = np.random.SeedSequence(seed_entropy, spawn_key=spawn_key)
     key = cache_key(x=x, e=e, entropy=seed_entropy, spawn_key=spawn_key,
-                    tests=[repr(t) for t in tests],
-                    params=DEFAULT_PARAMS.to_array().tolist())
+                    tests=[repr(t) for t in tests], params=params.to_array().tolist())
     return cached_traces(lambda: simulate_reference(np.array(x), np.array(e), seed=ss,
-                                                    tests=tests), key, expected_shapes(tests))
+                                                    tests=tests, params=params),
+                         key, expected_shapes(tests))
 
 
 def twin_traces(x: np.ndarray, e: np.ndarray, seed: np.random.SeedSequence,
-                tests: tuple[TestSpec, ...]) -> Traces:
-    """Measured traces of the twin track: the monitor model at faults ``x`` with effects
-    ``e``, through the sensors (noise and ADC; one child of ``seed`` per test)."""
-    outputs, ok = simulate_monitor(x[None, :], e[None, :], tests=tests)
+                tests: tuple[TestSpec, ...], params: EMAParams = DEFAULT_PARAMS) -> Traces:
+    """Measured traces of the twin track: the monitor model (parameters ``params``) at faults
+    ``x`` with effects ``e``, through the sensors (noise and ADC; one child of ``seed`` per
+    test)."""
+    outputs, ok = simulate_monitor(x[None, :], e[None, :], tests=tests, params=params)
     if not ok[0]:
         raise SimulationError(f"monitor model diverged at the true faults {faults_to_dict(x)}")
     data = {t: measure(v[0], np.random.default_rng(c))
@@ -66,11 +68,13 @@ def make_problem(
     score_effects: bool = False,
     signals: Sequence[str] | None = None,
     label: str = "custom",
+    params: EMAParams = DEFAULT_PARAMS,
 ) -> Problem:
     """The problem of true faults ``truth`` (a mapping or an array): measured traces made on
     ``track`` with the run node ``seed``'s ``noise`` stream, ``label`` its public case label.
     The other parameters are those of :func:`ema_bench.suites.problem.make_problem` (the
-    package's ``ema_bench.make_problem``, which checks them and comes here)."""
+    package's ``ema_bench.make_problem``, which checks them and comes here); ``params``: both
+    models' (the data maker's and the monitor's)."""
     keep = signal_mask(signals)   # an unknown signal fails before any simulation
     s_noise = stream(as_seed_sequence(seed), "noise")
     truth = check_faults(truth)
@@ -82,9 +86,9 @@ def make_problem(
     specs = tuple(KNOWN_TESTS[n] for n in names)
     if track == "reference":
         measured = _reference_traces(tuple(truth), tuple(e), int(s_noise.entropy),
-                                     tuple(s_noise.spawn_key), specs)
+                                     tuple(s_noise.spawn_key), specs, params)
     else:
-        measured = twin_traces(truth, e, s_noise, specs)
+        measured = twin_traces(truth, e, s_noise, specs, params)
     # the data makers record faults, effects and seeds; a solver sees none of them, nor the
     # outputs a condition withholds (zeroed: their weight is 0, the fitness is unchanged)
     measured = Traces({t: v * keep if signals is not None else v
@@ -95,5 +99,5 @@ def make_problem(
     if score_effects:
         truth = np.r_[truth, [e[EFFECT_INDEX[n]] for n in augment]]
     return Problem(measured, budget, normalise=normalise, label=label, track=track,
-                   augment=augment, start=start, prior=prior, signals=signals, _truth=truth,
-                   _meta=meta)
+                   augment=augment, start=start, prior=prior, signals=signals, params=params,
+                   _truth=truth, _meta=meta)

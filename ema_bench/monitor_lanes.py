@@ -52,10 +52,11 @@ from .physics.averaged_drive import (
     drive_fast,
     drive_step_general,
     kt_eccentric,
+    kt_eccentric_libm,
     sector_consts,
     sector_index,
 )
-from .physics.effect_terms import cogging_wave, sensor_terms
+from .physics.effect_terms import cogging_torque, cogging_wave, sensor_terms
 from .physics.mechanics import MechConsts, mech_fast, mech_step_general
 
 LANES = 8   # candidates per group: two AVX2 vectors of doubles, one AVX-512 vector
@@ -220,10 +221,18 @@ def _step(F, M, dc0, mc0, cc0, dcs, mcs, h, c, tick, cogged, eccentric):
     ``c`` (rad) if ``tick``; ``cogged``, ``eccentric``: some lane has cogging, eccentricity.
     (The controller shares the drive's loop: on its own, its loop is short enough that the
     compiler unrolls it before it could vectorise it.)"""
-    if cogged:   # vectorised (a polynomial sine): the cogging torque at mid-step
+    # model version 2 (``libm_trig``, the same for every lane) takes libm's scalar sine and
+    # cosine: loops of their own, so version 3's stay vectorised
+    if cogged and dc0.libm:
+        for q in range(LANES):
+            _cogging_lane_libm(F, q, h, dc0.pp)
+    elif cogged:   # vectorised (a polynomial sine): the cogging torque at mid-step
         for q in range(LANES):
             _cogging_lane(F, q, h, dc0.pp)
-    if eccentric:   # vectorised: the torque constants at the step start and mid-step
+    if eccentric and dc0.libm:
+        for q in range(LANES):
+            _eccentric_lane_libm(F, q, h, dc0.ke)
+    elif eccentric:   # vectorised: the torque constants at the step start and mid-step
         for q in range(LANES):
             _eccentric_lane(F, q, h, dc0.ke)
     for q in range(LANES):   # vectorised: controller and the drive inside one sector
@@ -277,6 +286,23 @@ def _cogging_lane(F, q, h, pp):
     cogging by a select, since a branch around the sine would keep the loop scalar)."""
     wave = cogging_wave(F[_O_COG + q], F[_O_THM + q] + 0.5 * h * F[_O_WM + q], pp)
     F[_O_TCOG + q] = wave if F[_O_COG + q] != 0.0 else 0.0
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _cogging_lane_libm(F, q, h, pp):
+    """:func:`_cogging_lane` under model version 2: :func:`cogging_torque` with libm's sine."""
+    F[_O_TCOG + q] = cogging_torque(F[_O_COG + q], F[_O_THM + q] + 0.5 * h * F[_O_WM + q], pp,
+                                    True)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _eccentric_lane_libm(F, q, h, ke):
+    """:func:`_eccentric_lane` under model version 2 (:func:`kt_eccentric_libm`)."""
+    sec = F[_O_SEC + q]
+    th = F[_O_THM + q]
+    F[_O_KTE + q] = kt_eccentric_libm(sec, th, ke, F[_O_NA + q], F[_O_ZETA + q])
+    F[_O_KTM + q] = kt_eccentric_libm(sec, th + 0.5 * h * F[_O_WM + q], ke, F[_O_NA + q],
+                                      F[_O_ZETA + q])
 
 
 @njit(cache=True, inline="always", error_model="numpy")

@@ -42,7 +42,7 @@ def monitor_step(th_m, w_m, th_u, w_u, ps, i_ref, pc):
     cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr = ps
     (cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr, t_mean, t_start, t_end, t_rip,
      i_eq) = drive_step(cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr, i_ref, th_m, w_m, dc)
-    t_cog = cogging_torque(cog, th_m + 0.5 * dc.h * w_m, pp)
+    t_cog = cogging_torque(cog, th_m + 0.5 * dc.h * w_m, pp, dc.libm)
     t_ext = hinge_extra(w_u, quad, hfric)
     if on:   # dictionary terms (diagnosis only): nothing changes without them
         t_m_x, t_u_x = extra_torques(th_m, w_m, th_u, w_u, t_mean * inv_kt, pp, c)

@@ -68,6 +68,10 @@ class EMAParams:
                                    "straight-path prediction missed starts its commutation "
                                    "transfer where it was (model version 4, suite emafdi-v3); "
                                    "0: it is dropped (version 3, suites v1 and v2)")
+    libm_trig: float = _p(0.0, "-", "1: libm's sine and cosine in the eccentric torque "
+                          "constants and in cogging (model version 2, the records made "
+                          "before version 3); 0: the polynomials of physics/trig.py "
+                          "(version 3, within 2.2e-16 of libm)")
 
     def to_array(self) -> np.ndarray:
         """Flat ``float64`` array in ``P_*`` order, as the compiled kernels take it."""
@@ -100,14 +104,19 @@ P_KGP, P_WMAX, P_KPV, P_KIV, P_TMAX, P_DTC = (PARAM_INDEX[n] for n in (
     "K_GP", "w_max", "Kpv", "Kiv", "T_max", "dt_ctrl"))
 P_KTF = PARAM_INDEX["kt_factor"]
 P_LOCATE = PARAM_INDEX["locate_commutation"]
+P_LIBM = PARAM_INDEX["libm_trig"]
 
 DEFAULT_PARAMS = EMAParams()
 
-#: The monitor's parameters per model version: version 3 (suites emafdi-v1 and v2, the
+#: The models' parameters per model version: version 3 (suites emafdi-v1 and v2, the
 #: campaigns) drops a commutation transfer whose sector crossing the drive's straight-path
 #: prediction missed; version 4 starts it where the crossing was (docs/landscape-atlas.md,
-#: "Kinds of jump"), bit-identical to version 3 wherever no such crossing happens.
+#: "Kinds of jump"), bit-identical to version 3 wherever no such crossing happens; version 2
+#: (``libm_trig``, the records made before version 3: replay re-runs them on it) takes
+#: libm's sine and cosine in eccentricity and cogging, bit-identical to version 3 wherever
+#: neither effect is on.
 MODEL_PARAMS: dict[str, EMAParams] = {
+    "2": DEFAULT_PARAMS.replace(libm_trig=1.0),
     "3": DEFAULT_PARAMS,
     "4": DEFAULT_PARAMS.replace(locate_commutation=1.0),
 }

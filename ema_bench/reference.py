@@ -16,7 +16,7 @@ from numba import njit
 
 from .effects import N_EFFECTS, effects_to_dict, effects_vector
 from .faults import F_BLK, F_FST, F_NA, check_faults, faults_to_dict
-from .params import DEFAULT_PARAMS, P_PP, EMAParams
+from .params import DEFAULT_PARAMS, P_LIBM, P_PP, EMAParams
 from .physics.bldc import bldc_consts, bldc_step
 from .physics.effect_terms import cogging_torque, plant_terms
 from .physics.extra_terms import (
@@ -47,7 +47,7 @@ def reference_consts(p, x, e, dt):
     # transmission stiffness recomputes the mechanics' constants from
     out = outside_consts(e)
     return (bc, mc, cog, p[P_PP], quad, hfric, dt, on, c, inv_kt, out,
-            (p, x[F_FST], x[F_BLK], c_visc, k_aero, ks_scale))
+            (p, x[F_FST], x[F_BLK], c_visc, k_aero, ks_scale), p[P_LIBM] != 0.0)
 
 
 @njit(cache=True, error_model="numpy")
@@ -61,14 +61,14 @@ def reference_init(pc):
 def reference_step(th_m, w_m, th_u, w_u, ps, i_ref, pc):
     """One 1 microsecond step of the reference plant (see
     :mod:`ema_bench.physics.integrator`)."""
-    bc, _, cog, pp, quad, hfric, dt, on, c, inv_kt, (f_s, k_pos, k_sat), mk = pc
+    bc, _, cog, pp, quad, hfric, dt, on, c, inv_kt, (f_s, k_pos, k_sat), mk, libm = pc
     ia, ib, ic, sa, sb, sc, mc, level = ps
     ia, ib, ic, sa, sb, sc, t_mean, t_start, t_end, i_eq = bldc_step(ia, ib, ic, sa, sb, sc,
                                                                      i_ref, th_m, w_m, bc, dt)
     if k_sat != 0.0:   # torque constant K_t (1 - k_sat |i|)
         f = 1.0 - k_sat * abs(i_eq)
         t_mean, t_start, t_end = t_mean * f, t_start * f, t_end * f
-    t_cog = cogging_torque(cog, th_m + 0.5 * dt * w_m, pp)
+    t_cog = cogging_torque(cog, th_m + 0.5 * dt * w_m, pp, libm)
     t_ext = hinge_extra(w_u, quad, hfric)
     if on:
         t_m_x, t_u_x = extra_torques(th_m, w_m, th_u, w_u, t_mean * inv_kt, pp, c)

@@ -41,10 +41,12 @@ def _tier12_batch(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
     return X, E
 
 
-@pytest.mark.parametrize("version", ["3", "4"])
+@pytest.mark.parametrize("version", ["2", "3", "4"])
 def test_scalar_lanes_and_c_twin_agree_bit_for_bit(version):
     """The numba scalar kernel, the numba lanes and the C twin's scalar and lane kernels give
-    the same bits with the flag off (version 3) and on (version 4)."""
+    the same bits with the flags off (version 3) and with either on (version 4's
+    ``locate_commutation``, version 2's ``libm_trig``: every lane effect is on here,
+    eccentricity and cogging included)."""
     lib = _c_library()
     params = model_params(version)
     X, E = _tier12_batch(LANES, 61)

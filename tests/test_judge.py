@@ -276,12 +276,30 @@ def test_a_record_claiming_the_old_seed_scheme_is_refused_unless_committed(legac
     for r in (old, claimed, moved):
         found = [str(f) for f in judge([r], reevaluate=False, complete=False,
                                        legacy=True).findings]
-        assert found == [f"{r['key']}: seed scheme 1 (the solver seed spawned from the run node, "
-                         "which gives the node away) is accepted for the committed boards' "
-                         "records only: rerun with this version (seed_scheme 2)"], found
+        assert found[0] == (f"{r['key']}: seed scheme 1 (the solver seed spawned from the run "
+                            "node, which gives the node away) is accepted for the committed "
+                            "boards' records only: rerun with this version (seed_scheme 2)")
+        # the committed records are model version 2's, accepted for them only too
+        assert found[1:] == ([f"{r['key']}: {_V2_REFUSED}"] if r is moved else []), found
     assert judge(legacy, reevaluate=False, complete=False, legacy=True).findings == []
     (f,) = judge([{**fresh, "seed_scheme": 3}], reevaluate=False, complete=False).findings
     assert str(f).endswith("seed scheme 3, expected one of [1, 2]")
+
+
+_V2_REFUSED = ("model version 2 (earlier, compatible) is accepted for the committed boards' "
+               "records only: rerun with this version (3)")
+
+
+def test_the_earlier_model_version_is_accepted_for_committed_records_only(legacy, fresh):
+    """A new run labelled model version 2 (which a submitter could make on
+    ``model_params("2")`` and replay would reproduce there) is refused: otherwise a
+    submitter could run every task on both models and file the better run.  The committed
+    records, all of version 2, are accepted."""
+    assert {r["model_version"] for r in legacy} == {"2"}
+    assert judge(legacy, reevaluate=False, complete=False, legacy=True).findings == []
+    assert fresh["model_version"] == "3"
+    found = judge([{**fresh, "model_version": "2"}], reevaluate=False, complete=False)
+    assert [str(f) for f in found.findings] == [f"{fresh['key']}: {_V2_REFUSED}"]
 
 
 def test_committed_records_replay_under_their_own_seed_scheme(legacy):

@@ -23,7 +23,7 @@
 enum {
     IDX_VDC, IDX_R, IDX_L, IDX_KE, IDX_PP, IDX_HYST, IDX_JM, IDX_JU, IDX_TAU, IDX_KS, IDX_CS,
     IDX_CM, IDX_CU, IDX_KAERO, IDX_THSTOP, IDX_KSTOP, IDX_CSTOP, IDX_FDYN, IDX_WSTICK, IDX_KGP,
-    IDX_WMAX, IDX_KPV, IDX_KIV, IDX_TMAX, IDX_DTC, IDX_KTF, IDX_LOCATE,
+    IDX_WMAX, IDX_KPV, IDX_KIV, IDX_TMAX, IDX_DTC, IDX_KTF, IDX_LOCATE, IDX_LIBM,
     IDX_E_ECC, IDX_E_OFFSET, IDX_E_VISC, IDX_E_AERO, IDX_E_DELAY, IDX_E_IGAIN, IDX_E_RRISE,
     IDX_E_COG, IDX_E_VSAG, IDX_E_GEAR, IDX_E_QDAMP, IDX_E_HFRIC, IDX_E_TERM0, IDX_N
 };
@@ -116,7 +116,7 @@ static inline double delayed_feedback(double *buf, int64_t k_ctrl, double value,
 typedef struct {
     double kt_a, kt_n, r_a, r_n, il_a, il_n, ltr_a, ltr_n, na, ke, pp, zeta, v_dc, ktf, half_band,
         h, sector_width, th_0;
-    bool locate;
+    bool locate, libm;
 } Drive;
 
 static Drive drive_consts(const double *p, const int64_t *ix, double na, double zeta,
@@ -126,11 +126,13 @@ static Drive drive_consts(const double *p, const int64_t *ix, double na, double 
                1.0 / (el * (na * na + 1.0)), 1.0 / (2.0 * el),
                el * (na * na + 1.0) / v_dc, 2.0 * el / v_dc, na, ke, p[ix[IDX_PP]], zeta,
                v_dc, p[ix[IDX_KTF]], 0.5 * p[ix[IDX_HYST]], h, 2.0 * SIXTH / p[ix[IDX_PP]],
-               SIXTH / p[ix[IDX_PP]], p[ix[IDX_LOCATE]] != 0.0};
+               SIXTH / p[ix[IDX_PP]], p[ix[IDX_LOCATE]] != 0.0, p[ix[IDX_LIBM]] != 0.0};
     return d;
 }
 
 static const double COS_120 = -0.5, SIN_120 = 0.86602540378443864676;  /* sqrt(3) / 2 */
+/* phases b's and c's shifts (model version 2: libm's cos(th_m - phi)) */
+static const double PHI_B = 2.0 * M_PI / 3.0, PHI_C = 4.0 * M_PI / 3.0;
 
 static inline double kt_eccentric(double sec, double th_m, double ke, double na, double zeta) {
     double s, c;
@@ -145,9 +147,25 @@ static inline double kt_eccentric(double sec, double th_m, double ke, double na,
     return ke * (nx * (1.0 + zeta * (c * cx + s * sx)) + ny * (1.0 + zeta * (c * cy + s * sy)));
 }
 
+/* model version 2 (libm_trig): libm's cosine of each conducting phase */
+static inline double kt_eccentric_libm(double sec, double th_m, double ke, double na,
+                                       double zeta) {
+    double phx = sec < 2 ? 0.0 : (sec < 4 ? PHI_B : PHI_C);
+    double nx = sec < 2 ? na : 1.0;
+    bool y_is_a = (sec == 3) | (sec == 4);
+    double phy = y_is_a ? 0.0 : ((sec == 0) | (sec == 5) ? PHI_B : PHI_C);
+    double ny = y_is_a ? na : 1.0;
+    return ke * (nx * (1.0 + zeta * cos(th_m - phx)) + ny * (1.0 + zeta * cos(th_m - phy)));
+}
+
+static inline double kt_eccentric_of(double sec, double th_m, const Drive *dc) {
+    if (dc->libm) return kt_eccentric_libm(sec, th_m, dc->ke, dc->na, dc->zeta);
+    return kt_eccentric(sec, th_m, dc->ke, dc->na, dc->zeta);
+}
+
 static inline double kt_at(int64_t sec, double th_m, const Drive *dc) {
     if (dc->zeta == 0.0) return pymod(sec, 3) == 2 ? dc->kt_n : dc->kt_a;
-    return kt_eccentric((double)sec, th_m, dc->ke, dc->na, dc->zeta);
+    return kt_eccentric_of((double)sec, th_m, dc);
 }
 
 static inline double ramp_integral(double lo, double hi, double t_tr) {
@@ -274,8 +292,8 @@ static inline void drive_step(DState *s, double i_ref, double th_m, double w_m, 
         else { kt = dc->kt_a; r_pair = dc->r_a; il = dc->il_a; }
         double kt_mid = kt;
         if (dc->zeta != 0.0) {
-            kt = kt_eccentric((double)sec, th_m, dc->ke, dc->na, dc->zeta);
-            kt_mid = kt_eccentric((double)sec, th_m + 0.5 * h * w_m, dc->ke, dc->na, dc->zeta);
+            kt = kt_eccentric_of((double)sec, th_m, dc);
+            kt_mid = kt_eccentric_of((double)sec, th_m + 0.5 * h * w_m, dc);
         }
         double cur = s->cur, cur1, f, i_mean, i_eq;
         ramp(cur, i_ref, kt * w_m + r_pair * cur, il, dc->v_dc, h, &cur1, &f, &i_mean, &i_eq);
@@ -504,8 +522,10 @@ static inline void mech_step(double th_m, double w_m, double th_u, double w_u, d
 }
 
 /* ---- effects, load, the monitor plant and the integrator skeleton -------------------------- */
-static inline double cogging_torque(double amplitude, double th_m, double pole_pairs) {
+static inline double cogging_torque(double amplitude, double th_m, double pole_pairs,
+                                    bool libm) {
     if (amplitude == 0.0) return 0.0;
+    if (libm) return amplitude * sin(6.0 * pole_pairs * th_m);   /* model version 2 */
     return amplitude * poly_sin(6.0 * pole_pairs * th_m);
 }
 
@@ -566,7 +586,7 @@ static bool integrate(const double *p, const int64_t *ix, const double *x, const
             for (int64_t s = 0; s < steps_tick; s++) {
                 DOut d;
                 drive_step(&ps, i_ref, th_m, w_m, &dc, &d);
-                double t_cog = cogging_torque(cog, th_m + 0.5 * dc.h * w_m, pp);
+                double t_cog = cogging_torque(cog, th_m + 0.5 * dc.h * w_m, pp, dc.libm);
                 double t_ext = hinge_extra(w_u, quad, hfric);
                 if (on) {
                     double t_m_x, t_u_x;
@@ -664,12 +684,23 @@ static inline void lane_step(Lanes *restrict L, const Drive *dcs, const Mech *mc
                              bool eccentric) {
     const Drive *dc0 = &dcs[0];
     const Mech *mc0 = &mcs[0];
-    if (cogged)
+    /* model version 2 (libm_trig): libm's scalar sine and cosine in loops of their own */
+    if (cogged && dc0->libm)
+        for (int q = 0; q < LANES; q++)
+            L->tcog[q] = cogging_torque(L->cog[q], L->thm[q] + 0.5 * h * L->wm[q], dc0->pp, true);
+    else if (cogged)
         for (int q = 0; q < LANES; q++) {
             double wave = L->cog[q] * poly_sin(6.0 * dc0->pp * (L->thm[q] + 0.5 * h * L->wm[q]));
             L->tcog[q] = L->cog[q] != 0.0 ? wave : 0.0;
         }
-    if (eccentric)
+    if (eccentric && dc0->libm)
+        for (int q = 0; q < LANES; q++) {
+            double th = L->thm[q];
+            L->kte[q] = kt_eccentric_libm(L->sec[q], th, dc0->ke, L->na[q], L->zeta[q]);
+            L->ktm[q] = kt_eccentric_libm(L->sec[q], th + 0.5 * h * L->wm[q], dc0->ke, L->na[q],
+                                          L->zeta[q]);
+        }
+    else if (eccentric)
         for (int q = 0; q < LANES; q++) {
             double th = L->thm[q];
             L->kte[q] = kt_eccentric(L->sec[q], th, dc0->ke, L->na[q], L->zeta[q]);

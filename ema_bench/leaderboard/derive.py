@@ -37,6 +37,7 @@ from functools import lru_cache
 import numpy as np
 
 from ..faults import FAULT_NAMES, LOWER, N_FAULTS, UPPER
+from ..params import MODEL_PARAMS, EMAParams, model_params
 from ..records import schema
 from ..scoring import SUCCESS_RANGE_ERROR, paper_accuracy, range_error
 from ..suites import find
@@ -79,6 +80,19 @@ class Derived:
 
 
 _NO_HITS = dict.fromkeys(map(precision_key, PARAMETER_TARGETS))
+
+
+def params_of(record: dict) -> EMAParams:
+    """The models' parameters of the record's own model version, which replay re-runs it on
+    and re-evaluation re-evaluates it on (version 2's libm trigonometry moves tier-12
+    outputs at the rounding level, which a finite-difference solver magnifies into another
+    path); ValueError, one line, for a version this installation cannot build."""
+    v = model_version(record)
+    try:
+        return model_params(v)
+    except KeyError:
+        raise ValueError(f"model version {v!r}: this installation builds versions "
+                         f"{', '.join(sorted(MODEL_PARAMS))}") from None
 
 
 def truth_of(record: dict) -> np.ndarray:

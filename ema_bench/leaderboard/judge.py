@@ -15,7 +15,11 @@ refuses (:func:`~.validate.check_record`, re-evaluation included), and more:
   records apart: one record of another suite no longer switches a suite's check off);
 - **seed scheme 1** (a solver seed spawned from the run node, which gives the node away) is
   accepted for the committed boards' records only (:mod:`ema_bench.grandfather`): a record that
-  leaves ``seed_scheme`` out to claim it is refused.
+  leaves ``seed_scheme`` out to claim it is refused;
+- **an earlier, compatible model version** (2, :data:`~ema_bench.trace_cache.
+  COMPATIBLE_VERSIONS`) likewise: the committed records were made on it and replay on it, a
+  new run is made on this installation's version (else a submitter could run each task on
+  both models and file the better run).
 
 :func:`admitted` is what every writer calls: the records, or :class:`JudgeError` (one line,
 ``ema-bench validate`` lists every finding).  This module imports no plugin: a verdict is
@@ -31,12 +35,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..escape import terminal
-from ..grandfather import accepted_record
+from ..grandfather import accepted_record, committed_record
 from ..records import schema
 from ..suites import is_case, suite_of
 from ..sweep.schema import SchemaError
 from ..sweep.store import read_lines
-from .run_store import _schema, is_error, run_identity
+from ..trace_cache import MODEL_VERSION, is_comparable
+from .run_store import _schema, is_error, model_version, run_identity
 from .validate import Finding, check_complete, check_record
 
 
@@ -138,6 +143,12 @@ def judge(records: list[dict], *, reevaluate: bool = True, complete: bool = True
                                  "run node, which gives the node away) is accepted for the "
                                  "committed boards' records only: rerun with this version "
                                  "(seed_scheme 2)"))
+        if (isinstance(r, dict) and not is_error(r) and model_version(r) != MODEL_VERSION
+                and is_comparable(model_version(r)) and not committed_record(r)):
+            found.append(Finding(_key(r, i), f"model version {terminal(model_version(r))} "
+                                 "(earlier, compatible) is accepted for the committed "
+                                 "boards' records only: rerun with this version "
+                                 f"({MODEL_VERSION})"))
     if complete:
         for suite in sorted({suite_of(r.get("case")).id for r in recs}):
             found += check_complete([r for r in recs if suite_of(r.get("case")).id == suite],

@@ -42,6 +42,7 @@ from ..records import seed_scheme
 from ..sampling import sample_indices
 from ..suites.problem import make_problem
 from ..sweep.executors import Job, execute
+from .derive import params_of
 from .replay_worker import replay_job
 from .run_store import is_error
 from .tasks import Task
@@ -92,12 +93,14 @@ def compare(record: dict, history: dict[str, np.ndarray], x: np.ndarray) -> str 
 
 
 def _job(i: int, r: dict) -> Job:
-    """The worker's task: what a solver may see of the record's run, never the record."""
+    """The worker's task: what a solver may see of the record's run, never the record; the
+    problem is built on the record's own model version (:func:`~.derive.params_of`: a
+    version-2 record on libm's trigonometry), so a run replays on the model it was made on."""
     task = Task(r["solver"], r["case"], r["track"], int(r["seed"]), int(r["budget"]),
                 int(r.get("root_seed", 0)))
     # the truthful problem is dropped here: the worker receives the truthless one only
-    problem = make_problem(task.case, track=task.track, seed=task.node(),
-                           budget=task.budget).without_truth()
+    problem = make_problem(task.case, track=task.track, seed=task.node(), budget=task.budget,
+                           params=params_of(r)).without_truth()
     return Job(str(i), i, (task.solver, problem, task.budget, task.node(), seed_scheme(r)))
 
 

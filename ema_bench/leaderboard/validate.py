@@ -40,7 +40,7 @@ from ..suites.targets import (
     precision_key,
 )
 from ..trace_cache import COMPATIBLE_VERSIONS, MODEL_VERSION, is_comparable
-from .derive import DerivationError, Derived, derive, frame_of, truth_of
+from .derive import DerivationError, Derived, derive, frame_of, params_of, truth_of
 from .run_store import IDENTITY_FIELDS, is_error, model_version
 
 #: A fitness this far (in units of the instance's f*-to-nominal gap) below the suite's
@@ -324,8 +324,10 @@ def _reevaluate(r: dict, d: Derived) -> list[str]:
     truth, for ``fitness_at_truth``."""
     # the largest budget: no record's evidence is refused for want of one (a trajectory
     # holds at most the record's budget of points)
+    # on the record's own model version (a compatible one: check_record refused others)
     problem = make_problem(r["case"], track=r["track"],
-                           seed=run_seed(r["root_seed"], r["seed"]), budget=MAX_BUDGET)
+                           seed=run_seed(r["root_seed"], r["seed"]), budget=MAX_BUDGET,
+                           params=params_of(r))
     if d.schema >= 2:
         tj = r["trajectory"]
         X, claimed, ev = np.array([p[2] for p in tj], float), [p[1] for p in tj], \

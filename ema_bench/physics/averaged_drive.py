@@ -33,12 +33,14 @@ from collections import namedtuple
 
 from numba import njit
 
-from ..params import P_HYST, P_KE, P_KTF, P_L, P_LOCATE, P_PP, P_R
+from ..params import P_HYST, P_KE, P_KTF, P_L, P_LIBM, P_LOCATE, P_PP, P_R
 from .trig import poly_sincos
 
 SIXTH = math.pi / 6.0
 # cos and sin of phase b's eccentricity shift, 2 pi / 3 (phase c's, 4 pi / 3: the same cos, -sin)
 _COS_120, _SIN_120 = -0.5, math.sqrt(3.0) / 2.0
+# phases b's and c's shifts themselves (model version 2 takes libm's cos(th_m - phi))
+_PHI_B, _PHI_C = 2.0 * math.pi / 3.0, 4.0 * math.pi / 3.0
 # Six-step sectors s = 0..5 (from 30 electrical degrees) conduct a+b-, a+c-, b+c-, b+a-, c+a-,
 # c+b-: phase a conducts unless s % 3 == 2.  Crossing s -> s+1 exchanges (outgoing, incoming)
 # = (b, c), (a, b), (c, a) for s % 3 = 0, 1, 2; crossing s -> s-1 exchanges (a, c), (c, b),
@@ -47,7 +49,7 @@ _COS_120, _SIN_120 = -0.5, math.sqrt(3.0) / 2.0
 
 DriveConsts = namedtuple("DriveConsts", (
     "kt_a", "kt_n", "r_a", "r_n", "il_a", "il_n", "ltr_a", "ltr_n", "na", "ke", "pp", "zeta",
-    "v_dc", "ktf", "half_band", "h", "sector_width", "th_0", "locate"))
+    "v_dc", "ktf", "half_band", "h", "sector_width", "th_0", "locate", "libm"))
 DriveConsts.__doc__ = "Per-candidate constants of :func:`drive_step` (see :func:`drive_consts`)."
 
 
@@ -65,7 +67,7 @@ def drive_consts(p, na, zeta, r_scale, v_dc, h):
                        1.0 / (el * (na * na + 1.0)), 1.0 / (2.0 * el),
                        el * (na * na + 1.0) / v_dc, 2.0 * el / v_dc, na, ke, p[P_PP], zeta,
                        v_dc, p[P_KTF], 0.5 * p[P_HYST], h, 2.0 * SIXTH / p[P_PP],
-                       SIXTH / p[P_PP], p[P_LOCATE] != 0.0)
+                       SIXTH / p[P_PP], p[P_LOCATE] != 0.0, p[P_LIBM] != 0.0)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -94,12 +96,36 @@ def kt_eccentric(sec, th_m, ke, na, zeta):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def kt_eccentric_libm(sec, th_m, ke, na, zeta):
+    """:func:`kt_eccentric` as model version 2 computed it (``libm_trig``): libm's
+    ``cos(th_m - phi_x)`` for each conducting phase, the operations of that version in their
+    order, so its records replay to the bit.  Scalar libm calls: the lanes run it, not
+    vectorised."""
+    phx = 0.0 if sec < 2 else (_PHI_B if sec < 4 else _PHI_C)
+    nx = na if sec < 2 else 1.0
+    y_is_a = (sec == 3) | (sec == 4)
+    phy = 0.0 if y_is_a else (_PHI_B if (sec == 0) | (sec == 5) else _PHI_C)
+    ny = na if y_is_a else 1.0
+    return ke * (nx * (1.0 + zeta * math.cos(th_m - phx))
+                 + ny * (1.0 + zeta * math.cos(th_m - phy)))
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def kt_eccentric_of(sec, th_m, dc):
+    """The eccentric pair torque constant of the model version ``dc`` holds:
+    :func:`kt_eccentric`, or :func:`kt_eccentric_libm` (``dc.libm``, version 2)."""
+    if dc.libm:
+        return kt_eccentric_libm(sec, th_m, dc.ke, dc.na, dc.zeta)
+    return kt_eccentric(sec, th_m, dc.ke, dc.na, dc.zeta)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def kt_at(sec, th_m, dc):
     """Pair torque constant of sector ``sec`` at motor angle ``th_m``: the sector's constant
-    without eccentricity, else :func:`kt_eccentric`."""
+    without eccentricity, else :func:`kt_eccentric_of`."""
     if dc.zeta == 0.0:
         return dc.kt_n if sec % 3 == 2 else dc.kt_a
-    return kt_eccentric(sec, th_m, dc.ke, dc.na, dc.zeta)
+    return kt_eccentric_of(sec, th_m, dc)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -196,8 +222,8 @@ def drive_step(cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr, i_ref, th_m, w_m, d
     th_lo, kt, r_pair, il = sector_consts(m, dc)
     kt_mid = kt
     if dc.zeta != 0.0:   # the torque constants at the step start and mid-step
-        kt = kt_eccentric(m % 6, th_m, dc.ke, dc.na, dc.zeta)
-        kt_mid = kt_eccentric(m % 6, th_m + 0.5 * dc.h * w_m, dc.ke, dc.na, dc.zeta)
+        kt = kt_eccentric_of(m % 6, th_m, dc)
+        kt_mid = kt_eccentric_of(m % 6, th_m + 0.5 * dc.h * w_m, dc)
     fast, cur1, t_mean, t_start, t_end, t_rip, i_eq = drive_fast(
         cur, tr_t0, tr_len, th_lo, kt, kt_mid, r_pair, il, i_ref, th_m, w_m, dc, False)
     if fast:

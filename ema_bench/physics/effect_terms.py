@@ -7,6 +7,8 @@ fits it.  The per-step blocks then take plain scalars.
 
 from __future__ import annotations
 
+import math
+
 from numba import njit
 
 from ..effects import (
@@ -76,9 +78,12 @@ def cogging_wave(amplitude, th_m, pole_pairs):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def cogging_torque(amplitude, th_m, pole_pairs):
+def cogging_torque(amplitude, th_m, pole_pairs, libm):
     """Cogging torque (N m) at motor angle ``th_m`` (rad): :func:`cogging_wave`, exactly
-    +0.0 without cogging (no sine computed)."""
+    +0.0 without cogging (no sine computed); with ``libm`` (model version 2, the parameter
+    ``libm_trig``) libm's sine, as that version computed it."""
     if amplitude == 0.0:
         return 0.0
+    if libm:
+        return amplitude * math.sin(6.0 * pole_pairs * th_m)
     return cogging_wave(amplitude, th_m, pole_pairs)

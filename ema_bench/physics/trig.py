@@ -28,6 +28,8 @@ result is meaningless (at 1e300 it overflows), where no stable simulation goes; 
 ``nan`` give ``nan``, as libm does.  A 2e-16 error in a torque constant's eccentric factor
 or in a cogging torque is ten orders of magnitude below the sensors' quantisation
 (:mod:`ema_bench.physics.sensors`): the trigonometry is not the model's limit, only its cost.
+Model version 2 (the parameter ``libm_trig``, ``params.model_params("2")``) keeps libm's calls
+at these functions' call sites, so the records made on it replay to the bit.
 """
 
 from __future__ import annotations

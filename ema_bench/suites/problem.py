@@ -18,6 +18,7 @@ from ..faults import N_FAULTS, FaultError, check_faults, random_faults
 from ..instances import TRACKS
 from ..instances import make_problem as vector_problem
 from ..objective import ProblemError
+from ..params import DEFAULT_PARAMS, EMAParams
 from ..problem import Problem, check_budget
 from ..seeding import SeedLike, as_seed_sequence, stream
 from ..traces import Traces
@@ -70,6 +71,7 @@ def make_problem(
     prior: bool = True,
     score_effects: bool = False,
     signals: Sequence[str] | None = None,
+    params: EMAParams = DEFAULT_PARAMS,
 ) -> Problem:
     """Build an identification problem.
 
@@ -122,12 +124,17 @@ def make_problem(
         ``surface-current`` condition: ``theta_u``, ``i_eq``).  The others get weight 0 in
         the objective, and in synthetic data (a case and a track) their columns are zeros:
         the solver is not given what the condition withholds.
+    params : EMAParams, optional
+        Both models' parameters (the data maker's and the monitor's): this installation's
+        model version by default; :func:`ema_bench.params.model_params` gives another's
+        (replay re-runs a record on its own version's).
     """
     if measured is not None:
         if not isinstance(measured, Traces):
             raise ProblemError("measured must be a Traces (see ema_bench.load_traces)")
         return Problem(measured, budget, normalise=normalise, augment=augment, start=start,
                        sample_weights=sample_weights, signals=signals, prior=prior,
+                       params=params,
                        label=str(measured.meta.get("source", "measured")), track="measured",
                        _meta={"source": measured.meta.get("source")})
     if sample_weights is not None:
@@ -136,7 +143,8 @@ def make_problem(
     if budget is None and inst is not None:
         budget = inst.budget
     check_settings(case, track, budget, heterogeneity)
-    options = dict(track=track, seed=seed, budget=budget, normalise=normalise, start=start)
+    options = dict(track=track, seed=seed, budget=budget, normalise=normalise, start=start,
+                   params=params)
     if inst is None:
         seeded = isinstance(case, str)   # "seeded": drawn from the node's instance stream
         truth = (random_faults(stream(as_seed_sequence(seed), "instance"), heterogeneity)
