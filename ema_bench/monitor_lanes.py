@@ -240,11 +240,13 @@ def _step(F, M, dc0, mc0, cc0, dcs, mcs, h, c, tick, cogged, eccentric):
     for q in range(LANES):   # the rest of the drive, lane by lane
         if F[_O_DSLOW + q] != 0.0:
             dc = dcs[q]
+            ecc = F[_O_ECC + q] != 0.0   # the constants the vector loop gave drive_fast
+            kt = F[_O_KTE + q] if ecc else F[_O_KT + q]
             (cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr, t_mean, t_start, t_end, t_rip,
              i_eq) = drive_step_general(
                 F[_O_CUR + q], M[q], F[_O_TRT0 + q], F[_O_TRLEN + q], F[_O_KTF + q],
                 F[_O_KTT + q], F[_O_TRCR + q], F[_O_IREF + q], F[_O_THM + q], F[_O_WM + q],
-                dc)
+                dc, kt, F[_O_KTM + q] if ecc else kt)
             F[_O_CUR + q] = cur
             M[q] = m
             F[_O_SEC + q] = m % 6

@@ -216,10 +216,12 @@ static inline void transfer(int64_t sec, bool up, double th_b, double i_tr, doub
     *tr_cr = ny * dc->ke * dc->pp * fabs(w_m) / SIXTH * i_tr;
 }
 
+/* kt_hint: NULL, or the torque constants of sector s->m at th_m and mid-step that the caller
+   already computed (the lanes), used while the step stays in that sector */
 static void drive_step_general(DState *s, double i_ref, double th_m, double w_m, const Drive *dc,
-                               DOut *o) {
+                               const double *kt_hint, DOut *o) {
     double h = dc->h, pp = dc->pp;
-    int64_t m = s->m;
+    int64_t m = s->m, m_in = s->m;
     double tr_t0 = s->tr_t0, tr_len = s->tr_len, kt_from = s->kt_from, kt_to = s->kt_to,
            tr_cr = s->tr_cr;
     double th_lo = dc->th_0 + dc->sector_width * m, th_hi = th_lo + dc->sector_width;
@@ -240,7 +242,7 @@ static void drive_step_general(DState *s, double i_ref, double th_m, double w_m,
     }
     int64_t sec = pymod(m, 6);
     bool with_a = pymod(sec, 3) != 2;
-    double kt0 = kt_at(sec, th_m, dc);
+    double kt0 = kt_hint && m == m_in ? kt_hint[0] : kt_at(sec, th_m, dc);
     double r_pair = with_a ? dc->r_a : dc->r_n, il = with_a ? dc->il_a : dc->il_n;
     double cur = s->cur, cur1, f, i_mean, i_eq;
     ramp(cur, i_ref, kt0 * w_m + r_pair * cur, il, dc->v_dc, h, &cur1, &f, &i_mean, &i_eq);
@@ -266,7 +268,8 @@ static void drive_step_general(DState *s, double i_ref, double th_m, double w_m,
         kt_end = b < h ? kt_from + dk * fb : kt_to;
         deficit = tr_cr * ramp_integral(a - tr_t0, b - tr_t0, tr_len) / h;
     } else {
-        kt_mean = dc->zeta == 0.0 ? kt0 : kt_at(sec, th_m + 0.5 * h * w_m, dc);
+        kt_mean = dc->zeta == 0.0 ? kt0
+                  : kt_hint && m == m_in ? kt_hint[1] : kt_at(sec, th_m + 0.5 * h * w_m, dc);
         kt_start = kt0;
         kt_end = kt_mean;
     }
@@ -303,7 +306,7 @@ static inline void drive_step(DState *s, double i_ref, double th_m, double w_m, 
         o->t_rip = fabs(km) * dc->half_band; o->i_eq = i_eq;
         return;
     }
-    drive_step_general(s, i_ref, th_m, w_m, dc, o);
+    drive_step_general(s, i_ref, th_m, w_m, dc, NULL, o);
 }
 
 /* ---- mechanics.py --------------------------------------------------------------------------- */
@@ -759,7 +762,9 @@ static inline void lane_step(Lanes *restrict L, const Drive *dcs, const Mech *mc
         DState s = {L->cur[q], L->m[q], L->trt0[q], L->trlen[q], L->ktf[q], L->ktt[q],
                     L->trcr[q]};
         DOut o;
-        drive_step_general(&s, L->iref[q], L->thm[q], L->wm[q], &dcs[q], &o);
+        bool ecc = L->ecc[q] != 0.0;
+        double kt_hint[2] = {ecc ? L->kte[q] : L->kt[q], ecc ? L->ktm[q] : L->kt[q]};
+        drive_step_general(&s, L->iref[q], L->thm[q], L->wm[q], &dcs[q], kt_hint, &o);
         L->cur[q] = s.cur; L->m[q] = s.m; L->trt0[q] = s.tr_t0; L->trlen[q] = s.tr_len;
         L->ktf[q] = s.kt_from; L->ktt[q] = s.kt_to; L->trcr[q] = s.tr_cr;
         L->tm[q] = o.t_mean + L->tcog[q];

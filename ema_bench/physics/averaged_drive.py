@@ -230,7 +230,7 @@ def drive_step(cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr, i_ref, th_m, w_m, d
         return (cur1, m, tr_t0 - dc.h, tr_len, kt_from, kt_to, tr_cr, t_mean, t_start,
                 t_end, t_rip, i_eq)
     return drive_step_general(cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr, i_ref, th_m, w_m,
-                              dc)
+                              dc, kt, kt_mid)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -294,10 +294,17 @@ def _transfer(sec, up, th_b, i_tr, w_m, dc):
 
 
 @njit(cache=True, error_model="numpy")
-def drive_step_general(cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr, i_ref, th_m, w_m, dc):
+def drive_step_general(cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr, i_ref, th_m, w_m, dc,
+                       kt_m0, kt_mid_m0):
     """:func:`drive_step` for every case: sector crossings, commutation transfers,
-    eccentricity (not inlined: the hot loop stays small)."""
+    eccentricity (not inlined: the hot loop stays small).
+
+    ``kt_m0``, ``kt_mid_m0`` are the torque constants of sector ``m`` at ``th_m`` and at
+    mid-step that the short path already computed (:func:`kt_at`'s values, the sector's
+    constant without eccentricity): used while the step stays in sector ``m``, so an
+    eccentric rotor's slow step does not compute its sines again."""
     h = dc.h
+    m_in = m
     pp = dc.pp
     th_lo = dc.th_0 + dc.sector_width * m
     th_hi = th_lo + dc.sector_width
@@ -321,7 +328,7 @@ def drive_step_general(cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr, i_ref, th_m
                                                       th_b, abs(cur), w_m, dc)
     sec = m % 6
     with_a = sec % 3 != 2
-    kt0 = kt_at(sec, th_m, dc)
+    kt0 = kt_m0 if m == m_in else kt_at(sec, th_m, dc)
     r_pair = dc.r_a if with_a else dc.r_n
     il = dc.il_a if with_a else dc.il_n
     cur1, f, i_mean, i_eq = _ramp(cur, i_ref, kt0 * w_m + r_pair * cur, il, dc.v_dc, h,
@@ -351,7 +358,8 @@ def drive_step_general(cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr, i_ref, th_m
         kt_end = kt_from + dk * fb if b < h else kt_to
         deficit = tr_cr * _ramp_integral(a - tr_t0, b - tr_t0, tr_len) / h
     else:
-        kt_mean = kt0 if dc.zeta == 0.0 else kt_at(sec, th_m + 0.5 * h * w_m, dc)
+        kt_mean = kt0 if dc.zeta == 0.0 else (
+            kt_mid_m0 if m == m_in else kt_at(sec, th_m + 0.5 * h * w_m, dc))
         kt_start = kt0
         kt_end = kt_mean
     ktf = dc.ktf
