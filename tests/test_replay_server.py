@@ -84,3 +84,15 @@ def test_a_plugin_remembering_earlier_runs_is_caught_by_replay(redteam):
 def test_only_the_isolated_executor_takes_a_preload():
     with pytest.raises(ValueError, match="preload is the isolated executor's"):
         next(execute([Job("a", "a")], probe, "processes", 1, preload=SERVER_PRELOAD))
+
+
+def test_the_monitor_runs_on_numba_threads_only_when_it_has_several():
+    """On one thread (a worker) the serial kernels, whatever the batch; on several, the
+    parallel ones from one unit of work per thread."""
+    import numba
+
+    from ema_bench.monitor import _parallel
+
+    threads = numba.get_num_threads()
+    assert _parallel(10**6) is (threads > 1)
+    assert not _parallel(threads - 1)
