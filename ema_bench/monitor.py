@@ -7,7 +7,8 @@ The controller, the mechanics (backlash, friction, load) and the window outputs 
 same compiled code as in the reference (:mod:`ema_bench.physics.integrator`,
 :mod:`ema_bench.physics.mechanics`).  One call simulates a batch of candidates, all tests, in
 parallel over candidates (numba ``prange``); batches smaller than twice the thread count run on
-the calling thread, where waking the worker threads would cost more than it saves.  Candidates
+the calling thread, where waking the worker threads would cost more than it saves, and so does
+every batch where numba has one thread (a worker process).  Candidates
 run in vectorised lock-step groups of eight (:mod:`ema_bench.monitor_lanes`, about twice the
 candidates per CPU-second, bit-identical outputs), carrying the sensor, controller and plant
 effects of suite emafdi-v2's tiers (``LANE_EFFECTS``); a single candidate, and candidates with
@@ -111,8 +112,9 @@ def simulate_monitor(
     check : bool
         Validate ``X`` (shape, finite, in bounds).  Callers that already did may skip it.
     parallel : bool, optional
-        Run candidates on numba's threads; default: when the batch has at least twice as
-        many candidates as threads (for the lanes: at least one group per thread).
+        Run candidates on numba's threads; default: on more than one thread, when the batch
+        has at least twice as many candidates as threads (for the lanes: at least one group
+        per thread).
     lanes : bool, optional
         Run the candidates with no effect outside ``LANE_EFFECTS`` in lock-step groups of eight
         (:mod:`ema_bench.monitor_lanes`: vectorised, bit-identical outputs); default: for
@@ -147,7 +149,7 @@ def simulate_monitor(
         from .monitor_lanes import lane_groups, lanes_parallel, lanes_serial
 
         groups = lane_groups(grouped)
-        par = groups.shape[0] >= numba.get_num_threads() if parallel is None else parallel
+        par = _parallel(groups.shape[0]) if parallel is None else parallel
         (lanes_parallel if par else lanes_serial)(p, X, E, groups, *layout, out, ok)
     if rest.size == n:
         _scalar(p, X, E, layout, out, ok, parallel)
@@ -185,9 +187,20 @@ def _lane_split(E: np.ndarray, lanes: bool | None) -> tuple[np.ndarray, np.ndarr
     return rows[:keep], np.sort(np.concatenate([np.flatnonzero(~plain), rows[keep:]]))
 
 
+def _parallel(units: int) -> bool:
+    """Whether ``units`` (lane groups, or scalar candidates over two) are worth numba's
+    threads: at least one per thread, and more than one thread.  On one thread (a worker
+    process of a sweep or a replay) the serial kernel does the same work without waking a
+    threading layer, and a process that calls only it never loads the parallel kernels
+    from numba's cache (a replay worker forked from :mod:`~ema_bench.leaderboard.
+    replay_server` finds the serial ones loaded)."""
+    threads = numba.get_num_threads()
+    return threads > 1 and units >= threads
+
+
 def _scalar(p, X, E, layout, out, ok, parallel: bool | None) -> None:
     if parallel is None:
-        parallel = X.shape[0] >= 2 * numba.get_num_threads()
+        parallel = _parallel(X.shape[0] // 2)
     kernel = monitor_batch_parallel if parallel else monitor_batch_serial
     kernel(p, X, E, *layout, out, ok)
 

@@ -19,7 +19,8 @@ records the kernel (``blas``); replay under another one names both in its findin
 ``OPENBLAS_CORETYPE=Haswell`` (or ``Zen``, ``SkylakeX``) replays under the record's.
 
 The solver never runs in this process: each sampled record's run goes to a fresh worker
-process (:mod:`.replay_worker`, the sweep engine's ``isolated`` executor), which gets the
+process (:mod:`.replay_worker`, the sweep engine's ``isolated`` executor, forked from a server
+that imported the package and loaded its kernels once, :mod:`.replay_server`), which gets the
 truthless instance, the budget, the run node and the record's seed scheme (the solver's seed
 is derived from the node by it, as in the run), never the record, and sends back the
 problem's log and its count of model evaluations; the comparison happens here.  The sample
@@ -46,6 +47,10 @@ from .derive import params_of
 from .replay_worker import replay_job
 from .run_store import is_error
 from .tasks import Task
+
+#: What the fork server of the workers imports (trusted code only, never a plugin): the
+#: package's modules and kernels, once (:mod:`.replay_server`); each worker is a fork of it.
+SERVER_PRELOAD = ("ema_bench.leaderboard.replay_server",)
 
 #: Relative agreement of a replayed fitness or vector with the record's (the runs are
 #: deterministic; this leaves room for another CPU's floating-point rounding only).
@@ -136,7 +141,7 @@ def replay(records: list[dict], k: int | None, seed: int, keys: set[str] | None 
             found[i] = ReplayResult(_name(r), f"replay failed: {type(exc).__name__}: {exc}",
                                     0.0)
     workers = workers or max(1, min(len(jobs), os.cpu_count() or 1))
-    for o in execute(jobs, replay_job, "isolated", workers):
+    for o in execute(jobs, replay_job, "isolated", workers, preload=SERVER_PRELOAD):
         i = o.task.identity
         r = picked[i]
         if o.failure is not None:

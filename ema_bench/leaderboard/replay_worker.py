@@ -2,7 +2,9 @@
 elsewhere.
 
 ``ema-bench validate --replay`` sends each sampled record's run to a fresh worker process
-(the sweep engine's ``isolated`` executor: one task per process, so no memory crosses runs).
+(the sweep engine's ``isolated`` executor: one task per process, so no memory crosses runs),
+a fork of a server that imported the package and loaded its kernels, and no plugin
+(:mod:`.replay_server`).
 The worker receives what a solver may see and nothing else: the solver's name, the
 instance rebuilt *without its truth* from its measured traces (a
 :class:`~ema_bench.problem.Problem` whose truth is gone, pickled), the budget, the run node

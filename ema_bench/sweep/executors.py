@@ -16,6 +16,14 @@ one) taking a task and returning its record or a list of records.
 Worker processes started here exit when this process dies, SIGKILL included
 (:func:`_exit_with_parent`); the workers of an existing Dask cluster (``--scheduler``) are
 the cluster's, not ours, and are left alone.
+
+The ``isolated`` executor (one task per fresh process, for submitted code: replay) spawns each
+worker, or, given ``preload`` (names of trusted modules: the package's own, never a plugin),
+forks each one from a server that imported them once (multiprocessing's ``forkserver``): a
+fork is a fresh process holding nothing of another task, and it skips the interpreter's start,
+the imports and numba's loading of cached kernels that a spawned worker pays per task.  The
+server is stopped (and reaped: its CPU and its children's count as this process's children's)
+when the run ends.
 """
 
 from __future__ import annotations
@@ -142,6 +150,12 @@ def worker_init(parent_pid: int | None = None) -> None:
         _exit_with_parent(parent_pid)
 
 
+def _forked_worker_init() -> None:
+    """:func:`worker_init` of a worker forked from the fork server: it exits with the server,
+    its parent, which exits when the process that started it does."""
+    worker_init(os.getppid())
+
+
 def _serial(tasks: Iterator[Task], workers: int, scheduler: str | None, runner: Runner
             ) -> Iterator[Outcome]:
     for t in tasks:
@@ -149,15 +163,16 @@ def _serial(tasks: Iterator[Task], workers: int, scheduler: str | None, runner: 
 
 
 def _processes(tasks: Iterator[Task], workers: int, scheduler: str | None, runner: Runner,
-               fresh: bool = False) -> Iterator[Outcome]:
+               fresh: bool = False, preload: tuple[str, ...] = ()) -> Iterator[Outcome]:
     """A process pool that survives a worker's death: the pool is started again, the tasks
     that were in flight run again one at a time, and the one whose worker dies alone comes
     back as an infrastructure failure (so a task that kills its worker does not take its
     neighbours with it).  ``fresh``: every task in a new process (no memory crosses tasks:
-    the ``isolated`` executor of replay, which runs submitted code)."""
+    the ``isolated`` executor of replay, which runs submitted code), forked from a server that
+    imported ``preload`` when given."""
     from concurrent.futures import FIRST_COMPLETED, wait
 
-    pool = _Pool(workers, fresh)
+    pool = _Pool(workers, fresh, preload)
     suspects: deque[Task] = deque()   # in flight when a worker died: rerun one at a time
     waiting: deque[Task] = deque()    # taken from ``tasks`` but not started (pool broke)
     running: dict = {}
@@ -203,14 +218,23 @@ def _processes(tasks: Iterator[Task], workers: int, scheduler: str | None, runne
 class _Pool:
     """A process pool started again after a worker's death (which breaks it for good)."""
 
-    def __init__(self, workers: int, fresh: bool = False) -> None:
-        self.workers, self.fresh = workers, fresh
+    def __init__(self, workers: int, fresh: bool = False, preload: tuple[str, ...] = ()
+                 ) -> None:
+        self.workers, self.fresh, self.preload = workers, fresh, preload
         self.pool = self._start()
 
     def _start(self):
         import multiprocessing as mp
         from concurrent.futures import ProcessPoolExecutor
 
+        if self.preload:
+            # forked from a server that imported the preload only: it never started numba's
+            # threads (which do not survive a fork), each worker starts its own
+            ctx = mp.get_context("forkserver")
+            ctx.set_forkserver_preload(list(self.preload))
+            return ProcessPoolExecutor(max_workers=self.workers, mp_context=ctx,
+                                       initializer=_forked_worker_init,
+                                       max_tasks_per_child=1 if self.fresh else None)
         # "spawn": numba's threading layers and fork do not mix well
         return ProcessPoolExecutor(max_workers=self.workers, mp_context=mp.get_context("spawn"),
                                    initializer=worker_init, initargs=(os.getpid(),),
@@ -237,6 +261,19 @@ class _Pool:
 
     def shutdown(self) -> None:
         self.pool.shutdown(wait=True, cancel_futures=True)
+        if self.preload:
+            _stop_fork_server()
+
+
+def _stop_fork_server() -> None:
+    """Stop multiprocessing's fork server and reap it (a later run starts a fresh one, with
+    its own preload)."""
+    from multiprocessing import forkserver
+
+    # private, but the one way to stop it (CPython's own tests use it); 3.11 to 3.13
+    stop = getattr(forkserver._forkserver, "_stop", None)
+    if stop is not None:
+        stop()
 
 
 def _dask(tasks: Iterator[Task], workers: int, scheduler: str | None, runner: Runner
@@ -304,17 +341,24 @@ _RUNNERS: dict[str, Callable[[Iterator[Task], int, str | None, Runner],
 
 
 def execute(tasks: Iterable[Task], runner: Runner, executor: str = "processes",
-            workers: int | None = None, scheduler: str | None = None) -> Iterator[Outcome]:
+            workers: int | None = None, scheduler: str | None = None,
+            preload: Iterable[str] = ()) -> Iterator[Outcome]:
     """Run ``tasks`` (each through ``runner``) and yield their :class:`Outcome` as they
     finish.
 
     ``tasks`` is read lazily, one task per free worker; nothing starts (no pool, no cluster)
-    when it is empty."""
+    when it is empty.  ``preload`` (the ``isolated`` executor's only): modules the fork server
+    imports once, of which each worker is a fork; trusted code only (the package's own)."""
     if executor not in _RUNNERS:
         raise ValueError(f"unknown executor {executor!r}; known: {list(EXECUTORS)}")
+    run = _RUNNERS[executor]
+    if preload := tuple(preload):
+        if executor != "isolated":
+            raise ValueError(f"preload is the isolated executor's, not {executor!r}'s")
+        run = functools.partial(run, preload=preload)
     workers = workers or os.cpu_count() or 1
     feed = iter(tasks)
     first = next(feed, None)
     if first is None:
         return
-    yield from _RUNNERS[executor](itertools.chain([first], feed), workers, scheduler, runner)
+    yield from run(itertools.chain([first], feed), workers, scheduler, runner)

@@ -57,6 +57,25 @@ def seed_walker(problem, budget, seed):
     return SolveResult("rt-seed-walker", x, f, problem.evaluations, "done", 0.0, {})
 
 
+#: The runs this process made before: a module global, the memory a plugin keeps.
+_EARLIER_RUNS: list[np.ndarray] = []
+
+
+@register_solver("rt-remembers", description="carries what it found from run to run",
+                 library="numpy")
+def remembers(problem, budget, seed):
+    """Evaluates the best vector of each earlier run in its process, then the start: its
+    first run makes one evaluation, its second two.  Replayed in one process in file order
+    (replay before issue 48), every record reproduces; in a fresh process per record, only
+    the first."""
+    for x in _EARLIER_RUNS[:budget - 1]:
+        problem.evaluate(x)
+    problem.evaluate(problem.start)
+    x, f = problem.best
+    _EARLIER_RUNS.append(x)
+    return SolveResult("rt-remembers", x, f, problem.evaluations, "done", 0.0, {})
+
+
 @register_tracker("rt-campaign-peeker", description="looks for the campaign from its process")
 def campaign_peeker(campaign_info, seed):
     """Looks through its process for what a tracker must not reach: the campaign object, its
