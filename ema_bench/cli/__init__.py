@@ -2,7 +2,8 @@
 
 Each subcommand lives in its own module of this package and is listed in ``COMMANDS``; a module
 provides ``register(subparsers)`` which adds its parser and sets ``func`` to a handler
-``(args) -> int`` (the exit code).
+``(args) -> int`` (the exit code).  A command's description is its module's docstring unless
+``register`` gives one (reST markup shown plain; a docstring of several lines as written).
 """
 
 from __future__ import annotations
@@ -55,9 +56,11 @@ def build_parser() -> argparse.ArgumentParser:
                                 parser_class=OneLineParser)
     for module in dict.fromkeys(COMMANDS.values()):  # a module may add two commands
         importlib.import_module(f"{__name__}.{module}").register(sub)
-    for p in sub.choices.values():  # descriptions are module docstrings: show plain text
-        p.description = plain_text(p.description)
-        p.epilog = plain_text(p.epilog)
+    for name, p in sub.choices.items():  # a description is its module's docstring
+        doc = p.description or sys.modules[f"{__name__}.{COMMANDS[name]}"].__doc__
+        p.description, p.epilog = plain_text(doc), plain_text(p.epilog)
+        if "\n" in doc:   # paragraphs and examples: shown as written
+            p.formatter_class = argparse.RawDescriptionHelpFormatter
     return parser
 
 

@@ -24,9 +24,7 @@ from .args import add_json, count, seed_number
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("bench", help="measure model speed and time to a solution",
-                       description=__doc__,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = sub.add_parser("bench", help="measure model speed and time to a solution")
     p.add_argument("--batch", type=count(1, 65_536), default=256,
                    help="candidates per batch (default 256)")
     p.add_argument("--repeat", type=count(1, 1000), default=7,

@@ -45,9 +45,7 @@ from .args import add_json, add_quiet, check_output, comma_list, count, seed_num
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("blind", help="blind test of the missing-physics workflow",
-                       description=__doc__,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = sub.add_parser("blind", help="blind test of the missing-physics workflow")
     p.add_argument("--cases", type=count(0, 10_000), default=30, help="hidden cases (default 30)")
     p.add_argument("--seed", type=seed_number, default=0,
                    help="root seed R of the suite (default 0); case i is run i of it: the "

@@ -32,9 +32,7 @@ from .args import (
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("campaign", help="degradation campaigns: make, track, score (RUL)",
-                       description=__doc__,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = sub.add_parser("campaign", help="degradation campaigns: make, track, score (RUL)")
     actions = p.add_subparsers(dest="action", metavar="ACTION", required=True)
     _register_make(actions)
     _register_track(actions)

@@ -48,9 +48,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     from ..uncertainty.coverage import BUDGET, SOLVER
     from ..uncertainty.methods import METHODS, MODEL_FORM_MODES
 
-    p = sub.add_parser("coverage", help="measure the coverage of the fault intervals",
-                       description=__doc__,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = sub.add_parser("coverage", help="measure the coverage of the fault intervals")
     p.add_argument("--track", choices=("twin", "reference"), default="twin",
                    help="where the data come from (default twin)")
     p.add_argument("--instances", type=count(1, 100_000), default=100,

@@ -42,9 +42,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     from ..diagnosis.results import Settings
 
     d = Settings()
-    p = sub.add_parser("diagnose", help="find and name physics the monitor model misses",
-                       description=__doc__,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = sub.add_parser("diagnose", help="find and name physics the monitor model misses")
     p.add_argument("traces", nargs="+", metavar="TRACES",
                    help="measured traces (.csv, .npz, .mat): one or more files that together "
                         "hold step, sine and sine2")

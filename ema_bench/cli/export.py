@@ -33,9 +33,7 @@ FORMATS: dict[str, Callable[..., list[Path]]] = {"ioh": export_ioh}
 def register(sub: argparse._SubParsersAction) -> None:
     from .args import add_json, add_legacy, add_targets
 
-    p = sub.add_parser("export", help="convert run records for other tools (IOHprofiler)",
-                       description=__doc__,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = sub.add_parser("export", help="convert run records for other tools (IOHprofiler)")
     p.add_argument("runs", nargs="+", metavar="RUNS.jsonl",
                    help="run records, as written by 'ema-bench leaderboard'")
     p.add_argument("--format", choices=FORMATS, required=True,

@@ -63,9 +63,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
 
     p = sub.add_parser("leaderboard",
-                       help="compare solvers on the suite's instances x tracks x seeds",
-                       description=__doc__,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+                       help="compare solvers on the suite's instances x tracks x seeds")
     p.add_argument("--solvers", type=option_list, default=None,
                    help="comma-separated solver names (default: every registered solver)")
     p.add_argument("--cases", type=option_list, default=None,

@@ -112,9 +112,7 @@ def write_all(out: Path) -> list[Path]:
 def register(sub: argparse._SubParsersAction) -> None:
     from .args import add_json
 
-    p = sub.add_parser("schema", help="JSON Schemas of the files a user submits or reads",
-                       description=__doc__,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = sub.add_parser("schema", help="JSON Schemas of the files a user submits or reads")
     p.add_argument("name", nargs="?", choices=SCHEMAS, metavar="NAME",
                    help=f"the schema to print: {', '.join(SCHEMAS)}")
     p.add_argument("--out", default=None, metavar="DIR",

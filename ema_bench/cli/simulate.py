@@ -33,9 +33,7 @@ MODELS = ("reference", "monitor")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("simulate", help="simulate the actuator and write its traces",
-                       description=__doc__,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = sub.add_parser("simulate", help="simulate the actuator and write its traces")
     src = p.add_mutually_exclusive_group()
     src.add_argument("--case", default=None,
                      help="paper case: nominal, small, full, random, or 'all' for the four "

@@ -69,8 +69,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _register_solve(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("solve", help="identify the faults of one episode with a solver",
-                       description=__doc__, epilog=_SOLVE_EPILOG,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+                       epilog=_SOLVE_EPILOG)
     src = p.add_mutually_exclusive_group()
     src.add_argument("--case", default=None,
                      help="a case of any suite: paper case (nominal, small, full, random), "

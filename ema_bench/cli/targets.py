@@ -34,9 +34,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     from ..suites import DEFAULT, SUITES
     from .args import add_json, add_quiet, count, option_list, seed_number, worker_count
 
-    p = sub.add_parser("targets", help="compute or show the suite's best-known optima f*",
-                       description=__doc__,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = sub.add_parser("targets", help="compute or show the suite's best-known optima f*")
     p.add_argument("--out", default=None, metavar="FILE.json",
                    help="where to write the table (required unless --show)")
     p.add_argument("--suite", choices=tuple(SUITES), default=DEFAULT.id,

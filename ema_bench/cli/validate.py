@@ -25,9 +25,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     from .args import add_json, add_legacy, add_targets, count, seed_number
 
     p = sub.add_parser("validate", help="check third-party run records (suite, manifest, "
-                                        "budget, re-evaluated fitness)",
-                       description=__doc__,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+                                        "budget, re-evaluated fitness)")
     p.add_argument("runs", nargs="+", metavar="RUNS.jsonl", help="run records to check")
     p.add_argument("--partial", action="store_true",
                    help="do not require every instance of the suite (a shard, a quick run)")
