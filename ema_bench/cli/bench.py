@@ -37,7 +37,6 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="skip the start-up and time-to-success figures")
     p.add_argument("--seed", type=seed_number, default=0, help="root seed (default 0)")
     add_json(p)
-    p.set_defaults(func=run)
 
 
 def _fmt(v: object, spec: str) -> str:

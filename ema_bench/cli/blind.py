@@ -90,7 +90,6 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "$EMA_BENCH_INTERVAL_CALIBRATION, else shipped)")
     add_json(p, "the summary and the cases")
     add_quiet(p)
-    p.set_defaults(func=run)
 
 
 def default_out(seed: int, cases: int, extra: int = 0, fourth: int = 0, chain: int = 0,

@@ -81,7 +81,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--workers", type=worker_count, default=1, help="processes (default 1)")
     add_json(p, "the summary")
     add_quiet(p)
-    p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:

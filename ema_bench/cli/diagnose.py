@@ -57,7 +57,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_seeds(p, "the fits and the bootstrap")
     add_json(p, "the diagnosis")
     add_quiet(p)
-    p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -51,7 +51,6 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "'validate --no-reevaluate'; every other check stays)")
     add_legacy(p, "export")
     add_json(p, "a summary")
-    p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -127,7 +127,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_legacy(p, "score")
     add_json(p, "a summary")
     add_quiet(p)
-    p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -118,7 +118,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", default=None, metavar="DIR",
                    help="write every schema to DIR/NAME.schema.json")
     add_json(p, "the list")
-    p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:

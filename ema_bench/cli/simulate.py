@@ -52,7 +52,6 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="write traces (.csv or .npz; with --case all, a folder)")
     p.add_argument("--plot", default=None, metavar="PNG", help="draw the 8 signals to a PNG")
     add_json(p, "the summary")
-    p.set_defaults(func=run)
 
 
 def _simulate(x, effects, model, node, clean, tests):

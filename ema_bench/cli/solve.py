@@ -118,7 +118,6 @@ def _register_solve(sub: argparse._SubParsersAction) -> None:
     add_targets(p)
     add_json(p)
     p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
-    p.set_defaults(func=run)
 
 
 def _check_args(args: argparse.Namespace) -> None:

@@ -67,7 +67,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--show", action="store_true", help="summarise the shipped table")
     add_json(p, "the summary")
     add_quiet(p)
-    p.set_defaults(func=run)
 
 
 def _keys(args: argparse.Namespace) -> list[str] | None:

@@ -50,7 +50,6 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "repeatable) instead of a sample")
     add_targets(p)
     add_json(p, "the findings")
-    p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
