@@ -37,7 +37,6 @@ OUT/interval_calibration.json', in a checkout (docs/diagnosis.md).
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 
 from . import CLIError, print_result
@@ -129,8 +128,7 @@ def _run(args: argparse.Namespace, only: list[str] | None) -> int:
     from ..diagnosis.blind import run_blind
     from ..diagnosis.blind_summary import SUMMARY_SCHEMA
     from ..diagnosis.interval_table import source
-    from ..jsonio import dumps
-    from ..sweep.schema import check
+    from ..jsonio import write_checked
 
     # before any work: the suite takes minutes per case
     out = check_output(args.out or default_out(args.seed, args.cases, args.extra, args.fourth,
@@ -141,11 +139,9 @@ def _run(args: argparse.Namespace, only: list[str] | None) -> int:
                     extra=args.extra, only=only, fourth=args.fourth, chain=args.chain,
                     outside=args.outside)
     res["summary"]["interval_calibration"] = source()
-    text = dumps({"command": "ema-bench " + " ".join(sys.argv[1:]), **res["summary"]},
-                 indent=1)
-    path = Path(out) / "summary.json"
-    check(json.loads(text), SUMMARY_SCHEMA, str(path))   # as a reader will read it back
-    path.write_text(text)
+    write_checked(Path(out) / "summary.json",
+                  {"command": "ema-bench " + " ".join(sys.argv[1:]), **res["summary"]},
+                  SUMMARY_SCHEMA, indent=1)
     return print_result(args, res, summary_lines(res["summary"], args.seed)
                         + [case_line(r) for r in res["records"]])
 

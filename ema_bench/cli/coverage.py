@@ -28,7 +28,6 @@ Examples::
 from __future__ import annotations
 
 import argparse
-import json
 
 from . import CLIError, print_result
 from .args import (
@@ -137,7 +136,7 @@ def _summary(records: list[dict], method: str, stem: str, out, args: argparse.Na
 
     from ..faults import FAULT_NAMES
     from ..interval_calibration_files import describe, using
-    from ..jsonio import dumps
+    from ..jsonio import write_checked
     from ..uncertainty import conformal as cal
     from ..uncertainty.coverage import recalibrated, summarise, write_calibration
 
@@ -160,13 +159,10 @@ def _summary(records: list[dict], method: str, stem: str, out, args: argparse.Na
     summary["calibration_table"] = source
     summary["calibration_factor"] = dict(zip(FAULT_NAMES, map(float, factors)))
     if out is not None:
-        from ..sweep.schema import check
         from ..uncertainty.coverage import SUMMARY_SCHEMA
         from ..uncertainty.plots import plot_coverage
 
-        text = dumps(summary, indent=1) + "\n"
-        check(json.loads(text), SUMMARY_SCHEMA, str(out / f"{stem}.json"))   # as read back
-        (out / f"{stem}.json").write_text(text)
+        write_checked(out / f"{stem}.json", summary, SUMMARY_SCHEMA, "\n", indent=1)
         plot_coverage(records, out / f"{stem}.png")
         summary["files"] = [str(out / f"{stem}{s}") for s in (".jsonl", ".json", ".png")]
     return summary
