@@ -147,7 +147,3 @@ def print_result(args: argparse.Namespace, obj: object, lines: Iterable[str]) ->
         for line in lines:
             print(line)
     return 0
-
-
-if __name__ == "__main__":  # pragma: no cover
-    raise SystemExit(main())
