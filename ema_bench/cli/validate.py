@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import argparse
 
+from . import CLIError, print_result
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     from .args import add_json, add_legacy, add_targets, count, seed_number
@@ -58,7 +60,6 @@ def run(args: argparse.Namespace) -> int:
     from ..leaderboard.validate import LEGACY_UNVERIFIABLE, Finding
     from ..sampling import escape_chance, sample_seed
     from ..suites import suite_of
-    from . import CLIError, print_result
 
     try:
         lines = read_runs(args.runs)
@@ -111,7 +112,6 @@ def run(args: argparse.Namespace) -> int:
 def _replay(records: list[dict], k: str | None, seed: int | None,
             keys: set[str] | None) -> list:
     from ..leaderboard.replay import replay
-    from . import CLIError
 
     if k is None:
         return []
