@@ -29,6 +29,10 @@ from __future__ import annotations
 
 import argparse
 
+from ..faults import FAULT_NAMES
+from ..interval_calibration_files import describe, inside_package, using
+from ..uncertainty import conformal as cal
+from ..uncertainty.methods import METHODS, MODEL_FORM_MODES
 from . import CLIError, print_result
 from .args import (
     MAX_BUDGET,
@@ -45,7 +49,6 @@ from .args import (
 
 def register(sub: argparse._SubParsersAction) -> None:
     from ..uncertainty.coverage import BUDGET, SOLVER
-    from ..uncertainty.methods import METHODS, MODEL_FORM_MODES
 
     p = sub.add_parser("coverage", help="measure the coverage of the fault intervals")
     p.add_argument("--track", choices=("twin", "reference"), default="twin",
@@ -83,10 +86,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..interval_calibration_files import inside_package, using
     from ..registry import get_solver
-    from ..uncertainty import conformal as cal
-    from ..uncertainty.methods import METHODS
 
     if not 0.0 < args.level < 1.0:
         raise CLIError(f"--level must lie in (0, 1), got {args.level}")
@@ -134,10 +134,7 @@ def _summary(records: list[dict], method: str, stem: str, out, args: argparse.Na
     """Write calibration scores (with --calibrate), the summary and the plot of one method."""
     import numpy as np
 
-    from ..faults import FAULT_NAMES
-    from ..interval_calibration_files import describe, using
     from ..jsonio import write_checked
-    from ..uncertainty import conformal as cal
     from ..uncertainty.coverage import recalibrated, summarise, write_calibration
 
     kind = cal.calibration_kind(args.track)
@@ -170,8 +167,6 @@ def _summary(records: list[dict], method: str, stem: str, out, args: argparse.Na
 
 def _lines(summary: dict, root: int, args: argparse.Namespace) -> list[str]:
     """The text table of one method's summary."""
-    from ..faults import FAULT_NAMES
-
     table = "" if summary["calibration"] == "none" else f" ({summary['calibration_table']})"
     ev, band = summary["interval_evaluations"], summary["coverage_interval"]
     return [

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 
+from ..diagnosis.results import Settings
 from . import print_result
 from .args import (
     MAX_BUDGET,
@@ -39,8 +40,6 @@ from .args import (
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from ..diagnosis.results import Settings
-
     d = Settings()
     p = sub.add_parser("diagnose", help="find and name physics the monitor model misses")
     p.add_argument("traces", nargs="+", metavar="TRACES",
@@ -61,7 +60,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..diagnosis.report import write_report
-    from ..diagnosis.results import Settings
     from ..diagnosis.workflow import diagnose
     from ..progress import progress
     from ..registry import get_solver

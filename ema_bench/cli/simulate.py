@@ -15,6 +15,7 @@ import time
 
 import numpy as np
 
+from ..faults import CASES, faults_to_dict, get_case
 from . import CLIError, print_result
 from .args import (
     PLOT_SUFFIXES,
@@ -55,7 +56,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _simulate(x, effects, model, node, clean, tests):
-    from ..faults import faults_to_dict
     from ..instances import twin_traces
     from ..monitor import monitor_traces
     from ..reference import simulate_reference
@@ -100,7 +100,6 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from ..effects import effects_vector
-    from ..faults import CASES, faults_to_dict, get_case
     from ..objective import KNOWN_TESTS
     from ..plots import plot_traces
     from ..traces import Traces
