@@ -30,8 +30,8 @@ from __future__ import annotations
 import argparse
 import statistics
 
+from .. import interval_calibration_files as files
 from ..instances import TRACKS
-from ..interval_calibration_files import checkout_root, inside_package
 from ..suites import DEFAULT, SUITES, instance
 from ..suites.base import Selection
 from ..suites.targets import read_targets
@@ -150,9 +150,9 @@ def _check_not_shipped(args: argparse.Namespace) -> None:
     """``--out`` inside the package: refused in an installed copy (shipped data is
     read-only), and in a checkout for a selection (it would replace the shipped table with a
     part of it: 460 entries became 1, and validate then refused genuine records)."""
-    if not inside_package(args.out):
+    if not files.inside_package(args.out):
         return
-    if checkout_root() is None:
+    if files.checkout_root() is None:   # looked up at the call (tests stand in for it)
         raise CLIError(f"--out {args.out}: inside the installed package, whose data is "
                        "read-only; write the table elsewhere")
     chosen = [f"--{n.replace('_', '-')}" for n in ("cases", "tiers", "conditions", "per_tier",
