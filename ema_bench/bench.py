@@ -70,6 +70,7 @@ from .faults import CASES, random_faults
 from .monitor import simulate_monitor
 from .reference import simulate_reference
 from .seeding import run_seed, stream
+from .suites.problem import make_problem
 
 TTS_SOLVERS = ("cmaes", "powell")
 TTS_CASES = ("nominal", "small", "full", "random")
@@ -137,7 +138,6 @@ def time_to_success(solvers: tuple[str, ...] = TTS_SOLVERS, cases: tuple[str, ..
                     progress: Callable[[str], None] | None = None) -> dict[str, dict]:
     """Median seconds to the first successful vector, warm and cold (see module doc)."""
     from .registry import run_solver
-    from .suites.problem import make_problem
 
     warm: dict[str, dict[str, float | None]] = {}
     coldd: dict[str, dict[str, float | None]] = {}
@@ -188,7 +188,6 @@ def tier_setups(batch: int, seed: int = 0) -> dict[int, tuple[object, np.ndarray
     """tier -> (objective, candidates): ``batch`` candidates drawn uniformly in the tier's box
     (a tier-7 one carries a sensor offset, current gain and feedback delay, a tier-12 one every
     plant effect too) on the twin track of the tier's first instance, kernels warmed up."""
-    from .suites.problem import make_problem
     from .suites.v2 import case_key, instance_names
 
     rng = np.random.default_rng(seed)

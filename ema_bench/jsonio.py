@@ -63,6 +63,18 @@ def dumps(obj: Any, *, indent: int | None = None, sort_keys: bool = False,
     return json.dumps(plain(obj, default), indent=indent, sort_keys=sort_keys, allow_nan=False)
 
 
+def write_checked(path: Path, obj: Any, schema: Mapping, end: str = "", **kw: Any) -> None:
+    """Write ``obj`` to ``path`` as :func:`dumps` (keywords ``kw``) gives it, plus ``end``,
+    after checking that text as a reader will read it back against the type table ``schema``
+    (:func:`ema_bench.sweep.schema.check`: a summary that its schema refuses is never
+    written)."""
+    from .sweep.schema import check
+
+    text = dumps(obj, **kw) + end
+    check(json.loads(text), schema, str(path))
+    Path(path).write_text(text)
+
+
 def write_atomic(path: Path, text: str) -> None:
     """Write ``text`` to ``path`` through a temporary file beside it (of this process: two
     processes writing one file do not share it): a reader sees the old file or the new one,

@@ -18,22 +18,18 @@ import numpy as np
 
 from .faults import FaultError, check_faults, faults_to_dict
 from .objective import (  # noqa: F401  (re-exported: the problem's vocabulary)
-    KNOWN_TESTS,
     N_FAULTS,
     PENALTY,
     Objective,
     ProblemError,
     SearchSpace,
-    fitness_from_outputs,
-    signal_scales,
 )
 from .params import DEFAULT_PARAMS, EMAParams
-from .scoring import (  # noqa: F401
+from .scoring import (
     SUCCESS_RANGE_ERROR,
     Score,
     parameter_hits,
     score,
-    successes,
 )
 from .traces import SIGNALS, Traces
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from ema_bench.diagnosis import acquisition as acq
-from ema_bench.diagnosis import decoys
+from ema_bench.diagnosis import channel_faults, decoys
 from ema_bench.diagnosis.results import Settings
 from ema_bench.objective import KNOWN_TESTS
 from ema_bench.reference import simulate_reference
@@ -57,12 +57,12 @@ def test_each_kind_is_screened_first_and_recovers_its_decoy(records, decoy, para
     assert not lo <= 0.0 <= hi
     assert lo - rel * abs(value) - 1e-12 <= value <= hi + rel * abs(value) + 1e-12
     if decoy == "mains_hum":
-        assert best.fault.detail["freq"] == pytest.approx(400.0, abs=acq.HUM_STEP)
+        assert best.fault.detail["freq"] == pytest.approx(400.0, abs=channel_faults.HUM_STEP)
 
 
 def test_outliers_are_found_where_the_decoy_put_them(records):
     clean, noisy = records
-    params = {"signal": "theta_m", "size": 30 * float(acq.NOISE_STD[1]), "seed": 11}
+    params = {"signal": "theta_m", "size": 30 * float(channel_faults.NOISE_STD[1]), "seed": 11}
     tr = decoys.apply("outliers", noisy, params)
     best = acq.screen(clean, tr.data, _ones(tr), TRAIN)[0]
     assert best.fault.name == "outliers(theta_m)"
@@ -158,6 +158,6 @@ def test_names_and_bad_names():
     with pytest.raises(ValueError, match="kind\\(channel\\)"):
         acq.parse("drift(current)")
     # trivial bands in the channel's unit: the noise sd scales the per-sd kinds
-    assert acq.trivial("drift(i_eq)") == pytest.approx(float(acq.NOISE_STD[3]))
+    assert acq.trivial("drift(i_eq)") == pytest.approx(float(channel_faults.NOISE_STD[3]))
     assert acq.trivial("time_shift(i_eq)") == 0.5
     assert len(acq.all_names()) == 24

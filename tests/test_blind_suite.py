@@ -567,7 +567,7 @@ def test_fourth_round_cases_size_the_acquisition_fault_by_its_threshold():
     1-1.5x) its detection threshold, the decoy's parameters that multiple of it (a time
     shift rounded to whole samples, at least 1)."""
     from ema_bench.diagnosis import sized
-    from ema_bench.diagnosis.acquisition import KINDS, NOISE_STD
+    from ema_bench.diagnosis.channel_faults import KINDS, NOISE_STD
 
     both = draw_cases(64, 0, extra=12, fourth=6)
     assert both[:88] == draw_cases(64, 0, extra=12)

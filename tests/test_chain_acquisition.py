@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from ema_bench.diagnosis import acquisition as acq
-from ema_bench.diagnosis import chain, decoys, tails
+from ema_bench.diagnosis import decoys, tails
 from ema_bench.diagnosis.features import NOISE_STD
 from ema_bench.diagnosis.results import Settings
 from ema_bench.objective import KNOWN_TESTS
@@ -90,9 +90,9 @@ def test_one_channel_faults_make_no_group(records):
     ranked = acq.screen(clean, tr.data, _ones(tr), TRAIN)
     assert ranked[0].fault.name == "drift(omega_m)"
     assert not any(e.fault.channel not in SIGNALS for e in ranked)
-    assert chain.is_group("theta_u,i_eq") and chain.is_group("all")
+    assert acq.is_group("theta_u,i_eq") and acq.is_group("all")
     for bad in ("i_eq,theta_u", "theta_u,theta_m,omega_m,i_eq", "i_eq", "x,y"):
-        assert not chain.is_group(bad)
+        assert not acq.is_group(bad)
     for bad in ("outliers(all)", "stuck(theta_u,i_eq)", "heavy_tailed(i_eq)"):
         with pytest.raises(ValueError, match="whole-chain"):
             acq.parse(bad)

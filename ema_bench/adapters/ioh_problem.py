@@ -46,7 +46,8 @@ from .run import AdapterRun, evaluate_unit
 class IOHProblem:
     """An IOH problem over an :class:`~ema_bench.adapters.run.AdapterRun`'s problem whose
     call evaluates a batch at once.  Attributes not defined here (``state``, ``meta_data``,
-    ``optimum``, ``attach_logger``, ``reset``, ...) are the IOH problem's."""
+    ``optimum``, ``detach_logger``, ``reset``, ...) are the IOH problem's (a detached logger
+    stays held until :meth:`close`)."""
 
     def __init__(self, run: AdapterRun) -> None:
         self.run = run
@@ -79,11 +80,6 @@ class IOHProblem:
         logger attached as a temporary would be freed while IOH still writes to it)."""
         self.ioh.attach_logger(logger)
         self._loggers.append(logger)
-
-    def detach_logger(self) -> None:
-        """Detach the loggers (IOH's ``detach_logger``); they stay held until
-        :meth:`close`."""
-        self.ioh.detach_logger()
 
     def close(self) -> None:
         """End the IOH run and close every logger attached (their files are complete

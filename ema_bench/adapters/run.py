@@ -82,15 +82,6 @@ class AdapterRun:
         which gives nothing of its instance and noise streams away)."""
         return int(solver_seed(self.node()).generate_state(1)[0])
 
-    def run_registered(self, name: str) -> Any:
-        """Run the registered solver ``name`` on this instance as the leaderboard does
-        (:func:`~ema_bench.registry.run_solver` at the run node, the whole budget); returns
-        its :class:`~ema_bench.registry.SolveResult`.  The baseline an adapter run is
-        compared with."""
-        from ..registry import run_solver
-
-        return run_solver(name, self._problem, self.budget, seed=self.node())
-
     def record(self, stop_reason: str = "budget", **extra: Any) -> dict[str, Any]:
         """The run's record: the problem's best vector and count, never the library's."""
         libs = tuple(d for d in self.library.split(",") if d)

@@ -1,8 +1,10 @@
 """``ema-bench`` command line.
 
 Each subcommand lives in its own module of this package and is listed in ``COMMANDS``; a module
-provides ``register(subparsers)`` which adds its parser and sets ``func`` to a handler
-``(args) -> int`` (the exit code).
+provides ``register(subparsers)`` which adds its parser, and a handler ``run(args) -> int``
+(the exit code) unless ``register`` sets ``func`` to another.  A command's description is its
+module's docstring unless ``register`` gives one (reST markup shown plain; a docstring of
+several lines as written).
 """
 
 from __future__ import annotations
@@ -55,9 +57,13 @@ def build_parser() -> argparse.ArgumentParser:
                                 parser_class=OneLineParser)
     for module in dict.fromkeys(COMMANDS.values()):  # a module may add two commands
         importlib.import_module(f"{__name__}.{module}").register(sub)
-    for p in sub.choices.values():  # descriptions are module docstrings: show plain text
-        p.description = plain_text(p.description)
-        p.epilog = plain_text(p.epilog)
+    for name, p in sub.choices.items():  # by default, its module's docstring and run
+        module = sys.modules[f"{__name__}.{COMMANDS[name]}"]
+        p.set_defaults(func=p.get_default("func") or getattr(module, "run", None))
+        doc = p.description or module.__doc__
+        p.description, p.epilog = plain_text(doc), plain_text(p.epilog)
+        if "\n" in doc:   # paragraphs and examples: shown as written
+            p.formatter_class = argparse.RawDescriptionHelpFormatter
     return parser
 
 
@@ -141,7 +147,3 @@ def print_result(args: argparse.Namespace, obj: object, lines: Iterable[str]) ->
         for line in lines:
             print(line)
     return 0
-
-
-if __name__ == "__main__":  # pragma: no cover
-    raise SystemExit(main())

@@ -24,9 +24,7 @@ from .args import add_json, count, seed_number
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("bench", help="measure model speed and time to a solution",
-                       description=__doc__,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = sub.add_parser("bench", help="measure model speed and time to a solution")
     p.add_argument("--batch", type=count(1, 65_536), default=256,
                    help="candidates per batch (default 256)")
     p.add_argument("--repeat", type=count(1, 1000), default=7,
@@ -39,7 +37,6 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="skip the start-up and time-to-success figures")
     p.add_argument("--seed", type=seed_number, default=0, help="root seed (default 0)")
     add_json(p)
-    p.set_defaults(func=run)
 
 
 def _fmt(v: object, spec: str) -> str:

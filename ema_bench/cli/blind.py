@@ -37,7 +37,6 @@ OUT/interval_calibration.json', in a checkout (docs/diagnosis.md).
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 
 from . import CLIError, print_result
@@ -45,9 +44,7 @@ from .args import add_json, add_quiet, check_output, comma_list, count, seed_num
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("blind", help="blind test of the missing-physics workflow",
-                       description=__doc__,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = sub.add_parser("blind", help="blind test of the missing-physics workflow")
     p.add_argument("--cases", type=count(0, 10_000), default=30, help="hidden cases (default 30)")
     p.add_argument("--seed", type=seed_number, default=0,
                    help="root seed R of the suite (default 0); case i is run i of it: the "
@@ -92,7 +89,6 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "$EMA_BENCH_INTERVAL_CALIBRATION, else shipped)")
     add_json(p, "the summary and the cases")
     add_quiet(p)
-    p.set_defaults(func=run)
 
 
 def default_out(seed: int, cases: int, extra: int = 0, fourth: int = 0, chain: int = 0,
@@ -132,8 +128,7 @@ def _run(args: argparse.Namespace, only: list[str] | None) -> int:
     from ..diagnosis.blind import run_blind
     from ..diagnosis.blind_summary import SUMMARY_SCHEMA
     from ..diagnosis.interval_table import source
-    from ..jsonio import dumps
-    from ..sweep.schema import check
+    from ..jsonio import write_checked
 
     # before any work: the suite takes minutes per case
     out = check_output(args.out or default_out(args.seed, args.cases, args.extra, args.fourth,
@@ -144,11 +139,9 @@ def _run(args: argparse.Namespace, only: list[str] | None) -> int:
                     extra=args.extra, only=only, fourth=args.fourth, chain=args.chain,
                     outside=args.outside)
     res["summary"]["interval_calibration"] = source()
-    text = dumps({"command": "ema-bench " + " ".join(sys.argv[1:]), **res["summary"]},
-                 indent=1)
-    path = Path(out) / "summary.json"
-    check(json.loads(text), SUMMARY_SCHEMA, str(path))   # as a reader will read it back
-    path.write_text(text)
+    write_checked(Path(out) / "summary.json",
+                  {"command": "ema-bench " + " ".join(sys.argv[1:]), **res["summary"]},
+                  SUMMARY_SCHEMA, indent=1)
     return print_result(args, res, summary_lines(res["summary"], args.seed)
                         + [case_line(r) for r in res["records"]])
 

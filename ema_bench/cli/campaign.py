@@ -17,7 +17,26 @@ Examples::
 from __future__ import annotations
 
 import argparse
+import json
+import sys
+import time
+from pathlib import Path
 
+from ..jsonio import plain
+from ..prognostics.campaign import (
+    default_out,
+    get_spec,
+    load_campaign,
+    load_truth,
+    make_campaign,
+    prepare_folder,
+    truth_path,
+)
+from ..prognostics.scoring import score_tracking
+from ..prognostics.sealed import BOARD_TRACKERS, campaign_label, run_sealed
+from ..prognostics.track_io import campaign_path, read_track
+from ..prognostics.track_run import track_campaign, tracker_spec
+from ..prognostics.tracking import available_trackers
 from . import CLIError, print_result
 from .args import (
     add_json,
@@ -32,9 +51,7 @@ from .args import (
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("campaign", help="degradation campaigns: make, track, score (RUL)",
-                       description=__doc__,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = sub.add_parser("campaign", help="degradation campaigns: make, track, score (RUL)")
     actions = p.add_subparsers(dest="action", metavar="ACTION", required=True)
     _register_make(actions)
     _register_track(actions)
@@ -79,10 +96,6 @@ def _register_make(actions: argparse._SubParsersAction) -> None:
 
 
 def _run_make(args: argparse.Namespace) -> int:
-    import time
-
-    from ..prognostics.campaign import default_out, get_spec, make_campaign, prepare_folder
-
     # --units, --every and --seed are bounded by their argparse types; before any work (a
     # CampaignError is a ValueError: one line by main())
     get_spec(args.name)
@@ -140,13 +153,6 @@ def _register_track(actions: argparse._SubParsersAction) -> None:
 
 
 def _run_track(args: argparse.Namespace) -> int:
-    import time
-
-    from ..prognostics.campaign import load_campaign
-    from ..prognostics.track_io import read_track
-    from ..prognostics.track_run import track_campaign, tracker_spec
-    from ..prognostics.tracking import available_trackers
-
     if args.list:
         trackers = available_trackers()
         width = max((len(n) for n in trackers), default=0)
@@ -229,11 +235,6 @@ def _register_score(actions: argparse._SubParsersAction) -> None:
 
 
 def _run_score(args: argparse.Namespace) -> int:
-    import sys
-    from pathlib import Path
-
-    from ..prognostics.scoring import score_tracking
-
     if not 0.0 < args.alpha < 1.0:
         raise CLIError("--alpha must lie in (0, 1)")
     if args.replay or args.replay_unit:
@@ -263,18 +264,12 @@ def _run_score(args: argparse.Namespace) -> int:
 
 def _campaign_label(run: str, truth: str | None) -> str:
     """Which campaign a run is on: published (its seed) or sealed (its truth's digest)."""
-    from ..prognostics.campaign import load_campaign, truth_path
-    from ..prognostics.sealed import campaign_label
-    from ..prognostics.track_io import campaign_path, read_track
-
     camp = load_campaign(campaign_path(run, read_track(run).manifest), traces=False)
     return campaign_label(camp, truth_path(camp.root if truth is None else truth))
 
 
 def _replayed(args: argparse.Namespace) -> bool:
     """Replay each run (``--replay``/``--replay-unit``); print what was found (stderr)."""
-    import sys
-
     from ..prognostics.replay import replay_track
 
     ok = True
@@ -298,7 +293,6 @@ def _replayed(args: argparse.Namespace) -> bool:
 
 def _plots(runs: list[str], results: list[dict], folder, alpha: float, truth_file=None,
            n_units: int = 3) -> None:
-    from ..prognostics.campaign import load_campaign, load_truth
     from ..prognostics.plots import (
         plot_alpha_lambda,
         plot_errors,
@@ -306,7 +300,6 @@ def _plots(runs: list[str], results: list[dict], folder, alpha: float, truth_fil
         plot_rul,
         plot_unit,
     )
-    from ..prognostics.track_io import campaign_path, read_track
 
     folder.mkdir(parents=True, exist_ok=True)
     errors: dict[str, dict[str, list[float]]] = {}
@@ -345,8 +338,6 @@ def _plots(runs: list[str], results: list[dict], folder, alpha: float, truth_fil
 # --- sealed (the maintainer's board on a secret campaign) -------------------------------------
 
 def _register_sealed(actions: argparse._SubParsersAction) -> None:
-    from ..prognostics.sealed import BOARD_TRACKERS
-
     p = actions.add_parser(
         "sealed", help="the board on a sealed campaign: secret seed, every tracker, scored",
         description="Draw a test campaign from a secret seed (63 bits of the OS's entropy) "
@@ -377,9 +368,6 @@ def _register_sealed(actions: argparse._SubParsersAction) -> None:
 
 
 def _run_sealed(args: argparse.Namespace) -> int:
-    from ..prognostics.campaign import get_spec
-    from ..prognostics.sealed import run_sealed
-
     get_spec(args.name)
     check_output(args.out, "--out", folder=True)
     if args.policy is not None:
@@ -421,10 +409,6 @@ def _register_policy(actions: argparse._SubParsersAction) -> None:
 
 
 def _run_policy(args: argparse.Namespace) -> int:
-    import json
-    from pathlib import Path
-
-    from ..jsonio import plain
     from ..prognostics.policy import policy_table, read_thresholds, score_policies, tune
 
     if args.tune:

@@ -28,8 +28,11 @@ Examples::
 from __future__ import annotations
 
 import argparse
-import json
 
+from ..faults import FAULT_NAMES
+from ..interval_calibration_files import describe, inside_package, using
+from ..uncertainty import conformal as cal
+from ..uncertainty.methods import METHODS, MODEL_FORM_MODES
 from . import CLIError, print_result
 from .args import (
     MAX_BUDGET,
@@ -46,11 +49,8 @@ from .args import (
 
 def register(sub: argparse._SubParsersAction) -> None:
     from ..uncertainty.coverage import BUDGET, SOLVER
-    from ..uncertainty.methods import METHODS, MODEL_FORM_MODES
 
-    p = sub.add_parser("coverage", help="measure the coverage of the fault intervals",
-                       description=__doc__,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = sub.add_parser("coverage", help="measure the coverage of the fault intervals")
     p.add_argument("--track", choices=("twin", "reference"), default="twin",
                    help="where the data come from (default twin)")
     p.add_argument("--instances", type=count(1, 100_000), default=100,
@@ -83,14 +83,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--workers", type=worker_count, default=1, help="processes (default 1)")
     add_json(p, "the summary")
     add_quiet(p)
-    p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..interval_calibration_files import inside_package, using
     from ..registry import get_solver
-    from ..uncertainty import conformal as cal
-    from ..uncertainty.methods import METHODS
 
     if not 0.0 < args.level < 1.0:
         raise CLIError(f"--level must lie in (0, 1), got {args.level}")
@@ -138,10 +134,7 @@ def _summary(records: list[dict], method: str, stem: str, out, args: argparse.Na
     """Write calibration scores (with --calibrate), the summary and the plot of one method."""
     import numpy as np
 
-    from ..faults import FAULT_NAMES
-    from ..interval_calibration_files import describe, using
-    from ..jsonio import dumps
-    from ..uncertainty import conformal as cal
+    from ..jsonio import write_checked
     from ..uncertainty.coverage import recalibrated, summarise, write_calibration
 
     kind = cal.calibration_kind(args.track)
@@ -163,13 +156,10 @@ def _summary(records: list[dict], method: str, stem: str, out, args: argparse.Na
     summary["calibration_table"] = source
     summary["calibration_factor"] = dict(zip(FAULT_NAMES, map(float, factors)))
     if out is not None:
-        from ..sweep.schema import check
         from ..uncertainty.coverage import SUMMARY_SCHEMA
         from ..uncertainty.plots import plot_coverage
 
-        text = dumps(summary, indent=1) + "\n"
-        check(json.loads(text), SUMMARY_SCHEMA, str(out / f"{stem}.json"))   # as read back
-        (out / f"{stem}.json").write_text(text)
+        write_checked(out / f"{stem}.json", summary, SUMMARY_SCHEMA, "\n", indent=1)
         plot_coverage(records, out / f"{stem}.png")
         summary["files"] = [str(out / f"{stem}{s}") for s in (".jsonl", ".json", ".png")]
     return summary
@@ -177,8 +167,6 @@ def _summary(records: list[dict], method: str, stem: str, out, args: argparse.Na
 
 def _lines(summary: dict, root: int, args: argparse.Namespace) -> list[str]:
     """The text table of one method's summary."""
-    from ..faults import FAULT_NAMES
-
     table = "" if summary["calibration"] == "none" else f" ({summary['calibration_table']})"
     ev, band = summary["interval_evaluations"], summary["coverage_interval"]
     return [

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 
+from ..diagnosis.results import Settings
 from . import print_result
 from .args import (
     MAX_BUDGET,
@@ -39,12 +40,8 @@ from .args import (
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from ..diagnosis.results import Settings
-
     d = Settings()
-    p = sub.add_parser("diagnose", help="find and name physics the monitor model misses",
-                       description=__doc__,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = sub.add_parser("diagnose", help="find and name physics the monitor model misses")
     p.add_argument("traces", nargs="+", metavar="TRACES",
                    help="measured traces (.csv, .npz, .mat): one or more files that together "
                         "hold step, sine and sine2")
@@ -59,12 +56,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_seeds(p, "the fits and the bootstrap")
     add_json(p, "the diagnosis")
     add_quiet(p)
-    p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     from ..diagnosis.report import write_report
-    from ..diagnosis.results import Settings
     from ..diagnosis.workflow import diagnose
     from ..progress import progress
     from ..registry import get_solver

@@ -24,18 +24,18 @@ import argparse
 from collections.abc import Callable
 from pathlib import Path
 
-from ..leaderboard.ioh import export_ioh
+from ..leaderboard.ioh import export_ioh, function_name, optimum, split_runs
+from ..leaderboard.run_store import is_error
+from ..suites.v1 import SANITY_CASES
+from . import CLIError, print_result
+from .args import add_json, add_legacy, add_targets, check_output
 
 #: format name -> exporter ``(records, out folder, **options) -> files written``
 FORMATS: dict[str, Callable[..., list[Path]]] = {"ioh": export_ioh}
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from .args import add_json, add_legacy, add_targets
-
-    p = sub.add_parser("export", help="convert run records for other tools (IOHprofiler)",
-                       description=__doc__,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = sub.add_parser("export", help="convert run records for other tools (IOHprofiler)")
     p.add_argument("runs", nargs="+", metavar="RUNS.jsonl",
                    help="run records, as written by 'ema-bench leaderboard'")
     p.add_argument("--format", choices=FORMATS, required=True,
@@ -51,16 +51,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "'validate --no-reevaluate'; every other check stays)")
     add_legacy(p, "export")
     add_json(p, "a summary")
-    p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..leaderboard.ioh import function_name, optimum, split_runs
     from ..leaderboard.judge import JudgeError, admitted, read_runs
-    from ..leaderboard.run_store import is_error
-    from ..suites.v1 import SANITY_CASES
-    from . import CLIError, print_result
-    from .args import check_output
 
     out = check_output(args.out, "--out", folder=True)
     try:   # what validate refuses is not exported (a partial board is: no completeness)

@@ -34,6 +34,25 @@ import argparse
 import tempfile
 from pathlib import Path
 
+from ..leaderboard.run_store import RUNS_FILE, read_records
+from ..registry import available_solvers
+from ..suites import SUITES
+from ..suites.base import Selection
+from ..sweep.executors import EXECUTORS
+from . import CLIError, print_result
+from .args import (
+    MAX_BUDGET,
+    add_json,
+    add_legacy,
+    add_quiet,
+    add_targets,
+    check_output,
+    count,
+    option_list,
+    seed_number,
+    worker_count,
+)
+
 QUICK = {"seeds": 2}    # and the suite's quick cases and budget (emafdi-v1: 400)
 DEFAULT = {"seeds": 10}
 
@@ -48,24 +67,9 @@ def _shard(text: str) -> tuple[int, int]:
 
 def register(sub: argparse._SubParsersAction) -> None:
     from ..suites import DEFAULT as DEFAULT_SUITE
-    from ..suites import SUITES
-    from ..sweep.executors import EXECUTORS
-    from .args import (
-        MAX_BUDGET,
-        add_json,
-        add_legacy,
-        add_quiet,
-        add_targets,
-        count,
-        option_list,
-        seed_number,
-        worker_count,
-    )
 
     p = sub.add_parser("leaderboard",
-                       help="compare solvers on the suite's instances x tracks x seeds",
-                       description=__doc__,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+                       help="compare solvers on the suite's instances x tracks x seeds")
     p.add_argument("--solvers", type=option_list, default=None,
                    help="comma-separated solver names (default: every registered solver)")
     p.add_argument("--cases", type=option_list, default=None,
@@ -123,19 +127,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_legacy(p, "score")
     add_json(p, "a summary")
     add_quiet(p)
-    p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     from ..leaderboard.check import compare, load_baseline
     from ..leaderboard.run import leaderboard, select
-    from ..leaderboard.run_store import RUNS_FILE, read_records
     from ..leaderboard.tasks import make_tasks
-    from ..registry import available_solvers
-    from ..suites import SUITES
-    from ..suites.base import Selection
-    from . import CLIError, print_result
-    from .args import check_output
 
     if args.check is not None:
         from ..leaderboard.check import packaged_baseline, require_baseline
@@ -214,7 +211,6 @@ def _recorded_solvers(out: str | None) -> list[str]:
     """The solvers of the records in ``out/runs.jsonl`` (``--report-only`` without
     ``--solvers``), read without importing any plugin."""
     from ..leaderboard.judge import read_runs
-    from ..leaderboard.run_store import RUNS_FILE
 
     path = Path(out or ".") / RUNS_FILE
     return list(dict.fromkeys(str(r["solver"]) for r in read_runs([path]))) \

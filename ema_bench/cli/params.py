@@ -12,10 +12,8 @@ from .args import add_json
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("params", help="list physical parameters, faults, cases and effects",
-                       description=__doc__)
+    p = sub.add_parser("params", help="list physical parameters, faults, cases and effects")
     add_json(p, "the tables")
-    p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -22,6 +22,9 @@ import importlib
 from dataclasses import dataclass
 from pathlib import Path
 
+from . import CLIError, print_json, print_result
+from .args import add_json, check_output
+
 
 @dataclass(frozen=True)
 class SchemaFile:
@@ -110,23 +113,15 @@ def write_all(out: Path) -> list[Path]:
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from .args import add_json
-
-    p = sub.add_parser("schema", help="JSON Schemas of the files a user submits or reads",
-                       description=__doc__,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = sub.add_parser("schema", help="JSON Schemas of the files a user submits or reads")
     p.add_argument("name", nargs="?", choices=SCHEMAS, metavar="NAME",
                    help=f"the schema to print: {', '.join(SCHEMAS)}")
     p.add_argument("--out", default=None, metavar="DIR",
                    help="write every schema to DIR/NAME.schema.json")
     add_json(p, "the list")
-    p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from . import CLIError, print_json, print_result
-    from .args import check_output
-
     if args.name and args.out:
         raise CLIError("give a NAME to print or --out DIR to write them all, not both")
     if args.name:

@@ -15,6 +15,7 @@ import time
 
 import numpy as np
 
+from ..faults import CASES, faults_to_dict, get_case
 from . import CLIError, print_result
 from .args import (
     PLOT_SUFFIXES,
@@ -33,9 +34,7 @@ MODELS = ("reference", "monitor")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("simulate", help="simulate the actuator and write its traces",
-                       description=__doc__,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = sub.add_parser("simulate", help="simulate the actuator and write its traces")
     src = p.add_mutually_exclusive_group()
     src.add_argument("--case", default=None,
                      help="paper case: nominal, small, full, random, or 'all' for the four "
@@ -54,11 +53,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="write traces (.csv or .npz; with --case all, a folder)")
     p.add_argument("--plot", default=None, metavar="PNG", help="draw the 8 signals to a PNG")
     add_json(p, "the summary")
-    p.set_defaults(func=run)
 
 
 def _simulate(x, effects, model, node, clean, tests):
-    from ..faults import faults_to_dict
     from ..instances import twin_traces
     from ..monitor import monitor_traces
     from ..reference import simulate_reference
@@ -103,7 +100,6 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from ..effects import effects_vector
-    from ..faults import CASES, faults_to_dict, get_case
     from ..objective import KNOWN_TESTS
     from ..plots import plot_traces
     from ..traces import Traces

@@ -34,7 +34,18 @@ import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from pathlib import Path
 
+from ..faults import FAULTS
+from ..interval_calibration_files import describe
+from ..monitor import monitor_traces
+from ..objective import KNOWN_TESTS, N_FAULTS
+from ..reference import SimulationError
+from ..registry import available_solvers, get_solver, run_solver
+from ..seeding import stream
+from ..suites.problem import check_settings, make_problem
+from ..uncertainty import intervals
+from ..uncertainty.local import UncertaintyError
 from . import CLIError, print_json, print_result
 from .args import (
     MAX_BUDGET,
@@ -69,8 +80,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _register_solve(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("solve", help="identify the faults of one episode with a solver",
-                       description=__doc__, epilog=_SOLVE_EPILOG,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+                       epilog=_SOLVE_EPILOG)
     src = p.add_mutually_exclusive_group()
     src.add_argument("--case", default=None,
                      help="a case of any suite: paper case (nominal, small, full, random), "
@@ -108,13 +118,9 @@ def _register_solve(sub: argparse._SubParsersAction) -> None:
     add_targets(p)
     add_json(p)
     p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
-    p.set_defaults(func=run)
 
 
 def _check_args(args: argparse.Namespace) -> None:
-    from ..registry import get_solver
-    from ..suites.problem import check_settings
-
     run_node(args)   # the seeds are valid
     # make_problem's own checks, before any work (the measured path has no case)
     check_settings(_case(args) if args.measured is None else "small", args.track,
@@ -139,8 +145,6 @@ def _case(args: argparse.Namespace):
 
 
 def _make_problem(args: argparse.Namespace):
-    from ..suites.problem import make_problem
-
     if args.measured is not None:
         return make_problem(measured=load_measured_files(args.measured, args.test),
                             budget=args.budget, normalise=not args.raw)
@@ -182,9 +186,7 @@ def _progress(problem, enabled: bool) -> Iterator[None]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..faults import FAULTS
     from ..records import run_record
-    from ..registry import get_solver, run_solver
 
     t0 = time.perf_counter()
     _check_args(args)
@@ -250,10 +252,6 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _intervals(problem, res, args: argparse.Namespace):
-    from ..seeding import stream
-    from ..uncertainty import intervals
-    from ..uncertainty.local import UncertaintyError
-
     try:
         return intervals(problem.objective, res.x, method=args.intervals, level=args.level,
                          track=problem.track, seed=stream(run_node(args), "intervals"))
@@ -262,11 +260,8 @@ def _intervals(problem, res, args: argparse.Namespace):
 
 
 def _interval_plots(problem, iv, args: argparse.Namespace) -> list[str]:
-    from pathlib import Path
-
     import numpy as np
 
-    from ..objective import N_FAULTS
     from ..uncertainty.plots import plot_profiles, plot_region
 
     truth = None
@@ -285,7 +280,6 @@ def _interval_plots(problem, iv, args: argparse.Namespace) -> list[str]:
 
 def _print_intervals(iv, out: dict) -> None:
     """Estimate and interval per parameter, and what the noise and tests say."""
-    from ..interval_calibration_files import describe
     from ..uncertainty import conformal as cal
 
     # the table the factors came from, shipped or the user's (EMA_BENCH_CALIBRATION), named
@@ -318,10 +312,7 @@ def _print_intervals(iv, out: dict) -> None:
 
 
 def _plot(problem, res, args: argparse.Namespace) -> None:
-    from ..monitor import monitor_traces
-    from ..objective import KNOWN_TESTS, N_FAULTS
     from ..plots import plot_traces
-    from ..reference import SimulationError
 
     tests = tuple(KNOWN_TESTS[t] for t in problem.measured.tests)
     try:
@@ -333,8 +324,6 @@ def _plot(problem, res, args: argparse.Namespace) -> None:
 
 
 def run_solvers(args: argparse.Namespace) -> int:
-    from ..registry import available_solvers
-
     solvers = available_solvers()
     width = max((len(n) for n in solvers), default=4)
     lib_w = max((len(s.library) for s in solvers.values()), default=7)

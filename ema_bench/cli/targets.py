@@ -28,15 +28,21 @@ Examples::
 from __future__ import annotations
 
 import argparse
+import statistics
+
+from .. import interval_calibration_files as files
+from ..instances import TRACKS
+from ..suites import DEFAULT, SUITES, instance
+from ..suites.base import Selection
+from ..suites.targets import read_targets
+from ..suites.v1 import describe
+from ..suites.v2 import judged_by_entry
+from . import CLIError, print_result
+from .args import add_json, add_quiet, check_output, count, option_list, seed_number, worker_count
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from ..suites import DEFAULT, SUITES
-    from .args import add_json, add_quiet, count, option_list, seed_number, worker_count
-
-    p = sub.add_parser("targets", help="compute or show the suite's best-known optima f*",
-                       description=__doc__,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = sub.add_parser("targets", help="compute or show the suite's best-known optima f*")
     p.add_argument("--out", default=None, metavar="FILE.json",
                    help="where to write the table (required unless --show)")
     p.add_argument("--suite", choices=tuple(SUITES), default=DEFAULT.id,
@@ -61,16 +67,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--show", action="store_true", help="summarise the shipped table")
     add_json(p, "the summary")
     add_quiet(p)
-    p.set_defaults(func=run)
 
 
 def _keys(args: argparse.Namespace) -> list[str] | None:
     """The keys to compute (None: every key of the suite's table)."""
-    from ..instances import TRACKS
-    from ..suites import SUITES
-    from ..suites.base import Selection
-    from . import CLIError
-
     bad = [t for t in args.tracks or () if t not in TRACKS]
     if bad:
         raise CLIError(f"unknown track(s) {bad}; known: {list(TRACKS)}")
@@ -81,12 +81,6 @@ def _keys(args: argparse.Namespace) -> list[str] | None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..suites import SUITES
-    from ..suites.targets import read_targets
-    from ..suites.v1 import describe
-    from . import CLIError, print_result
-    from .args import check_output
-
     suite = SUITES[args.suite]
     # a suite with clean-data fits (emafdi-v2) reports what they exclude and their cost
     clean = suite.clean_fits
@@ -132,9 +126,6 @@ def run(args: argparse.Namespace) -> int:
 def _excluded(entries: dict) -> dict[str, list[str]]:
     """Per entry with a clean-data fit that excludes some: the parameters without
     parameter targets (:func:`~ema_bench.suites.v2.judged_by_entry`, as scoring judges)."""
-    from ..suites import instance
-    from ..suites.v2 import judged_by_entry
-
     out = {}
     for k, e in entries.items():
         case = k.split("|")[0]
@@ -147,10 +138,6 @@ def _excluded(entries: dict) -> dict[str, list[str]]:
 
 def _cost_by_tier(entries: dict) -> dict[str, dict[str, float]]:
     """Per tier: entries, median and total CPU seconds (those that recorded them)."""
-    import statistics
-
-    from ..suites import instance
-
     by: dict[int, list[float]] = {}
     for k, e in entries.items():
         if "cpu_s" in e:
@@ -163,12 +150,9 @@ def _check_not_shipped(args: argparse.Namespace) -> None:
     """``--out`` inside the package: refused in an installed copy (shipped data is
     read-only), and in a checkout for a selection (it would replace the shipped table with a
     part of it: 460 entries became 1, and validate then refused genuine records)."""
-    from ..interval_calibration_files import checkout_root, inside_package
-    from . import CLIError
-
-    if not inside_package(args.out):
+    if not files.inside_package(args.out):
         return
-    if checkout_root() is None:
+    if files.checkout_root() is None:   # looked up at the call (tests stand in for it)
         raise CLIError(f"--out {args.out}: inside the installed package, whose data is "
                        "read-only; write the table elsewhere")
     chosen = [f"--{n.replace('_', '-')}" for n in ("cases", "tiers", "conditions", "per_tier",

@@ -20,14 +20,14 @@ from __future__ import annotations
 
 import argparse
 
+from . import CLIError, print_result
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     from .args import add_json, add_legacy, add_targets, count, seed_number
 
     p = sub.add_parser("validate", help="check third-party run records (suite, manifest, "
-                                        "budget, re-evaluated fitness)",
-                       description=__doc__,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+                                        "budget, re-evaluated fitness)")
     p.add_argument("runs", nargs="+", metavar="RUNS.jsonl", help="run records to check")
     p.add_argument("--partial", action="store_true",
                    help="do not require every instance of the suite (a shard, a quick run)")
@@ -52,7 +52,6 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "repeatable) instead of a sample")
     add_targets(p)
     add_json(p, "the findings")
-    p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -61,7 +60,6 @@ def run(args: argparse.Namespace) -> int:
     from ..leaderboard.validate import LEGACY_UNVERIFIABLE, Finding
     from ..sampling import escape_chance, sample_seed
     from ..suites import suite_of
-    from . import CLIError, print_result
 
     try:
         lines = read_runs(args.runs)
@@ -114,7 +112,6 @@ def run(args: argparse.Namespace) -> int:
 def _replay(records: list[dict], k: str | None, seed: int | None,
             keys: set[str] | None) -> list:
     from ..leaderboard.replay import replay
-    from . import CLIError
 
     if k is None:
         return []

@@ -64,29 +64,15 @@ import numpy as np
 from ..traces import SIGNALS
 from .chain import describe_group, estimate_group, groups
 
-# the one-channel kinds, the fault type, its action on the outputs and its fits, used here
-# and by callers as acquisition.<name>
+# the one-channel kinds, the fault type, its action on the outputs and its fits (carry and
+# weights: callers use them as acquisition.<name>)
 from .channel_faults import (  # noqa: F401
-    CHI2_95,
-    FILTERS,
     GROUPED,
-    HUM_BAND,
-    HUM_STEP,
     KINDS,
-    MAX_SHIFT,
-    MAX_SPIKE_SHARE,
-    NOISE_STD,
-    ORDER,
-    SPIKE_SD,
-    STUCK_FLAT,
-    STUCK_MIN,
-    STUCK_MOVE,
     Acquisition,
-    AcquisitionKind,
     Estimate,
     carry,
     estimate_channel,
-    group_label,
     is_group,
     weights,
 )

@@ -42,7 +42,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from ..traces import SIGNALS, UNITS
-from .channel_faults import (  # noqa: F401  (GROUPED, group_label, is_group: chain.<name> too)
+from .channel_faults import (
     _FITS,
     GROUPED,
     KINDS,
@@ -52,7 +52,6 @@ from .channel_faults import (  # noqa: F401  (GROUPED, group_label, is_group: ch
     _channel,
     estimate_channel,
     group_label,
-    is_group,
 )
 
 #: Score each member channel needs alone for its group to be screened (the workflow's

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from ..traces import SIGNALS
-from .acquisition import KINDS, NOISE_STD
+from .channel_faults import KINDS, NOISE_STD, group_label
 
 #: The channels each kind is drawn on (the decoys' choices; a stuck channel and outliers on
 #: any).
@@ -103,8 +103,6 @@ def draw_chain(kind: str, lo: float, hi: float, rng: np.random.Generator) -> dic
     channel; a shared parameter, the shift or ``tau``, the first part's on all), and
     ``multiple`` the smallest part's (what the group's size is); ``heavy_tailed``: the
     :func:`.decoys.heavy_tailed` keyword arguments, on every channel."""
-    from .chain import group_label
-
     if kind == "heavy_tailed":
         return {"signal": "all", "share": float(rng.uniform(*HEAVY_SHARE)),
                 "low": HEAVY_SD[0], "high": HEAVY_SD[1], "seed": int(rng.integers(2**31))}

@@ -88,10 +88,8 @@ class Claim:
     @property
     def fragile(self) -> bool:
         """The interval reaches 0 (or is undefined), or the claim fails without the top
-        solver."""
-        lo = self.diff[1]
-        alone = self.without_diff is None or not self.without_diff[1] > 0
-        return not (math.isfinite(lo) and lo > 0) or alone
+        solver (:attr:`verdict`)."""
+        return self.verdict != "holds"
 
     @property
     def verdict(self) -> str:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import functools
-import json
 import shlex
 import sys
 from collections.abc import Callable
@@ -19,7 +18,7 @@ from ..suites.targets import targets_note
 from ..suites.v1 import SANITY_CASES
 from ..sweep.executors import Runner
 from ..sweep.loop import run_sweep
-from ..sweep.schema import check, opt, req
+from ..sweep.schema import opt, req
 from ..trace_cache import MODEL_VERSION
 from . import by_instance
 from .anytime import anytime_scores
@@ -188,9 +187,7 @@ def write_outputs(records: list[dict], out: Path, command: str, plots: bool = Tr
            "model_version": MODEL_VERSION, **summary,
            "anytime": [s.row() for s in anytime_scores(records)],
            "scores": [s.row() for s in scores]}
-    text = jsonio.dumps(doc, indent=1, default=str)
-    check(json.loads(text), SUMMARY_SCHEMA, str(out / "summary.json"))   # as read back
-    (out / "summary.json").write_text(text)
+    jsonio.write_checked(out / "summary.json", doc, SUMMARY_SCHEMA, indent=1, default=str)
     return summary
 
 

@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import re
 import secrets
 import shutil
@@ -41,6 +40,7 @@ from typing import Any
 import numpy as np
 
 from ..faults import FAULT_NAMES, LOWER, UPPER
+from ..jsonio import write_atomic
 from ..seeding import as_seed_sequence, run_seed, stream
 from ..sweep.schema import check, opt
 from ..traces import Traces, load_traces
@@ -239,8 +239,8 @@ def make_campaign(name: str = "fleet-v1", *, units: int = 20, split: str = "test
     truth = {"format": TRUTH_FORMAT, "version": VERSION, "name": name, "seed": shown,
              **({} if public else {"secret_seed": seed}), "track": track, "split": split,
              "manifest_digest": manifest_digest(manifest), "units": truth_units}
-    _write_json(root / "truth.json", truth)
-    _write_json(root / "manifest.json", manifest)
+    write_atomic(root / "truth.json", json.dumps(truth, indent=1) + "\n")
+    write_atomic(root / "manifest.json", json.dumps(manifest, indent=1) + "\n")
     (root / PARTIAL).unlink()
     return load_campaign(root)
 
@@ -403,12 +403,6 @@ def simulate_inspection(x: np.ndarray, e: np.ndarray, seed: np.random.SeedSequen
     return simulate_reference(x, e, seed=seed, tests=tests)
 
 
-def _write_json(path: Path, doc: dict) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(doc, indent=1) + "\n")
-    os.replace(tmp, path)
-
-
 def prepare_folder(root: Path) -> None:
     """Make ``root`` ready for a campaign: created when absent; an earlier campaign (or a
     partly written one) there is removed, file by file; CampaignError for a file, or a
@@ -429,8 +423,10 @@ def prepare_folder(root: Path) -> None:
 
 def _clear(root: Path) -> None:
     """Remove what a campaign writes (and nothing else) from ``root``."""
-    for name in ("manifest.json", "truth.json", "manifest.json.tmp", "truth.json.tmp", PARTIAL):
+    for name in ("manifest.json", "truth.json", PARTIAL):
         (root / name).unlink(missing_ok=True)
+    for tmp in (*root.glob("*.json.tmp"), *root.glob(".*.json.*.tmp")):   # a write cut short
+        tmp.unlink()
     for d in root.iterdir():
         if d.is_dir() and _UNIT_DIR.fullmatch(d.name):
             for f in d.iterdir():

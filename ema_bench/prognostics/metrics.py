@@ -118,31 +118,22 @@ def mae(pred: ArrayLike, true: ArrayLike) -> float:
 
 
 def phm08_terms(pred: ArrayLike, true: ArrayLike) -> np.ndarray:
-    """Per-prediction terms of the PHM08 score (:func:`phm08_score`), dimensionless."""
-    p, t = _pair(pred, true)
-    d = p - t
-    with np.errstate(over="ignore"):  # an absurdly late prediction scores inf, not a warning
-        return np.where(d < 0, np.expm1(-d / 13.0), np.expm1(d / 10.0))
+    """Per-prediction terms of the PHM08 challenge score (Saxena et al. 2008), dimensionless.
 
-
-def phm08_score(pred: ArrayLike, true: ArrayLike) -> float:
-    """The PHM08 challenge score (Saxena et al. 2008).
-
-    ``s = sum_i s_i`` with ``d_i = pred_i - true_i`` and ``s_i = exp(-d_i / 13) - 1`` when
-    ``d_i < 0`` (early), ``exp(d_i / 10) - 1`` when ``d_i >= 0`` (late): a late prediction
-    costs more than an early one of the same size.  Summed, not averaged, as in the challenge.
+    ``s_i = exp(-d_i / 13) - 1`` when ``d_i = pred_i - true_i < 0`` (early), ``exp(d_i / 10)
+    - 1`` when ``d_i >= 0`` (late): a late prediction costs more than an early one of the same
+    size; >= 0, 0 is perfect, inf for an infinite late prediction.  The challenge summed
+    them; the board takes their mean (:func:`phm08_mean`) and median per unit.
 
     Parameters
     ----------
     pred, true : sequence of float
         Predicted and true RUL, flights (the challenge's cycles); as :func:`rmse`.
-
-    Returns
-    -------
-    float
-        Dimensionless, >= 0; 0 is perfect; inf for an infinite late prediction.
     """
-    return float(phm08_terms(pred, true).sum())
+    p, t = _pair(pred, true)
+    d = p - t
+    with np.errstate(over="ignore"):  # an absurdly late prediction scores inf, not a warning
+        return np.where(d < 0, np.expm1(-d / 13.0), np.expm1(d / 10.0))
 
 
 def within_share(pred: ArrayLike, true: ArrayLike, alpha: float = 0.2) -> float:

@@ -67,10 +67,11 @@ from pathlib import Path
 import numpy as np
 
 from ..faults import FAULT_INDEX, FAULT_NAMES, LOWER, NOMINAL, UPPER
-from . import distributions, metrics
+from . import distributions, expected, metrics
 from .campaign import load_campaign, read_truth
 from .expected import at_most, expected_hits
 from .laws import DAMAGE_SIGN
+from .oracle import N_PATHS, oracle_predictions
 from .track_io import campaign_path, read_track
 from .tracking import TRACK_FILE, VERSION
 
@@ -438,14 +439,11 @@ _FUTURES_CACHE: dict[tuple, dict] = {}
 def campaign_futures(camp, truth: dict[str, dict], n_paths: int | None = None) -> dict:
     """The failing units' futures that expected hits are judged on
     (:func:`~ema_bench.prognostics.expected.campaign_futures`; memoised per campaign)."""
-    from .expected import campaign_futures as futures
-    from .oracle import N_PATHS
-
     n = N_PATHS if n_paths is None else int(n_paths)
     key = (camp.digest, n)
     if key not in _FUTURES_CACHE:
-        _FUTURES_CACHE[key] = futures(truth, camp.laws, camp.thresholds, camp.inspection_every,
-                                      camp.cut_rule, n)
+        _FUTURES_CACHE[key] = expected.campaign_futures(
+            truth, camp.laws, camp.thresholds, camp.inspection_every, camp.cut_rule, n)
     return _FUTURES_CACHE[key]
 
 
@@ -453,8 +451,6 @@ def campaign_oracle(camp, truth: dict[str, dict], n_paths: int | None = None,
                     seed: int = 0, alpha: float = ALPHA) -> dict[str, dict]:
     """The oracle's predictions at the cuts of a campaign (memoised per campaign digest:
     several runs of one campaign share it)."""
-    from .oracle import N_PATHS, oracle_predictions
-
     n = N_PATHS if n_paths is None else int(n_paths)
     key = (camp.digest, n, seed, alpha)
     if key not in _ORACLE_CACHE:

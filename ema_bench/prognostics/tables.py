@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from ..escape import markdown
 from .scoring import headline, headline_columns
 
 #: The groups, in table order: name -> membership of a tracker's per-unit row.
@@ -65,8 +66,6 @@ def group_tables(results: list[dict]) -> list[str]:
     """Markdown: per figure of :data:`FIGURES` and track, a table with one row per run and
     one for the oracle, one column per group (value, and the ratio to the oracle in
     brackets).  ``results``: scored runs, each with its ``groups`` (:func:`by_group`)."""
-    from ..escape import markdown
-
     lines: list[str] = []
     tracks = list(dict.fromkeys(r["track"] for r in results))
     for key, header, fmt in FIGURES:
@@ -127,8 +126,6 @@ def _head_cell(h: dict, k: str, fmt: str) -> str:
 def score_table(results: list[dict]) -> list[str]:
     """The Markdown table of scored runs: one row per run, then one per campaign for its
     oracle (when scored).  Tracker names come from plugins: escaped (``escape.markdown``)."""
-    from ..escape import markdown
-
     head = (["tracker", "track", "units", "failing"] + [h for _, h, _ in _HEAD]
             + [h for _, h in _RATIOS]
             + ["false / early repl.", "fail in service", "cost/unit", "PH / strict"])
