@@ -14,7 +14,7 @@ from .effects import EFFECT_INDEX, effects_to_dict, effects_vector
 from .faults import check_faults, faults_to_dict
 from .monitor import simulate_monitor
 from .objective import KNOWN_TESTS, ProblemError, signal_mask
-from .params import DEFAULT_PARAMS
+from .params import DEFAULT_PARAMS, EMAParams
 from .physics.sensors import measure
 from .problem import Problem
 from .protocol import STANDARD_TESTS, TestSpec
@@ -39,10 +39,11 @@ def _reference_traces(x: tuple, e: tuple, seed_entropy: int, spawn_key: tuple,
 
 
 def twin_traces(x: np.ndarray, e: np.ndarray, seed: np.random.SeedSequence,
-                tests: tuple[TestSpec, ...]) -> Traces:
-    """Measured traces of the twin track: the monitor model at faults ``x`` with effects
-    ``e``, through the sensors (noise and ADC; one child of ``seed`` per test)."""
-    outputs, ok = simulate_monitor(x[None, :], e[None, :], tests=tests)
+                tests: tuple[TestSpec, ...], params: EMAParams = DEFAULT_PARAMS) -> Traces:
+    """Measured traces of the twin track: the monitor model (``params``: its model version)
+    at faults ``x`` with effects ``e``, through the sensors (noise and ADC; one child of
+    ``seed`` per test)."""
+    outputs, ok = simulate_monitor(x[None, :], e[None, :], tests=tests, params=params)
     if not ok[0]:
         raise SimulationError(f"monitor model diverged at the true faults {faults_to_dict(x)}")
     data = {t: measure(v[0], np.random.default_rng(c))
@@ -66,11 +67,14 @@ def make_problem(
     score_effects: bool = False,
     signals: Sequence[str] | None = None,
     label: str = "custom",
+    params: EMAParams = DEFAULT_PARAMS,
 ) -> Problem:
     """The problem of true faults ``truth`` (a mapping or an array): measured traces made on
     ``track`` with the run node ``seed``'s ``noise`` stream, ``label`` its public case label.
     The other parameters are those of :func:`ema_bench.suites.problem.make_problem` (the
-    package's ``ema_bench.make_problem``, which checks them and comes here)."""
+    package's ``ema_bench.make_problem``, which checks them and comes here); ``params``: the
+    monitor's (the fitness's and the twin data's), the reference data do not depend on
+    them."""
     keep = signal_mask(signals)   # an unknown signal fails before any simulation
     s_noise = stream(as_seed_sequence(seed), "noise")
     truth = check_faults(truth)
@@ -84,7 +88,7 @@ def make_problem(
         measured = _reference_traces(tuple(truth), tuple(e), int(s_noise.entropy),
                                      tuple(s_noise.spawn_key), specs)
     else:
-        measured = twin_traces(truth, e, s_noise, specs)
+        measured = twin_traces(truth, e, s_noise, specs, params)
     # the data makers record faults, effects and seeds; a solver sees none of them, nor the
     # outputs a condition withholds (zeroed: their weight is 0, the fitness is unchanged)
     measured = Traces({t: v * keep if signals is not None else v
@@ -96,4 +100,4 @@ def make_problem(
         truth = np.r_[truth, [e[EFFECT_INDEX[n]] for n in augment]]
     return Problem(measured, budget, normalise=normalise, label=label, track=track,
                    augment=augment, start=start, prior=prior, signals=signals, _truth=truth,
-                   _meta=meta)
+                   _meta=meta, params=params)

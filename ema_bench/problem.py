@@ -27,6 +27,7 @@ from .objective import (  # noqa: F401  (re-exported: the problem's vocabulary)
     fitness_from_outputs,
     signal_scales,
 )
+from .params import DEFAULT_PARAMS, EMAParams
 from .scoring import (  # noqa: F401
     SUCCESS_RANGE_ERROR,
     Score,
@@ -307,6 +308,8 @@ class Problem(_Counted):
         False: the no-prior condition of suite ``emafdi-v2``: ``nominal`` and ``start`` are
         None here and in the solver's view, whose search space has bounds only (solvers
         that need a start draw it from their own seeded stream).
+    params : EMAParams
+        The monitor's parameters: its model version (:func:`ema_bench.params.model_params`).
     """
 
     def __init__(self, measured: Traces, budget: int, *, normalise: bool = True,
@@ -316,7 +319,8 @@ class Problem(_Counted):
                  signals: Sequence[str] | None = None,
                  prior: bool = True, label: str = "measured",
                  track: str = "measured", _truth: np.ndarray | None = None,
-                 _meta: Mapping[str, object] | None = None) -> None:
+                 _meta: Mapping[str, object] | None = None,
+                 params: EMAParams = DEFAULT_PARAMS) -> None:
         budget = check_budget(budget)
         self.space = SearchSpace.of(augment)
         if not prior:
@@ -325,7 +329,7 @@ class Problem(_Counted):
             self.space = self.space.without_prior()
         self.objective = Objective(measured, self.space, normalise=normalise,
                                    effects=monitor_effects, sample_weights=sample_weights,
-                                   signals=signals)
+                                   signals=signals, params=params)
         self.names: tuple[str, ...] = self.space.names
         self.units: dict[str, str] = self.space.units
         self.lower, self.upper, self.nominal = self.space.lower, self.space.upper, \

@@ -91,7 +91,8 @@ def run(args: argparse.Namespace) -> int:
     # a suite with clean-data fits (emafdi-v2) reports what they exclude and their cost
     clean = suite.clean_fits
     if args.show:
-        data = read_targets(suite.targets_file(), suite.id, missing_ok=False)
+        data = read_targets(suite.targets_file(), suite.id, missing_ok=False,
+                            model_version=suite.model_version)
     elif args.out is None:
         raise CLIError("--out FILE.json is required (or --show)")
     else:

@@ -18,6 +18,7 @@ from ..faults import N_FAULTS, FaultError, check_faults, random_faults
 from ..instances import TRACKS
 from ..instances import make_problem as vector_problem
 from ..objective import ProblemError
+from ..params import DEFAULT_PARAMS, EMAParams
 from ..problem import Problem, check_budget
 from ..seeding import SeedLike, as_seed_sequence, stream
 from ..traces import Traces
@@ -70,6 +71,7 @@ def make_problem(
     prior: bool = True,
     score_effects: bool = False,
     signals: Sequence[str] | None = None,
+    params: EMAParams | None = None,
 ) -> Problem:
     """Build an identification problem.
 
@@ -122,12 +124,17 @@ def make_problem(
         ``surface-current`` condition: ``theta_u``, ``i_eq``).  The others get weight 0 in
         the objective, and in synthetic data (a case and a track) their columns are zeros:
         the solver is not given what the condition withholds.
+    params : EMAParams, optional
+        The monitor's parameters (the fitness's model, and the twin track's data maker):
+        default a case's suite's model version (:attr:`~ema_bench.suites.base.Instance.
+        params`; emafdi-v3: model version 4), else :data:`~ema_bench.params.DEFAULT_PARAMS`.
     """
     if measured is not None:
         if not isinstance(measured, Traces):
             raise ProblemError("measured must be a Traces (see ema_bench.load_traces)")
         return Problem(measured, budget, normalise=normalise, augment=augment, start=start,
                        sample_weights=sample_weights, signals=signals, prior=prior,
+                       params=DEFAULT_PARAMS if params is None else params,
                        label=str(measured.meta.get("source", "measured")), track="measured",
                        _meta={"source": measured.meta.get("source")})
     if sample_weights is not None:
@@ -143,6 +150,7 @@ def make_problem(
                  if seeded else case)
         return vector_problem(truth, effects=effects, augment=augment, tests=tests,
                               prior=prior, score_effects=score_effects, signals=signals,
+                              params=DEFAULT_PARAMS if params is None else params,
                               label=f"seeded(h={heterogeneity:g})" if seeded else "custom",
                               **options)
     if start is not None and not inst.prior:
@@ -154,4 +162,5 @@ def make_problem(
                           prior=prior and inst.prior,
                           score_effects=score_effects or bool(inst.augment),
                           signals=inst.signals if signals is None else signals,
+                          params=inst.params if params is None else params,
                           label=inst.case, **options)
