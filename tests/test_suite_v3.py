@@ -328,3 +328,39 @@ def test_a_v3_hit_is_re_derived_on_v3_tolerances_and_not_carried_to_a_v2_label()
     forged = {**r, "case": "t12-s03@prior", "suite": "emafdi-v2"}
     found = check_record(forged)
     assert any(m.startswith("targets.parameters") and "'0.01': None" in m for m in found)
+
+
+def test_a_v3_board_slice_is_resumed_by_a_larger_command_without_rerunning_it(tmp_path):
+    """The v3 board is grown slice by slice into one folder (docs/suite-v3.md): a larger
+    command over the same folder runs only the runs missing, leaves the finished ones as
+    they were (same line, byte for byte), and every record is model version 4's; a record
+    labelled version 3 (a v3 run before the move) is stale and run again."""
+    import json
+
+    from ema_bench.cli import main
+    from ema_bench.leaderboard.validate import validate
+
+    out = tmp_path / "v3"
+    runs = out / "runs.jsonl"
+
+    def board(per_tier: int) -> list[str]:
+        argv = ["leaderboard", "--suite", "emafdi-v3", "--tiers", "4", "--conditions",
+                "prior", "--per-tier", str(per_tier), "--solvers", "random", "--tracks",
+                "twin", "--seeds", "1", "--budget-per-dim", "3", "--executor", "serial",
+                "--no-plots", "--quiet", "--out", str(out)]
+        assert main(argv) == 0
+        return runs.read_text().splitlines()
+
+    first = board(1)
+    assert len(first) == 1 and json.loads(first[0])["case"] == "v3-small@prior"
+    grown = board(2)
+    assert grown[0] == first[0] and len(grown) == 2
+    recs = [json.loads(line) for line in grown]
+    assert [r["model_version"] for r in recs] == ["4", "4"]
+    assert validate(recs, per_tier=2) == []
+    # the first run relabelled version 3: stale, so the same command runs it again
+    runs.write_text(json.dumps({**recs[0], "model_version": "3"}) + "\n" + grown[1] + "\n")
+    again = board(2)
+    assert len(again) == 3 and again[1] == grown[1]
+    assert json.loads(again[2])["key"] == recs[0]["key"]
+    assert json.loads(again[2])["model_version"] == "4"
