@@ -132,7 +132,10 @@ def test_v3s_tables_cover_the_suite_and_agree_with_each_other():
     assert sorted(entries) == sorted(v3.target_keys())
     assert len(entries) == 482 and v3.shipped_targets()["method"]["root_seed"] == 0
     for key, e in entries.items():
-        assert e["f_star"] <= e["fitness_at_truth"] * (1 + 1e-9) and \
+        # the polish starts at the truth through the unit box (a round trip of rounding
+        # size): where the optimum is the truth to 1e-10 of range (full@step-only, reference)
+        # its best point's f is 1.3e-9 of f above the truth's
+        assert e["f_star"] <= e["fitness_at_truth"] * (1 + 1e-8) and \
             e["f_star"] < e["f_nominal"], key
         case, track, seed = key.split("|")
         assert ("clean_x" in e) == (track == "reference" and seed == "0"), key
