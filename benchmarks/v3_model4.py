@@ -121,8 +121,8 @@ def main() -> None:
           f"{sum(r['f_same'] for r in rows)}, x* on {sum(r['x_same'] for r in rows)}; "
           f"f* lower on version 4 on {sum(r['f_rel'] < 0 for r in rows)}, higher on "
           f"{sum(r['f_rel'] > 0 for r in rows)}.\n")
-    print("| tier | condition | track | entries | f* changed | x* changed | largest |f* "
-          "change| (of f*) | median |f* change| | largest x* move (% of range) | median |")
+    print("| tier | condition | track | entries | f* changed | x* changed | largest f* "
+          "change (abs, of f*) | median | largest x* move (% of range) | median |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     for (d, cond, track), g in sorted(groups.items()):
         fr = np.abs([r["f_rel"] for r in g])
@@ -130,16 +130,14 @@ def main() -> None:
         print(f"| {d} | {cond} | {track} | {len(g)} | {sum(not r['f_same'] for r in g)} | "
               f"{sum(not r['x_same'] for r in g)} | {fr.max():.2e} | {np.median(fr):.1e} | "
               f"{xm.max():.3f} | {np.median(xm):.4f} |")
-    print("\n## The largest moves\n")
-    print("| entry | f* change (of f*) | x* move (% of range) | on |")
-    print("|---|---|---|---|")
-    for r in sorted(rows, key=lambda r: -r["x_move"])[:10]:
-        print(f"| {r['key']} | {r['f_rel']:+.2e} | {100 * r['x_move']:.3f} | {r['x_worst']} |")
-    print("\n## The largest changes of f*\n")
-    print("| entry | f* change (of f*) | x* move (% of range) | on |")
-    print("|---|---|---|---|")
-    for r in sorted(rows, key=lambda r: -abs(r["f_rel"]))[:10]:
-        print(f"| {r['key']} | {r['f_rel']:+.2e} | {100 * r['x_move']:.3f} | {r['x_worst']} |")
+    for title, order in (("The largest moves", lambda r: -r["x_move"]),
+                         ("The largest changes of f*", lambda r: -abs(r["f_rel"]))):
+        print(f"\n## {title}\n")
+        print("| entry | f* change (of f*) | x* move (% of range) | on |")
+        print("|---|---|---|---|")
+        for r in sorted(rows, key=order)[:10]:
+            print(f"| {r['key'].replace('|', ' ')} | {r['f_rel']:+.2e} | "
+                  f"{100 * r['x_move']:.3f} | {r['x_worst']} |")
 
 
 if __name__ == "__main__":
