@@ -5,9 +5,7 @@ instance (20 a tier, plus the paper cases on tier 4), the conditions, the budget
 noise (it does not depend on the case key).  It runs on model version 4
 (:data:`V3_MODEL_VERSION`: the monitor locates the commutation transfers version 3 dropped,
 docs/landscape-atlas.md), so its fitness and its twin-track data are version 4's and it has
-its own best-known table (``suite_targets_v3.json``, :func:`target_keys`; an entry marked
-``carried`` is version 3's polished point with its fitness evaluated on version 4, until the
-resumable polish reaches it: ``benchmarks/v3_model4.py``).  A v3 case key is
+its own best-known table (``suite_targets_v3.json``, :func:`target_keys`).  A v3 case key is
 v2's with :data:`PREFIX` (``v3-t12-s06@prior``, ``v3-small@no-prior``).  What changes is
 how a run is judged:
 
