@@ -333,6 +333,8 @@ def test_a_v3_hit_is_re_derived_on_v3_tolerances_and_not_carried_to_a_v2_label()
     assert any(m.startswith("targets.parameters") and "'0.01': None" in m for m in found)
 
 
+# slow: three sweeps and their reports (about 8 CPU-s)
+@pytest.mark.slow
 def test_a_v3_board_slice_is_resumed_by_a_larger_command_without_rerunning_it(tmp_path):
     """The v3 board is grown slice by slice into one folder (docs/suite-v3.md): a larger
     command over the same folder runs only the runs missing, leaves the finished ones as
