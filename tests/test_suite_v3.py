@@ -369,3 +369,30 @@ def test_a_v3_board_slice_is_resumed_by_a_larger_command_without_rerunning_it(tm
     assert len(again) == 3 and again[1] == grown[1]
     assert json.loads(again[2])["key"] == recs[0]["key"]
     assert json.loads(again[2])["model_version"] == "4"
+
+
+def test_v3s_table_keys_are_v2s_objectives_and_v1s_problems_and_select_as_v2s():
+    """v3 polishes its own entries of every v2 objective (seed 0) and of tier 4 with full
+    information (seeds 0-4, where v2 reads v1's table); ``ema-bench targets --suite
+    emafdi-v3`` selects with v2's options and refuses v1's ``--cases``."""
+    import argparse
+
+    from ema_bench.cli.targets import _keys
+
+    keys = v3.target_keys()
+    by_seed = {k: sum(key.endswith(f"|{k}") for key in keys) for k in range(5)}
+    assert by_seed == {0: 252 + 46, 1: 46, 2: 46, 3: 46, 4: 46}
+    assert {key.removeprefix(v3.PREFIX) for key in keys if key.endswith("|0")} >= \
+        set(v2.target_keys(1))
+
+    def sel(**kw):
+        base = dict(suite="emafdi-v3", cases=None, tiers=None, conditions=None,
+                    per_tier=None, seeds=None, tracks=None)
+        return _keys(argparse.Namespace(**{**base, **kw}))
+
+    assert sel(tiers=["4"], conditions=["no-prior"], per_tier=1, seeds=2,
+               tracks=["twin"]) == ["v3-small@prior|twin|0", "v3-small@prior|twin|1"]
+    assert sel(tiers=["12"], conditions=["surface-current"], per_tier=1, tracks=["twin"]) == \
+        ["v3-t12-s00@surface-current|twin|0"]
+    with pytest.raises(SuiteError, match="not --cases"):
+        sel(cases=["small"])
