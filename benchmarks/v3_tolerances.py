@@ -7,9 +7,9 @@ polish, no calibration, no model-form allowance: the scatter the sensor noise al
 the exact best fit), then per track :func:`ema_bench.suites.v3.noise_z`: the smallest ``z``
 for which the best fit lies within ``max(1 % of range, z sigma)`` of the truth on every
 judged parameter with probability >= 0.95 (Monte Carlo over the Gaussian; on the reference
-track centred on the clean-data bias: ``clean_x`` of v2's table, else the mean over the
-shipped noise seeds of the reference ``x*`` minus the twin ``x*``, whose noise is the same
-draw).  Prints the per-instance table (old and new rule) as markdown, and with
+track centred on the clean-data bias: ``clean_x`` of v3's own best-known table,
+``suite_targets_v3.json``, model version 4 like the covariance's objective).  Prints the
+per-instance table (old and new rule) as markdown, and with
 ``--linearisation CASES`` checks the Gaussian by refits from the truth on redrawn noise.
 
     nice python benchmarks/v3_tolerances.py --out ema_bench/suite_tolerances_v3.json \
@@ -32,7 +32,6 @@ from ema_bench.jsonio import write_atomic
 from ema_bench.seeding import child, run_seed
 from ema_bench.suites import instance, v2, v3
 from ema_bench.suites.problem import make_problem
-from ema_bench.suites.targets import SUITE_MODEL_VERSION
 from ema_bench.uncertainty.local import Counter, refit
 from ema_bench.uncertainty.methods import intervals
 
@@ -60,17 +59,14 @@ def _x(entry: dict, names) -> np.ndarray:
 
 
 def reference_bias(case: str) -> np.ndarray:
-    """The clean-data bias of ``case`` on the reference track (see the module docstring)."""
+    """The clean-data bias of ``case`` on the reference track: ``clean_x`` of its seed-0
+    reference entry in v3's best-known table, minus the truth."""
     inst = instance(case)
     entry = inst.best_known("reference", v2.CLEAN_SEED)
-    if entry is not None and "clean_x" in entry:
-        return np.array([float(entry["clean_x"][n]) for n in inst.names]) - inst.truth
-    diffs = []
-    for k in range(v2.TARGET_SEEDS):
-        ref, twin = inst.best_known("reference", k), inst.best_known("twin", k)
-        if ref is not None and twin is not None:
-            diffs.append(_x(ref, inst.names) - _x(twin, inst.names))
-    return np.mean(diffs, axis=0) if diffs else np.zeros(inst.dim)
+    if entry is None or "clean_x" not in entry:
+        raise SystemExit(f"{case}: no clean-data fit in {v3.TARGETS_FILE}; compute it first "
+                         "(ema-bench targets --suite emafdi-v3)")
+    return np.array([float(entry["clean_x"][n]) for n in inst.names]) - inst.truth
 
 
 def entry(case: str, cov: np.ndarray, track: str, index: int) -> dict:
@@ -155,7 +151,7 @@ def main() -> None:
             for j, track in enumerate(TRACKS):
                 entries[v3.tolerance_key(case, track)] = entry(case, cov, track,
                                                                2 * i + j)
-        data = {"suite": v3.SUITE_ID, "model_version": SUITE_MODEL_VERSION,
+        data = {"suite": v3.SUITE_ID, "model_version": v3.V3_MODEL_VERSION,
                 "method": {"coverage": v3.COVERAGE, "floor": v3.FLOOR,
                            "mc_draws": v3.MC_DRAWS, "mc_seed": MC_SEED,
                            "command": "python benchmarks/v3_tolerances.py"},

@@ -50,7 +50,8 @@ Version history (the id's version follows the benchmark suite, :mod:`ema_bench.s
 change to the models or the instances is a new version, as with Gymnasium's own ids):
 
 - ``v3`` (suite ``emafdi-v3``, :mod:`ema_bench.suites.v3`): v2's tiers, conditions and
-  problems under v3's case keys (``info["case"]``: ``v3-t7-s03@no-prior``), so a run of an
+  problems on model version 4 (the monitor that locates the commutation transfers) under
+  v3's case keys (``info["case"]``: ``v3-t7-s03@no-prior``), so a run of an
   episode is filed and judged on v3's targets (parameter tolerances the noise allows, the
   21-target fitness ladder).  ``case`` with ``tier``: ``t7-s03`` or ``v3-t7-s03``.
 

@@ -45,7 +45,6 @@ from .suites.targets import (
     fitness_targets,
     precision_key,
 )
-from .trace_cache import MODEL_VERSION
 
 if TYPE_CHECKING:
     from .problem import Problem
@@ -118,8 +117,9 @@ def run_record(problem: Problem, result: SolveResult, *, case: str, track: str, 
     rec: dict[str, Any] = {
         "key": f"{result.solver}|{case}|{track}|{seed}",
         "solver": result.solver, "case": case, "track": track, "seed": int(seed),
-        "budget": int(budget), "root_seed": int(root_seed), "model_version": MODEL_VERSION,
-        "suite": suite_of(case).id, "manifest": manifest(sorted(result.library or {})),
+        "budget": int(budget), "root_seed": int(root_seed),
+        "model_version": suite_of(case).model_version, "suite": suite_of(case).id,
+        "manifest": manifest(sorted(result.library or {})),
         "x": faults_to_dict(result.x[:N_FAULTS]),
         "fitness": result.fitness,
         "evaluations": result.evaluations,

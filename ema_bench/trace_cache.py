@@ -56,9 +56,12 @@ COMPATIBLE_VERSIONS: dict[str, str] = {
 }
 
 
-def is_comparable(version: str) -> bool:
-    """Whether records and tables of model ``version`` compare with this installation's."""
-    return str(version) == MODEL_VERSION or str(version) in COMPATIBLE_VERSIONS
+def is_comparable(version: str, current: str = MODEL_VERSION) -> bool:
+    """Whether records and tables of model ``version`` compare with those of model
+    ``current`` (default this installation's; a suite on another version, emafdi-v3, passes
+    its own: :data:`COMPATIBLE_VERSIONS` are earlier versions of the default)."""
+    return str(version) == str(current) or (str(current) == MODEL_VERSION
+                                            and str(version) in COMPATIBLE_VERSIONS)
 
 # the modules whose source decides the traces (the cache key hashes them, so an edited model
 # never reads traces cached before the edit, even without a version bump)

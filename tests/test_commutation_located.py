@@ -99,7 +99,7 @@ def test_version_4_removes_the_jump_where_version_3_had_it():
     that vanishes at 25 us (docs/landscape-atlas.md's census) and is far below v3's finest
     fitness target (1e-6 of the f*-to-nominal gap: 2.6e-4 to 3.6e-3 f* on the atlas's
     cases).  The line's own slope moves f by about 5e-9 f* between its neighbours."""
-    case = "v3-full@prior"
+    case = "full@prior"   # v3-full@prior's problem on model version 3 (v2's case)
     p = make_problem(case, track="twin", seed=run_seed(0, 0), budget=1)
     f_star = instance(case).best_known("twin", 0)["f_star"]
     # the pair, then a line through it: 41 points over 4e5 times the pair's distance

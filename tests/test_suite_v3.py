@@ -1,7 +1,7 @@
-"""Suite emafdi-v3 (ema_bench.suites.v3): v2's problems, data and best-known entries under v3
-keys; parameter targets the noise allows (a perfect optimiser reaches them, one that stops
-1 % of range off on a well-conditioned instance does not); the dense fitness ladder; the
-Monte Carlo of the joint probability against closed forms."""
+"""Suite emafdi-v3 (ema_bench.suites.v3): v2's problems under v3 keys on model version 4,
+with their own best-known table; parameter targets the noise allows (a perfect optimiser
+reaches them, one that stops 1 % of range off on a well-conditioned instance does not); the
+dense fitness ladder; the Monte Carlo of the joint probability against closed forms."""
 
 from __future__ import annotations
 
@@ -14,12 +14,14 @@ from scipy import stats
 from ema_bench import suites
 from ema_bench.leaderboard.derive import derive
 from ema_bench.leaderboard.validate import check_record
+from ema_bench.params import DEFAULT_PARAMS, model_params
 from ema_bench.records import run_record
 from ema_bench.registry import finish
 from ema_bench.seeding import run_seed
-from ema_bench.suites import v2, v3
+from ema_bench.suites import v1, v2, v3
 from ema_bench.suites.problem import make_problem
 from ema_bench.suites.targets import FITNESS_PRECISIONS, SuiteError
+from ema_bench.trace_cache import MODEL_VERSION
 
 
 def test_every_v3_key_round_trips_through_the_registry():
@@ -43,23 +45,109 @@ def test_every_v3_key_round_trips_through_the_registry():
         suites.instance("v3-nope@prior")
 
 
-def test_v3_reads_v2s_best_known_entries_and_judged_parameters():
-    for case in ("v3-t12-s06@no-prior", "v3-small@step-only", "v3-s03@prior"):
-        inst, base = suites.instance(case), suites.instance(case.removeprefix(v3.PREFIX))
-        for track in ("reference", "twin"):
-            assert inst.best_known(track, 0) == base.best_known(track, 0) is not None
-            a, b = inst.judged(track), base.judged(track)
-            assert (a is None and b is None) or np.array_equal(a, b)
+def test_v3_runs_on_model_version_4_and_v1_v2_stay_on_version_3():
+    """v3's problems, tables and records are model version 4's (the located commutation
+    transfer); v1's and v2's stay version 3's, the installation's default."""
+    assert v3.SUITE.model_version == "4"
+    assert v1.SUITE.model_version == v2.SUITE.model_version == MODEL_VERSION == "3"
+    assert suites.instance("v3-t7-s03@no-prior").params == model_params("4")
+    assert suites.instance("t7-s03@no-prior").params is DEFAULT_PARAMS
+    assert suites.instance("small").params is DEFAULT_PARAMS
+    assert v3.shipped_targets()["model_version"] == "4"
+    assert v3.shipped_tolerances()["model_version"] == "4"
+    assert v2.shipped_targets()["model_version"] == v1.shipped_targets()["model_version"] == "3"
 
 
-def test_make_problem_of_a_v3_case_is_the_v2_problem_data_and_all():
-    p = make_problem("v3-t7-s03@no-prior", track="twin", seed=run_seed(0, 1), budget=None)
-    q = make_problem("t7-s03@no-prior", track="twin", seed=run_seed(0, 1), budget=None)
+def test_make_problem_of_a_v3_case_is_the_v2_problem_on_model_version_4():
+    """The same data maker and fitness as v2's case with model version 4's monitor: the
+    twin data and every fitness to the bit; the reference data (no monitor in them) are
+    v2's.  At the pair of points of ``full`` where version 3 drops a commutation transfer on
+    one side (tests/test_commutation_located.py) v3's fitness is version 4's, not v2's."""
+    from test_commutation_located import JUMP_PAIR
+
+    node = run_seed(0, 1)
+    p = make_problem("v3-t7-s03@no-prior", track="twin", seed=node, budget=None)
+    q = make_problem("t7-s03@no-prior", track="twin", seed=node, budget=None,
+                     params=model_params("4"))
     assert p.dim == 7 and p.start is None and p.budget == v2.BUDGET_PER_DIM * 7
     assert p.label == "v3-t7-s03@no-prior"
     assert np.array_equal(p.objective.data, q.objective.data)
     x = suites.instance("v3-t7-s03@prior").truth
     assert p.objective.evaluate(x[None, :])[0][0] == q.objective.evaluate(x[None, :])[0][0]
+    f = {}
+    for case, params in (("v3-full@prior", None), ("full@prior", model_params("4")),
+                         ("full@prior", None)):
+        r = make_problem(case, track="reference", seed=run_seed(0, 0), budget=1,
+                         params=params)
+        f[case, params is None] = r.objective.evaluate(JUMP_PAIR)[0]
+    assert np.array_equal(f["v3-full@prior", True], f["full@prior", False])
+    v2_jump, v3_jump = (abs(np.diff(f[k])[0]) for k in (("full@prior", True),
+                                                        ("v3-full@prior", True)))
+    assert v3_jump < 0.01 * v2_jump
+
+
+def test_a_v3_record_is_model_version_4_and_a_relabel_is_refused():
+    """A v3 run's record says model version 4 and validates; labelled 3 (what v3 was
+    before) it is refused and, on resume, stale; a v2 record stays version 3 (2 compatible),
+    and version 2 is no compatible version of v3's."""
+    from ema_bench.sweep.store import is_current
+
+    truth = suites.instance("v3-small@prior").truth
+    rec = _run("v3-small@prior", "twin", 0, truth)
+    assert rec["model_version"] == "4" and check_record(rec, reevaluate=False) == []
+    assert is_current(rec)
+    for label in ("3", "2"):
+        assert not is_current({**rec, "model_version": label})
+        assert any(m.startswith(f"model version '{label}', expected '4'")
+                   for m in check_record({**rec, "model_version": label}, reevaluate=False))
+    old = _run("small@prior", "twin", 0, truth)
+    assert old["model_version"] == "3" and check_record(old, reevaluate=False) == []
+    assert is_current(old) and is_current({**old, "model_version": "2"})
+    assert check_record({**old, "model_version": "4"}, reevaluate=False) != []
+
+
+#: Shipped v3 entries recomputed here: each tier, both tracks, a tier-4 full-information
+#: seed beyond 0, and the objectives with less information.
+RECOMPUTED = ("v3-small@prior|twin|3", "v3-full@prior|reference|0",
+              "v3-s07@step-only|twin|0", "v3-t7-s02@prior|reference|0",
+              "v3-t12-s06@surface-current|twin|0")
+
+
+@pytest.mark.parametrize("key", RECOMPUTED)
+def test_v3s_table_is_model_version_4s_fitness_at_its_x_star_to_the_bit(key):
+    case, track, seed = key.split("|")
+    entry = v3.shipped_targets()["entries"][key]
+    p = make_problem(case, track=track, seed=run_seed(0, int(seed)), budget=1)
+    x = np.array([[entry["x_star"][n] for n in p.names]])
+    assert p.objective.evaluate(x)[0][0] == entry["f_star"]
+    assert p.objective.params == model_params("4")
+
+
+def test_v3s_tables_cover_the_suite_and_agree_with_each_other():
+    """Every key of :func:`v3.target_keys` and no other; each entry polished from the truth
+    (``f*`` at most the fitness there) below the nominal; the seed-0 reference entries hold
+    the clean-data fit, and the tolerance table's reference bias is its offset from the
+    truth (twin: none), one entry per objective and track."""
+    entries = v3.shipped_targets()["entries"]
+    assert sorted(entries) == sorted(v3.target_keys())
+    assert len(entries) == 482 and v3.shipped_targets()["method"]["root_seed"] == 0
+    for key, e in entries.items():
+        # the polish starts at the truth through the unit box (a round trip of rounding
+        # size): where the optimum is the truth to 1e-10 of range (full@step-only, reference)
+        # its best point's f is 1.3e-9 of f above the truth's
+        assert e["f_star"] <= e["fitness_at_truth"] * (1 + 1e-8) and \
+            e["f_star"] < e["f_nominal"], key
+        case, track, seed = key.split("|")
+        assert ("clean_x" in e) == (track == "reference" and seed == "0"), key
+    tol = v3.shipped_tolerances()["entries"]
+    assert len(tol) == 2 * len({k.split("|")[0] for k in entries}) == 298
+    for key, e in tol.items():
+        case, track = key.split("|")
+        inst = suites.instance(case)
+        known = inst.best_known("reference", 0)
+        bias = np.array([known["clean_x"][n] for n in inst.names]) - inst.truth \
+            if track == "reference" else np.zeros(inst.dim)
+        assert np.allclose(e["bias"], bias, rtol=0, atol=1e-12 * inst.ranges.max()), key
 
 
 def _entry(case: str, track: str) -> dict:
@@ -243,3 +331,68 @@ def test_a_v3_hit_is_re_derived_on_v3_tolerances_and_not_carried_to_a_v2_label()
     forged = {**r, "case": "t12-s03@prior", "suite": "emafdi-v2"}
     found = check_record(forged)
     assert any(m.startswith("targets.parameters") and "'0.01': None" in m for m in found)
+
+
+# slow: three sweeps and their reports (about 8 CPU-s)
+@pytest.mark.slow
+def test_a_v3_board_slice_is_resumed_by_a_larger_command_without_rerunning_it(tmp_path):
+    """The v3 board is grown slice by slice into one folder (docs/suite-v3.md): a larger
+    command over the same folder runs only the runs missing, leaves the finished ones as
+    they were (same line, byte for byte), and every record is model version 4's; a record
+    labelled version 3 (a v3 run before the move) is stale and run again."""
+    import json
+
+    from ema_bench.cli import main
+    from ema_bench.leaderboard.validate import validate
+
+    out = tmp_path / "v3"
+    runs = out / "runs.jsonl"
+
+    def board(per_tier: int) -> list[str]:
+        argv = ["leaderboard", "--suite", "emafdi-v3", "--tiers", "4", "--conditions",
+                "prior", "--per-tier", str(per_tier), "--solvers", "random", "--tracks",
+                "twin", "--seeds", "1", "--budget-per-dim", "3", "--executor", "serial",
+                "--no-plots", "--quiet", "--out", str(out)]
+        assert main(argv) == 0
+        return runs.read_text().splitlines()
+
+    first = board(1)
+    assert len(first) == 1 and json.loads(first[0])["case"] == "v3-small@prior"
+    grown = board(2)
+    assert grown[0] == first[0] and len(grown) == 2
+    recs = [json.loads(line) for line in grown]
+    assert [r["model_version"] for r in recs] == ["4", "4"]
+    assert validate(recs, per_tier=2) == []
+    # the first run relabelled version 3: stale, so the same command runs it again
+    runs.write_text(json.dumps({**recs[0], "model_version": "3"}) + "\n" + grown[1] + "\n")
+    again = board(2)
+    assert len(again) == 3 and again[1] == grown[1]
+    assert json.loads(again[2])["key"] == recs[0]["key"]
+    assert json.loads(again[2])["model_version"] == "4"
+
+
+def test_v3s_table_keys_are_v2s_objectives_and_v1s_problems_and_select_as_v2s():
+    """v3 polishes its own entries of every v2 objective (seed 0) and of tier 4 with full
+    information (seeds 0-4, where v2 reads v1's table); ``ema-bench targets --suite
+    emafdi-v3`` selects with v2's options and refuses v1's ``--cases``."""
+    import argparse
+
+    from ema_bench.cli.targets import _keys
+
+    keys = v3.target_keys()
+    by_seed = {k: sum(key.endswith(f"|{k}") for key in keys) for k in range(5)}
+    assert by_seed == {0: 252 + 46, 1: 46, 2: 46, 3: 46, 4: 46}
+    assert {key.removeprefix(v3.PREFIX) for key in keys if key.endswith("|0")} >= \
+        set(v2.target_keys(1))
+
+    def sel(**kw):
+        base = dict(suite="emafdi-v3", cases=None, tiers=None, conditions=None,
+                    per_tier=None, seeds=None, tracks=None)
+        return _keys(argparse.Namespace(**{**base, **kw}))
+
+    assert sel(tiers=["4"], conditions=["no-prior"], per_tier=1, seeds=2,
+               tracks=["twin"]) == ["v3-small@prior|twin|0", "v3-small@prior|twin|1"]
+    assert sel(tiers=["12"], conditions=["surface-current"], per_tier=1, tracks=["twin"]) == \
+        ["v3-t12-s00@surface-current|twin|0"]
+    with pytest.raises(SuiteError, match="not --cases"):
+        sel(cases=["small"])

@@ -124,15 +124,19 @@ def test_identify_v3_episodes_are_v2_problems_filed_under_v3_keys():
     from ema_bench.suites import SuiteError, suite_of
 
     assert gym.spec("EMAFault/Identify-v3").entry_point == "ema_bench.env:EMAFaultEnv"
-    kw = dict(tier=7, condition="no-prior", track="twin", budget=4)
+    kw = dict(tier=7, condition="no-prior", track="reference", budget=4)
     e3, e2 = gym.make("EMAFault/Identify-v3", **kw), gym.make("EMAFault/Identify-v2", **kw)
     _, i3 = e3.reset(seed=3)
     _, i2 = e2.reset(seed=3)
-    # the same measured data, the v3 label: a run of it is judged on v3's targets
+    # the same measured data (the reference model's), the v3 label and v3's model version
+    # (4): a run of it is judged on v3's targets
     assert (i3["case"], i2["case"]) == ("v3-t7-s03@no-prior", "t7-s03@no-prior")
     assert suite_of(i3["case"]).id == "emafdi-v3"
     assert np.array_equal(e3.unwrapped.problem.measured.stacked(),
                           e2.unwrapped.problem.measured.stacked())
+    from ema_bench.params import DEFAULT_PARAMS, model_params
+    assert e3.unwrapped.problem.objective.params == model_params("4")
+    assert e2.unwrapped.problem.objective.params is DEFAULT_PARAMS
     assert e3.unwrapped.action_space.shape == (7,)
     # an instance named either way; a suite without tiers refuses tier=
     for name in ("t7-s05", "v3-t7-s05"):

@@ -178,9 +178,10 @@ def run(args: argparse.Namespace) -> int:
         if not committed:
             folder = Path(args.check)
             if used["other_model_version"]:
-                from ..trace_cache import MODEL_VERSION
+                from ..suites import suite_of
+                version = suite_of(tasks[0].case).model_version if tasks else "?"
                 raise CLIError(f"the committed runs in {folder} were made on another model "
-                               f"version than this one ({MODEL_VERSION}): they are stale and "
+                               f"version than this suite's ({version}): they are stale and "
                                "not comparable; regenerate them (leaderboards/README.md "
                                "lists the commands)")
             raise CLIError(f"no committed runs of these tasks (same seeds and root seed) at "

@@ -5,7 +5,9 @@ least-squares warm-started at the truth, zoo powell from its best, zoo cmaes fro
 (2700 evaluations in all; ema_bench/suites/best_known.py documents the method).  It writes the JSON
 the package ships as ema_bench/suite_targets.json (--suite emafdi-v2: the package's
 suite_targets_v2.json, seed 0 shipped, whose seed-0 reference entries also hold the
-clean-data fit that picks the judged parameters); entries are appended to OUT.partial.jsonl as they
+clean-data fit that picks the judged parameters; --suite emafdi-v3: suite_targets_v3.json,
+v2's objectives and tier 4 with full information on model version 4, docs/suite-v3.md);
+entries are appended to OUT.partial.jsonl as they
 finish, so an interrupted run resumes.  v1: about 3 CPU-s per entry, 460 entries.  v2:
 docs/suite-v2.md gives the cost per entry and tier.  --tiers, --conditions, --per-tier,
 --seeds, --tracks (and for v1 --cases) compute a subset, e.g. to regenerate part of a
@@ -50,13 +52,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--cases", type=option_list, default=None,
                    help="emafdi-v1: instances or groups (all, paper, lhs, quick; default all)")
     p.add_argument("--tiers", type=option_list, default=None,
-                   help="emafdi-v2: comma-separated tiers (default all)")
+                   help="emafdi-v2, v3: comma-separated tiers (default all)")
     p.add_argument("--conditions", type=option_list, default=None,
-                   help="emafdi-v2: conditions (default all; no-prior shares prior's entries)")
+                   help="emafdi-v2, v3: conditions (default all; no-prior shares prior's "
+                        "entries)")
     p.add_argument("--per-tier", type=count(1, 1000), default=None,
-                   help="emafdi-v2: the first N instances of each tier (default all)")
+                   help="emafdi-v2, v3: the first N instances of each tier (default all)")
     p.add_argument("--seeds", type=count(1, 1000), default=None,
-                   help="noise seeds 0..N-1 (default: the suite's, v1 10, v2 5)")
+                   help="noise seeds 0..N-1 (default: the suite's, v1 10, v2 5, v3 the "
+                        "shipped ones)")
     p.add_argument("--tracks", type=option_list, default=None,
                    help="comma-separated tracks (default reference,twin)")
     p.add_argument("--root-seed", type=seed_number, default=0,
@@ -85,7 +89,8 @@ def run(args: argparse.Namespace) -> int:
     # a suite with clean-data fits (emafdi-v2) reports what they exclude and their cost
     clean = suite.clean_fits
     if args.show:
-        data = read_targets(suite.targets_file(), suite.id, missing_ok=False)
+        data = read_targets(suite.targets_file(), suite.id, missing_ok=False,
+                            model_version=suite.model_version)
     elif args.out is None:
         raise CLIError("--out FILE.json is required (or --show)")
     else:

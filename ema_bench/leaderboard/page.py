@@ -15,7 +15,6 @@ import re
 from pathlib import Path
 
 from ..suites import board_suite, case_order
-from ..trace_cache import MODEL_VERSION
 from . import scaling
 from .anytime import anytime_scores, sanity_scores
 from .html import Section, Table, write_html
@@ -72,7 +71,7 @@ def write_page(records: list[dict], path: Path, header: str, images: list[Path])
     if suite.grouped:
         return write_html(path, f"ema-bench leaderboard ({suite.id})", shareable(header),
                           [*v2_sections(records), Section("Plots", images=images)],
-                          footer=f"suite {suite.id}, model version {MODEL_VERSION}")
+                          footer=f"suite {suite.id}, model version {suite.model_version}")
     scores = anytime_scores(records, per_case=True)
     sanity = sanity_scores(records)
     sections = [Section(
@@ -86,7 +85,7 @@ def write_page(records: list[dict], path: Path, header: str, images: list[Path])
         for track in dict.fromkeys(r["track"] for r in records)]
     return write_html(path, f"ema-bench leaderboard ({suite.id})", shareable(header),
                       [*sections, Section("Plots", images=images)],
-                      footer=f"suite {suite.id}, model version {MODEL_VERSION}")
+                      footer=f"suite {suite.id}, model version {suite.model_version}")
 
 
 def v2_sections(records: list[dict]) -> list[Section]:

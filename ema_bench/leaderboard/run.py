@@ -184,7 +184,7 @@ def write_outputs(records: list[dict], out: Path, command: str, plots: bool = Tr
     written.append(write_page(records, out / "leaderboard.html", header, images))
     summary["files"] = [str(p) for p in written]
     doc = {"command": command, "runs": len(records), "suite": suites,
-           "model_version": MODEL_VERSION, **summary,
+           "model_version": board_suite(records).model_version, **summary,
            "anytime": [s.row() for s in anytime_scores(records)],
            "scores": [s.row() for s in scores]}
     jsonio.write_checked(out / "summary.json", doc, SUMMARY_SCHEMA, indent=1, default=str)

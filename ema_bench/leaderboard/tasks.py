@@ -15,7 +15,6 @@ from ..seeding import run_seed
 from ..suites import suite_of
 from ..suites.problem import make_problem
 from ..sweep.executors import Failure
-from ..trace_cache import MODEL_VERSION
 from .run_store import IDENTITY_FIELDS
 
 
@@ -35,7 +34,7 @@ class Task:
     def identity(self) -> tuple:
         """:func:`~ema_bench.leaderboard.run_store.run_identity` of this task's record."""
         return (self.solver, self.case, self.track, self.seed, self.budget, self.root_seed,
-                MODEL_VERSION)
+                suite_of(self.case).model_version)
 
     @property
     def key(self) -> str:
@@ -78,7 +77,8 @@ def failure_record(task: Task, failure: Failure) -> dict[str, Any]:
     count it as an unsuccessful run at its budget; a score a record carries is not read).
     The ``on_error`` of the leaderboard's sweep."""
     return {"key": task.key, **{f: getattr(task, f) for f in IDENTITY_FIELDS},
-            "model_version": MODEL_VERSION, "suite": suite_of(task.case).id, "status": "error",
+            "model_version": suite_of(task.case).model_version, "suite": suite_of(task.case).id,
+            "status": "error",
             "error_type": failure.error_type, "error": failure.error,
             "traceback": failure.traceback, "wall_s": failure.wall_s}
 

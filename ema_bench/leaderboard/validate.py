@@ -93,9 +93,11 @@ def check_record(r: dict, reevaluate: bool = True) -> list[str]:
     bad = []
     if r.get("suite") != suite_of(r["case"]).id:
         bad.append(f"suite version {r.get('suite')!r}, expected {suite_of(r['case']).id!r}")
-    if not is_comparable(str(r.get("model_version"))):
-        bad.append(f"model version {r.get('model_version')!r}, expected {MODEL_VERSION!r}"
-                   f" (or a compatible {', '.join(map(repr, COMPATIBLE_VERSIONS))})")
+    current = suite_of(r["case"]).model_version
+    if not is_comparable(str(r.get("model_version")), current):
+        bad.append(f"model version {r.get('model_version')!r}, expected {current!r}" + (
+            f" (or a compatible {', '.join(map(repr, COMPATIBLE_VERSIONS))})"
+            if current == MODEL_VERSION else ""))
     if schema(r) not in (1, RECORD_SCHEMA):
         bad.append(f"record schema {r.get('schema')!r}, expected {RECORD_SCHEMA} (or legacy)")
     if type(seed_scheme(r)) is not int or seed_scheme(r) not in SEED_SCHEMES:

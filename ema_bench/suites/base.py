@@ -17,7 +17,8 @@ from importlib.resources.abc import Traversable
 import numpy as np
 
 from ..faults import N_FAULTS
-from .targets import FITNESS_PRECISIONS
+from ..params import EMAParams, model_params
+from .targets import FITNESS_PRECISIONS, SUITE_MODEL_VERSION
 
 
 @dataclass(frozen=True, eq=False)
@@ -119,6 +120,17 @@ class Instance:
         return self.truth, self.ranges if scale is None else scale, self.judged(track)
 
     @property
+    def model_version(self) -> str:
+        """The model version of its suite: the monitor its fitness and twin data run."""
+        return self.suite.model_version
+
+    @property
+    def params(self) -> EMAParams:
+        """The monitor's parameters of :attr:`model_version`
+        (:func:`~ema_bench.params.model_params`)."""
+        return model_params(self.suite.model_version)
+
+    @property
     def fitness_precisions(self) -> tuple[float, ...]:
         """The precisions ``p`` of the fitness targets ``f* + p (f_nominal - f*)``."""
         return self.suite.fitness_precisions
@@ -211,6 +223,10 @@ class Suite:
         ``(tier or None, condition or None, instance name or None) -> case keys`` of a tier
         under a condition (its environment's episodes, ``gymnasium.make(..., tier=7)``);
         None: the suite has no tiers.
+    model_version : str
+        The model version its problems run on (:func:`~ema_bench.params.model_params`: the
+        monitor of its fitness and of its twin-track data), its best-known tables and its
+        run records are labelled with (emafdi-v1, v2: 3; emafdi-v3: 4).
     """
 
     id: str
@@ -231,3 +247,4 @@ class Suite:
     fitness_precisions: tuple[float, ...] = FITNESS_PRECISIONS
     split_ecdf: bool = False
     tier_cases: Callable[[int | str | None, str | None, object], list[str]] | None = None
+    model_version: str = SUITE_MODEL_VERSION

@@ -43,7 +43,6 @@ from ..sweep.store import Store
 from . import DEFAULT, instance, suite_of
 from .problem import make_problem
 from .targets import (
-    SUITE_MODEL_VERSION,
     TARGET_ROOT_SEED,
     SuiteError,
     check_model_version,
@@ -148,7 +147,7 @@ def clean_fit(case: str) -> dict[str, object]:
 
     def make(budget: int, x0: np.ndarray):
         return make_problem(measured=clean, augment=inst.augment, signals=inst.signals,
-                            budget=budget, start=x0)
+                            budget=budget, start=x0, params=inst.params)
 
     # the solvers' streams: the seed-0 entry's node (the clean data have no noise to seed)
     x, _, _, first = _run_stages(make, CLEAN_STAGES, truth, truth,
@@ -208,7 +207,7 @@ def compute_targets(out: Path, workers: int | None = None, quiet: bool = False,
     if len(suites) > 1:
         raise SuiteError(f"keys of suites {sorted(suites)} in one table: compute each apart")
     suite = next(iter(suites.values()), DEFAULT)
-    check_model_version(suite.id)
+    check_model_version(suite.id, suite.model_version)
     workers = workers or os.cpu_count() or 1
     with Store(partial, identity=_key, schema=ENTRY_SCHEMA) as store:
         other = {int(r.get("root_seed", TARGET_ROOT_SEED)) for r in store.records} - {root_seed}
@@ -225,7 +224,7 @@ def compute_targets(out: Path, workers: int | None = None, quiet: bool = False,
     if suite.clean_fits:
         fields += CLEAN_FIELDS + COST_FIELDS
         method["clean_stages"] = [list(s) for s in CLEAN_STAGES]
-    data = {"suite": suite.id, "model_version": SUITE_MODEL_VERSION, "method": method,
+    data = {"suite": suite.id, "model_version": suite.model_version, "method": method,
             "entries": {k: {f: done[k][f] for f in fields if f in done[k]}
                         for k in keys if k in done}}
     # two runs on one file both write: each through its own temporary file

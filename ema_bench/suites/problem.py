@@ -71,7 +71,7 @@ def make_problem(
     prior: bool = True,
     score_effects: bool = False,
     signals: Sequence[str] | None = None,
-    params: EMAParams = DEFAULT_PARAMS,
+    params: EMAParams | None = None,
 ) -> Problem:
     """Build an identification problem.
 
@@ -125,16 +125,18 @@ def make_problem(
         the objective, and in synthetic data (a case and a track) their columns are zeros:
         the solver is not given what the condition withholds.
     params : EMAParams, optional
-        Both models' parameters (the data maker's and the monitor's): this installation's
-        model version by default; :func:`ema_bench.params.model_params` gives another's
-        (replay re-runs a record on its own version's).
+        Both models' parameters (the data maker's and the monitor's): default a case's
+        suite's model version (:attr:`~ema_bench.suites.base.Instance.params`; emafdi-v3:
+        model version 4), else :data:`~ema_bench.params.DEFAULT_PARAMS`;
+        :func:`ema_bench.params.model_params` gives another's (replay re-runs a record on its
+        own version's).
     """
     if measured is not None:
         if not isinstance(measured, Traces):
             raise ProblemError("measured must be a Traces (see ema_bench.load_traces)")
         return Problem(measured, budget, normalise=normalise, augment=augment, start=start,
                        sample_weights=sample_weights, signals=signals, prior=prior,
-                       params=params,
+                       params=DEFAULT_PARAMS if params is None else params,
                        label=str(measured.meta.get("source", "measured")), track="measured",
                        _meta={"source": measured.meta.get("source")})
     if sample_weights is not None:
@@ -151,6 +153,7 @@ def make_problem(
                  if seeded else case)
         return vector_problem(truth, effects=effects, augment=augment, tests=tests,
                               prior=prior, score_effects=score_effects, signals=signals,
+                              params=DEFAULT_PARAMS if params is None else params,
                               label=f"seeded(h={heterogeneity:g})" if seeded else "custom",
                               **options)
     if start is not None and not inst.prior:
@@ -162,4 +165,5 @@ def make_problem(
                           prior=prior and inst.prior,
                           score_effects=score_effects or bool(inst.augment),
                           signals=inst.signals if signals is None else signals,
+                          params=inst.params if params is None else params,
                           label=inst.case, **options)

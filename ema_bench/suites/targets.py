@@ -21,7 +21,8 @@ from pathlib import Path
 from ..sweep.schema import check, opt, req
 from ..trace_cache import MODEL_VERSION
 
-#: The model version the shipped targets were computed on.
+#: The model version the shipped targets of suites emafdi-v1 and v2 were computed on (a suite
+#: on another version says so: :attr:`~ema_bench.suites.base.Suite.model_version`).
 SUITE_MODEL_VERSION = "3"
 #: Fitness targets: ``f* + p (f_nominal - f*)`` for each precision ``p``.
 FITNESS_PRECISIONS: tuple[float, ...] = (1e-1, 1e-2, 1e-3, 1e-4)
@@ -38,11 +39,16 @@ class SuiteError(ValueError):
     """A suite instance, version or target file that cannot be used."""
 
 
-def check_model_version(suite: str) -> None:
-    """The suite's targets hold only on the models they were computed on."""
-    if MODEL_VERSION != SUITE_MODEL_VERSION:
-        raise SuiteError(f"suite {suite} was built on model version {SUITE_MODEL_VERSION}, "
-                         f"the installed models are version {MODEL_VERSION}: bump the suite")
+def check_model_version(suite: str, version: str = SUITE_MODEL_VERSION) -> None:
+    """The suite's targets hold only on the models they were computed on: model ``version``
+    must be one this installation runs (:data:`~ema_bench.params.MODEL_PARAMS`), and the
+    default version's suites must be on the installed default."""
+    from ..params import MODEL_PARAMS
+
+    if MODEL_VERSION != SUITE_MODEL_VERSION or str(version) not in MODEL_PARAMS:
+        raise SuiteError(f"suite {suite} was built on model version {version}, the installed "
+                         f"models are versions {sorted(MODEL_PARAMS)} (default "
+                         f"{MODEL_VERSION}): bump the suite")
 
 
 def target_key(case: str, track: str, seed: int) -> str:
@@ -63,22 +69,23 @@ TABLE_SCHEMA = {"suite": req("str"), "model_version": req("str"), "method": opt(
                 "entries": req("dict"), "superseded": opt("dict")}
 
 
-def read_targets(path: Traversable, suite: str, missing_ok: bool = True) -> dict:
-    """A best-known table of ``suite`` on the installed model version; an empty ``entries``
-    when the file is missing and ``missing_ok`` (a checkout before ``ema-bench targets``),
-    else :class:`SuiteError`; SuiteError when it is labelled for another suite or model
+def read_targets(path: Traversable, suite: str, missing_ok: bool = True,
+                 model_version: str = SUITE_MODEL_VERSION) -> dict:
+    """A best-known table of ``suite`` on its ``model_version``; an empty ``entries`` when
+    the file is missing and ``missing_ok`` (a checkout before ``ema-bench targets``), else
+    :class:`SuiteError`; SuiteError when it is labelled for another suite or model
     version."""
     name = getattr(path, "name", str(path))
     if not path.is_file():
         if missing_ok:
-            return {"suite": suite, "model_version": SUITE_MODEL_VERSION, "entries": {}}
+            return {"suite": suite, "model_version": model_version, "entries": {}}
         raise SuiteError(f"{name}: no best-known table of suite {suite} there; compute it "
                          "with 'ema-bench targets'")
     data = check(json.loads(path.read_text()), TABLE_SCHEMA, name)
-    if data.get("suite") != suite or data.get("model_version") != SUITE_MODEL_VERSION:
+    if data.get("suite") != suite or data.get("model_version") != model_version:
         raise SuiteError(f"{name} is for suite {data.get('suite')!r} on model version "
                          f"{data.get('model_version')!r}, not {suite} on "
-                         f"{SUITE_MODEL_VERSION}: regenerate it with 'ema-bench targets'")
+                         f"{model_version}: regenerate it with 'ema-bench targets'")
     return data
 
 
@@ -124,13 +131,18 @@ def _user_tables(paths: str) -> tuple[dict, ...]:
             # on other targets than everyone else's
             raise SuiteError(f"{p} is a table of root seed {TARGET_ROOT_SEED}, whose f* the "
                              "package ships; --targets takes tables of other root seeds")
-        tables.append(read_targets(path, data["suite"]))   # and its model version
+        from . import SUITES
+
+        suite = SUITES.get(data["suite"])
+        # and its suite's model version
+        tables.append(read_targets(path, data["suite"], model_version=getattr(
+            suite, "model_version", SUITE_MODEL_VERSION)))
     return tuple(tables)
 
 
 def user_targets() -> tuple[dict, ...]:
     """The best-known tables named in :data:`TARGETS_ENV` (each checked by
-    :func:`read_targets`: a suite and the installed model version), in order."""
+    :func:`read_targets`: a suite and its model version), in order."""
     return _user_tables(os.environ.get(TARGETS_ENV, ""))
 
 

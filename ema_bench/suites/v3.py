@@ -1,10 +1,13 @@
 """Suite ``emafdi-v3``: v2's problems, parameter targets the noise allows, a denser ladder.
 
-v3 keeps everything that makes a v2 problem (:mod:`~ema_bench.suites.v2`): the tiers (4, 7,
-12), every instance (20 a tier, plus the paper cases on tier 4), the conditions, the budgets,
-the data (the noise does not depend on the case key) and so the best-known entries, which
-it reads from v2's tables (model version 3).  A v3 case key is v2's with :data:`PREFIX`
-(``v3-t12-s06@prior``, ``v3-small@no-prior``).  What changes is how a run is judged:
+v3 keeps what makes a v2 problem (:mod:`~ema_bench.suites.v2`): the tiers (4, 7, 12), every
+instance (20 a tier, plus the paper cases on tier 4), the conditions, the budgets and the
+noise (it does not depend on the case key).  It runs on model version 4
+(:data:`V3_MODEL_VERSION`: the monitor locates the commutation transfers version 3 dropped,
+docs/landscape-atlas.md), so its fitness and its twin-track data are version 4's and it has
+its own best-known table (``suite_targets_v3.json``, :func:`target_keys`).  A v3 case key is
+v2's with :data:`PREFIX` (``v3-t12-s06@prior``, ``v3-small@no-prior``).  What changes is
+how a run is judged:
 
 - **parameter targets the noise allows.**  In v2 a parameter target is the best-so-far point
   within ``L`` of every judged range; on tier 12 the exact best fit of the noisy data lies
@@ -36,12 +39,26 @@ from importlib.resources.abc import Traversable
 import numpy as np
 
 from . import v2
-from .base import CaseBudgets, Instance, Suite
-from .targets import SUITE_MODEL_VERSION, SuiteError, package_file
+from .base import CaseBudgets, Instance, Selection, Suite
+from .targets import (
+    TARGET_ROOT_SEED,
+    SuiteError,
+    package_file,
+    read_targets,
+    target_key,
+    user_entry,
+)
 
 SUITE_ID = "emafdi-v3"
 #: Before a v2 case key: a v3 case (``v3-t7-s03@no-prior``).
 PREFIX = "v3-"
+#: The model version of v3's problems, tables and records (v1 and v2 stay on version 3).
+V3_MODEL_VERSION = "4"
+#: v3's best-known table (``ema-bench targets --suite emafdi-v3``).
+TARGETS_FILE = "suite_targets_v3.json"
+#: Noise seeds (0 ..) of the shipped best-known entries: tier 4 with full information (v1's
+#: problems) as many as v1's table gives v2's board, every other objective seed 0 (as v2).
+SHIPPED_SEEDS = {"full-information tier 4": v2.TARGET_SEEDS, "other": 1}
 #: The tolerance table (``benchmarks/v3_tolerances.py``).
 TOLERANCES_FILE = "suite_tolerances_v3.json"
 #: The joint probability, under the noise model, that the exact best fit of the noisy data
@@ -69,8 +86,9 @@ def cases(tiers: Sequence[int], conditions: Sequence[str],
 
 
 def tolerance_case(inst: Instance) -> str:
-    """The case whose tolerance entry ``inst`` uses: its objective's (``no-prior`` shares
-    ``prior``'s data and fitness, :func:`ema_bench.suites.v2.target_case`)."""
+    """The case whose tolerance and best-known entries ``inst`` uses: its objective's
+    (``no-prior`` shares ``prior``'s data and fitness, :func:`ema_bench.suites.v2.
+    target_case`)."""
     return PREFIX + v2.target_case(inst)
 
 
@@ -95,12 +113,12 @@ def shipped_tolerances() -> dict:
     table of another suite or model version."""
     path = tolerances_path()
     if not path.is_file():
-        return {"suite": SUITE_ID, "model_version": SUITE_MODEL_VERSION, "entries": {}}
+        return {"suite": SUITE_ID, "model_version": V3_MODEL_VERSION, "entries": {}}
     data = json.loads(path.read_text())
-    if data.get("suite") != SUITE_ID or data.get("model_version") != SUITE_MODEL_VERSION:
+    if data.get("suite") != SUITE_ID or data.get("model_version") != V3_MODEL_VERSION:
         raise SuiteError(f"{TOLERANCES_FILE} is for suite {data.get('suite')!r} on model "
                          f"version {data.get('model_version')!r}, not {SUITE_ID} on "
-                         f"{SUITE_MODEL_VERSION}: regenerate it (benchmarks/v3_tolerances.py)")
+                         f"{V3_MODEL_VERSION}: regenerate it (benchmarks/v3_tolerances.py)")
     return data
 
 
@@ -211,17 +229,83 @@ def _env_cases(dim: int | str | None, cond: str | None, name: object = None) -> 
     return [PREFIX + c for c in v2.SUITE.tier_cases(dim, cond, name)]
 
 
-def _own_table(*_args) -> None:
-    raise SuiteError(f"{SUITE_ID} reads {v2.SUITE_ID}'s best-known table: compute or show it "
-                     f"with --suite {v2.SUITE_ID}")
+def targets_path() -> Traversable:
+    """Where the shipped v3 best-known table is (the package's ``suite_targets_v3.json``)."""
+    return package_file(TARGETS_FILE)
 
 
-SUITE = Suite(id=SUITE_ID, lookup=_lookup, best_known=v2.SUITE.best_known,
-              judged=v2.SUITE.judged, ioh_instance=v2.SUITE.ioh_instance,
+@functools.cache
+def shipped_targets() -> dict:
+    """v3's best-known table shipped with the package (empty entries while it is absent,
+    SuiteError when it is labelled for another suite or model version)."""
+    return read_targets(targets_path(), SUITE_ID, model_version=V3_MODEL_VERSION)
+
+
+def target_keys(seeds: int | None = None, tracks: Sequence[str] = ("reference", "twin"),
+                tiers: Sequence[int] | None = None, conditions: Sequence[str] | None = None,
+                per_tier: int | None = None) -> list[str]:
+    """The ``case|track|seed`` keys of v3's best-known table, seed by seed: every objective
+    of :func:`ema_bench.suites.v2.target_keys` (as v3 keys) and tier 4 with full
+    information (``v3-small@prior``: v2 reads v1's entries there, v3 polishes its own on
+    model version 4).  ``seeds``: noise seeds 0 .. seeds-1 of every objective (default the
+    shipped ones, :data:`SHIPPED_SEEDS`); the other arguments select a subset as v2's."""
+    dims = [v2.tier(d).dim for d in (v2.TIERS if tiers is None else tiers)]
+    wanted = {v2.target_condition(v2.condition(n)).name for n in (conditions or v2.CONDITIONS)}
+    full = seeds or SHIPPED_SEEDS["full-information tier 4"]
+    other = seeds or SHIPPED_SEEDS["other"]
+    base = [v2.case_key(n, "prior") for n in v2.instance_names(v2.BASE_TIER)[:per_tier]] \
+        if v2.BASE_TIER in dims and "prior" in wanted else []
+    keys = []
+    for k in range(max(full, other)):
+        keys += [target_key(PREFIX + c, tr, k) for c in base for tr in tracks] if k < full \
+            else []
+        keys += [PREFIX + key for key in v2.target_keys(k + 1, tracks, dims, conditions,
+                                                         per_tier)
+                 if key.endswith(f"|{k}")] if k < other else []
+    return keys
+
+
+def _target_keys(sel: Selection, seeds: int | None,
+                 tracks: Sequence[str] | None) -> list[str]:
+    """:func:`target_keys` of the tiers, conditions and instances selected."""
+    if sel.cases:
+        raise SuiteError(f"--suite {SUITE_ID} picks its instances with --tiers, --conditions "
+                         "and --per-tier, not --cases")
+    from ..instances import TRACKS
+
+    return target_keys(seeds, tracks or TRACKS,
+                       [int(t) for t in sel.tiers] if sel.tiers else None, sel.conditions,
+                       sel.per_tier)
+
+
+def _best_known(inst: Instance, track: str, seed: int, root_seed: int,
+                model_version: str | None = None) -> dict | None:
+    """The entry of :func:`tolerance_case` in ``suite_targets_v3.json`` (None while it is
+    absent or lacks the key; at a root seed other than 0 a user table's)."""
+    key = target_key(tolerance_case(inst), track, seed)
+    if root_seed != TARGET_ROOT_SEED:
+        return user_entry(SUITE_ID, key, root_seed)
+    return shipped_targets()["entries"].get(key)
+
+
+def _judged(inst: Instance, track: str) -> np.ndarray | None:
+    """v2's rule (:func:`ema_bench.suites.v2.judged_by_entry`) on v3's own clean-data fits:
+    on the reference track the parameters whose clean-data bias is within
+    :data:`~ema_bench.suites.v2.MAX_TARGET_BIAS` of range; all on the twin track, on v1's
+    problems (tier 4 with full information) and without an entry."""
+    if track != "reference" or v2._v1_entries(inst):
+        return None
+    entry = shipped_targets()["entries"].get(target_key(tolerance_case(inst), track,
+                                                        v2.CLEAN_SEED))
+    return None if entry is None else v2.judged_by_entry(inst, entry)
+
+
+SUITE = Suite(id=SUITE_ID, lookup=_lookup, best_known=_best_known,
+              judged=_judged, ioh_instance=v2.SUITE.ioh_instance,
               ioh_functions=v2.SUITE.ioh_functions, complete_cases=_complete_cases,
               case_order=lambda: cases(list(v2.TIERS), list(v2.CONDITIONS)),
               sweep_cases=lambda sel: [PREFIX + c for c in v2.SUITE.sweep_cases(sel)],
-              sweep_budget=_sweep_budget, target_keys=_own_table,
-              targets_file=_own_table, grouped=True,
+              sweep_budget=_sweep_budget, target_keys=_target_keys,
+              targets_file=targets_path, grouped=True,
               clean_fits=True, target_scales=scales, fitness_precisions=FITNESS_PRECISIONS,
-              split_ecdf=True, tier_cases=_env_cases)
+              split_ecdf=True, tier_cases=_env_cases, model_version=V3_MODEL_VERSION)

@@ -41,13 +41,22 @@ def model_version(record: dict) -> str:
     return str(record.get("model_version", "1"))
 
 
+def current_version(record: dict) -> str:
+    """The model version a record of its case is made on now: its suite's (emafdi-v3: 4;
+    a record without a suite case: the installation's default)."""
+    from ..suites import suite_of
+
+    return suite_of(record.get("case")).model_version
+
+
 def is_current(record: dict) -> bool:
-    """Whether a record was made with this installation's models or a compatible version
-    (:data:`~ema_bench.trace_cache.COMPATIBLE_VERSIONS`; others are stale: they are neither
-    reused on resume nor compared)."""
+    """Whether a record was made with the models its case runs on now
+    (:func:`current_version`) or a compatible version (:data:`~ema_bench.trace_cache.
+    COMPATIBLE_VERSIONS`; others are stale: they are neither reused on resume nor
+    compared)."""
     from ..trace_cache import is_comparable
 
-    return is_comparable(model_version(record))
+    return is_comparable(model_version(record), current_version(record))
 
 
 def is_error(record: dict) -> bool:
@@ -59,10 +68,10 @@ def identity_version(record: dict) -> str:
     """The model version in a record's identity: this installation's for a record of a
     compatible version (:data:`~ema_bench.trace_cache.COMPATIBLE_VERSIONS`: the same run,
     reused on resume, a duplicate beside a current one), else the record's own."""
-    from ..trace_cache import MODEL_VERSION, is_comparable
+    from ..trace_cache import is_comparable
 
-    version = model_version(record)
-    return MODEL_VERSION if is_comparable(version) else version
+    version, current = model_version(record), current_version(record)
+    return current if is_comparable(version, current) else version
 
 
 def key_identity(record: dict) -> tuple:
