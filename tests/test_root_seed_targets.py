@@ -59,6 +59,18 @@ def test_the_table_is_polished_on_the_root_seeds_own_noise(table70, monkeypatch)
     monkeypatch.setenv(TARGETS_ENV, str(root0))
     with pytest.raises(SuiteError, match="the package ships"):
         best_known("small", "twin", 0, 70)
+    # a table labelled with another model version than its suite's is refused where used,
+    # never read as if it were the suite's (v1 is on version 3, v3 on 4)
+    other = table70.with_name("v4.json")
+    other.write_text(json.dumps({**data, "model_version": "4"}))
+    monkeypatch.setenv(TARGETS_ENV, str(other))
+    with pytest.raises(SuiteError, match="on model version '4', not 3"):
+        best_known("small", "twin", 0, 70)
+    v3 = table70.with_name("v3.json")
+    v3.write_text(json.dumps({**data, "suite": "emafdi-v3"}))   # v3's table labelled 3
+    monkeypatch.setenv(TARGETS_ENV, str(v3))
+    with pytest.raises(SuiteError, match="emafdi-v3 on model version '3', not 4"):
+        best_known_for("v3-small@prior", "twin", 0, 70)
 
 
 def test_a_partial_file_of_another_root_seed_is_refused(table70, monkeypatch):

@@ -145,8 +145,7 @@ def make_problem(
     if budget is None and inst is not None:
         budget = inst.budget
     check_settings(case, track, budget, heterogeneity)
-    options = dict(track=track, seed=seed, budget=budget, normalise=normalise, start=start,
-                   params=params)
+    options = dict(track=track, seed=seed, budget=budget, normalise=normalise, start=start)
     if inst is None:
         seeded = isinstance(case, str)   # "seeded": drawn from the node's instance stream
         truth = (random_faults(stream(as_seed_sequence(seed), "instance"), heterogeneity)

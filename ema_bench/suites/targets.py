@@ -131,12 +131,8 @@ def _user_tables(paths: str) -> tuple[dict, ...]:
             # on other targets than everyone else's
             raise SuiteError(f"{p} is a table of root seed {TARGET_ROOT_SEED}, whose f* the "
                              "package ships; --targets takes tables of other root seeds")
-        from . import SUITES
-
-        suite = SUITES.get(data["suite"])
-        # and its suite's model version
-        tables.append(read_targets(path, data["suite"], model_version=getattr(
-            suite, "model_version", SUITE_MODEL_VERSION)))
+        # read on its own label; user_entry checks it against its suite's model version
+        tables.append(read_targets(path, data["suite"], model_version=data["model_version"]))
     return tuple(tables)
 
 
@@ -146,11 +142,17 @@ def user_targets() -> tuple[dict, ...]:
     return _user_tables(os.environ.get(TARGETS_ENV, ""))
 
 
-def user_entry(suite: str, key: str, root_seed: int) -> dict | None:
+def user_entry(suite: str, key: str, root_seed: int,
+               model_version: str = SUITE_MODEL_VERSION) -> dict | None:
     """The entry ``key`` of ``suite`` at ``root_seed`` in the first user table
-    (:func:`user_targets`) that has it, or None."""
+    (:func:`user_targets`) that has it, or None; :class:`SuiteError` for a table of the
+    suite labelled with another model version than the suite's ``model_version``."""
     for data in user_targets():
         if data["suite"] == suite and table_root_seed(data) == root_seed:
+            if data["model_version"] != model_version:
+                raise SuiteError(f"a --targets table is for suite {suite} on model version "
+                                 f"{data['model_version']!r}, not {model_version}: "
+                                 "regenerate it with 'ema-bench targets'")
             entry = data["entries"].get(key)
             if entry is not None:
                 return entry

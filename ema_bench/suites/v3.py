@@ -284,7 +284,7 @@ def _best_known(inst: Instance, track: str, seed: int, root_seed: int,
     absent or lacks the key; at a root seed other than 0 a user table's)."""
     key = target_key(tolerance_case(inst), track, seed)
     if root_seed != TARGET_ROOT_SEED:
-        return user_entry(SUITE_ID, key, root_seed)
+        return user_entry(SUITE_ID, key, root_seed, V3_MODEL_VERSION)
     return shipped_targets()["entries"].get(key)
 
 
