@@ -532,6 +532,10 @@ def test_keyless_records_are_named_by_their_place_and_judged_as_asked(legacy, fr
     old = {k: v for k, v in fresh.items() if k not in ("key", "seed_scheme")}
     (f,) = judge([old], reevaluate=False, complete=False).findings
     assert f.key == "record 0" and f.problem.startswith("seed scheme 1 ")
+    # a new run on the earlier model version, second in its file, is named by its place too
+    v2 = {k: v for k, v in fresh.items() if k != "key"} | {"model_version": "2"}
+    (f,) = judge([legacy[0], v2], reevaluate=False, complete=False, legacy=True).findings
+    assert (f.key, f.problem) == ("record 1", _V2_REFUSED)
     # reevaluate=False reaches check_record: a fitness its vector does not have goes unseen
     r = copy.deepcopy(fresh)
     r["trajectory"][-1][1] *= 0.999

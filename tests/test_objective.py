@@ -314,3 +314,24 @@ def test_sample_weights_zero_and_fractions_are_fine_and_every_test_needs_one(mea
     Objective(measured, sample_weights=sw)  # no error: >= 0, any size below 1
     with pytest.raises(ProblemError, match="^sample_weights has no entry for test 'sine'$"):
         Objective(measured, sample_weights={"step": sw["step"]})
+
+
+def test_parameter_hits_on_given_ranges_and_a_judged_mask():
+    """The default ranges are the faults' widths (the first fault's lower bound is not 0);
+    with every searched parameter, each error is in its own range, and a parameter that
+    carries no target (``judged`` False) is not judged.  Errors by hand."""
+    true = CASES["small"].x
+    width = UPPER - LOWER
+    X = np.stack([NOMINAL, true + np.array([0.02 * width[0], 0.0, 0.0, 0.0])])
+    f = np.array([2.0, 1.0])
+    assert parameter_hits(X, f, true, [0.03, 0.01]) == [2, None]   # 2 % of its width off
+    true6 = np.array([1.0, 2.0, 3.0, 4.0, 5.0, 6.0])
+    ranges = np.array([10.0, 10.0, 10.0, 10.0, 1.0, 100.0, 1e-9])  # one more than searched
+    X6 = np.array([[1.0, 2.0, 3.0, 4.0, 5.0, 56.0, 7.0],      # 50 % of the 6th's range off
+                   [1.0, 2.0, 3.0, 4.0, 5.02, 6.5, 7.0],      # 2 % (5th) and 0.5 % (6th)
+                   [1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 9.0]])      # exact (7th: no parameter)
+    f6 = np.array([3.0, 2.0, 1.0])
+    assert parameter_hits(X6, f6, true6, [0.03, 0.01], ranges) == [2, 3]
+    judged = np.array([True] * 5 + [False])
+    assert parameter_hits(X6, f6, true6, [0.03, 0.01], ranges, judged) == [1, 1]
+    assert parameter_hits(X6, f6, true6, [0.03], ranges, np.zeros(6, bool)) == [None]

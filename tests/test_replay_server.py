@@ -96,3 +96,31 @@ def test_the_monitor_runs_on_numba_threads_only_when_it_has_several():
     threads = numba.get_num_threads()
     assert _parallel(10**6) is (threads > 1)
     assert not _parallel(threads - 1)
+
+
+def test_the_server_loads_the_serial_scalar_kernel_and_the_lanes_and_no_parallel_one(
+        monkeypatch):
+    """What the server runs before it forks (:func:`~ema_bench.leaderboard.replay_server.warm`):
+    the nominal faults once through the scalar kernel and once through a full group of lanes,
+    both serial (a parallel kernel would start numba's threads, whose state no fork keeps),
+    and they succeed (an exception would stop the server's import, hence every replay)."""
+    import numpy as np
+
+    from ema_bench.faults import NOMINAL
+    from ema_bench.leaderboard import replay_server
+    from ema_bench.monitor_lanes import LANES
+
+    calls = []
+    real = replay_server.simulate_monitor
+
+    def spy(X, *args, **kw):
+        calls.append((np.array(X), args, kw))
+        return real(X, *args, **kw)
+
+    monkeypatch.setattr(replay_server, "simulate_monitor", spy)
+    assert replay_server.warm() is None
+    assert [(x.shape, a, k) for x, a, k in calls] == [
+        ((1, len(NOMINAL)), (), {"parallel": False, "lanes": False}),
+        ((LANES, len(NOMINAL)), (), {"parallel": False, "lanes": True})]
+    for x, _, _ in calls:
+        assert (x == np.asarray(NOMINAL, float)).all()
