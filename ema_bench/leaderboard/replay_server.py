@@ -5,7 +5,7 @@ A spawned worker paid, per record, what one process pays once: the interpreter's
 imports (NumPy, SciPy, numba, the package) and numba's loading of every cached kernel
 signature it calls, about twice the CPU of the replay of a cheap record.  ``validate --replay``
 forks its workers from a server (:func:`~ema_bench.sweep.executors.execute`'s ``preload``:
-multiprocessing's ``forkserver``) that imported this module: trusted code only, the package
+the standard library's ``forkserver``) that imported this module: trusted code only, the package
 and its own dependencies, never a plugin (a solver's plugin is imported in the forked worker,
 by :func:`~ema_bench.registry.run_solver`).  A fork holds a copy of the server's memory and
 nothing of another record: the server never ran a solver, never saw a record, and builds no
