@@ -130,7 +130,7 @@ def test_v3s_tables_cover_the_suite_and_agree_with_each_other():
     truth (twin: none), one entry per objective and track."""
     entries = v3.shipped_targets()["entries"]
     assert sorted(entries) == sorted(v3.target_keys())
-    assert len(entries) == 482 and v3.shipped_targets()["method"]["root_seed"] == 0
+    assert len(entries) == 734 and v3.shipped_targets()["method"]["root_seed"] == 0
     for key, e in entries.items():
         # the polish starts at the truth through the unit box (a round trip of rounding
         # size): where the optimum is the truth to 1e-10 of range (full@step-only, reference)
@@ -372,18 +372,18 @@ def test_a_v3_board_slice_is_resumed_by_a_larger_command_without_rerunning_it(tm
 
 
 def test_v3s_table_keys_are_v2s_objectives_and_v1s_problems_and_select_as_v2s():
-    """v3 polishes its own entries of every v2 objective (seed 0) and of tier 4 with full
-    information (seeds 0-4, where v2 reads v1's table); ``ema-bench targets --suite
-    emafdi-v3`` selects with v2's options and refuses v1's ``--cases``."""
+    """v3 polishes its own entries of every v2 objective (seeds 0 and 1, the board's two)
+    and of tier 4 with full information (seeds 0-4, where v2 reads v1's table); ``ema-bench
+    targets --suite emafdi-v3`` selects with v2's options and refuses v1's ``--cases``."""
     import argparse
 
     from ema_bench.cli.targets import _keys
 
     keys = v3.target_keys()
     by_seed = {k: sum(key.endswith(f"|{k}") for key in keys) for k in range(5)}
-    assert by_seed == {0: 252 + 46, 1: 46, 2: 46, 3: 46, 4: 46}
-    assert {key.removeprefix(v3.PREFIX) for key in keys if key.endswith("|0")} >= \
-        set(v2.target_keys(1))
+    assert by_seed == {0: 252 + 46, 1: 252 + 46, 2: 46, 3: 46, 4: 46}
+    assert {key.removeprefix(v3.PREFIX) for key in keys if key[-2:] in ("|0", "|1")} >= \
+        set(v2.target_keys(2))
 
     def sel(**kw):
         base = dict(suite="emafdi-v3", cases=None, tiers=None, conditions=None,
@@ -392,7 +392,8 @@ def test_v3s_table_keys_are_v2s_objectives_and_v1s_problems_and_select_as_v2s():
 
     assert sel(tiers=["4"], conditions=["no-prior"], per_tier=1, seeds=2,
                tracks=["twin"]) == ["v3-small@prior|twin|0", "v3-small@prior|twin|1"]
+    # without --seeds: the shipped seeds (0 and 1)
     assert sel(tiers=["12"], conditions=["surface-current"], per_tier=1, tracks=["twin"]) == \
-        ["v3-t12-s00@surface-current|twin|0"]
+        ["v3-t12-s00@surface-current|twin|0", "v3-t12-s00@surface-current|twin|1"]
     with pytest.raises(SuiteError, match="not --cases"):
         sel(cases=["small"])
