@@ -180,14 +180,17 @@ class _EpisodeMixin:
     heterogeneity: float
     _problem: Problem | None
 
-    def _configure(self, case: Any, tier: int | str | None, condition: str | None,
-                   track: str, budget: int | None, observation: str, normalise: bool,
-                   heterogeneity: float, render_mode: str | None, root_seed: int,
-                   suite: str) -> None:
-        """Check every setting (a clear error at construction, not at the first reset) and
-        derive the episodes' cases, the action's parameters and the observation's tests
-        from the first case's suite instance (true faults, ``seeded``: the four faults, the
-        standard tests)."""
+    def _configure(self, case: Any = "small", track: str = "reference",
+                   budget: int | None = DEFAULT_BUDGET, observation: str = "traces",
+                   normalise: bool = True, heterogeneity: float = 1.0,
+                   render_mode: str | None = None, root_seed: int = 0,
+                   tier: int | str | None = None, condition: str | None = None,
+                   suite: str = ENV_SUITES[ENV_ID_V2]) -> None:
+        """The keyword arguments of both environments (:class:`EMAFaultEnv` documents them;
+        one signature for both): check every setting (a clear error at construction, not at
+        the first reset) and derive the episodes' cases, the action's parameters and the
+        observation's tests from the first case's suite instance (true faults, ``seeded``:
+        the four faults, the standard tests)."""
         if render_mode is not None:
             raise ValueError(f"render_mode {render_mode!r} is not supported (no rendering)")
         run_seed(root_seed, 0)  # a valid root seed, checked now
@@ -255,6 +258,15 @@ class _EpisodeMixin:
         """The current episode's problem (for the scorer: ``problem.score(x)``)."""
         return self._require_problem()
 
+    def _clip(self, obs: np.ndarray) -> np.ndarray:
+        """Observations (one, or one per row) clipped into the single observation box."""
+        space = self._single_spaces[0]
+        obs = np.nan_to_num(obs, nan=0.0, posinf=space.high, neginf=space.low)
+        return np.clip(obs, space.low, space.high)
+
+    def render(self) -> None:
+        return None
+
 
 class EMAFaultEnv(_EpisodeMixin, gym.Env):
     """Fault identification as an episodic Gymnasium environment (see the module docstring).
@@ -289,14 +301,8 @@ class EMAFaultEnv(_EpisodeMixin, gym.Env):
 
     metadata: dict[str, Any] = {"render_modes": []}
 
-    def __init__(self, case: Any = "small", track: str = "reference",
-                 budget: int | None = DEFAULT_BUDGET, observation: str = "traces",
-                 normalise: bool = True, heterogeneity: float = 1.0,
-                 render_mode: str | None = None, root_seed: int = 0,
-                 tier: int | str | None = None, condition: str | None = None,
-                 suite: str = ENV_SUITES[ENV_ID_V2]) -> None:
-        self._configure(case, tier, condition, track, budget, observation, normalise,
-                        heterogeneity, render_mode, root_seed, suite)
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        self._configure(*args, **kwargs)
         self.observation_space, self.action_space = self._single_spaces
 
     def reset(self, *, seed: int | None = None,
@@ -313,17 +319,8 @@ class EMAFaultEnv(_EpisodeMixin, gym.Env):
         x = p.from_unit(_actions_to_unit(action, (p.dim,), p.names))
         f, outputs = p.evaluate_outputs(x[None, :])         # one evaluation, one simulation
         fitness = float(f[0])
-        obs = _observe(p, outputs, f, self.observation)[0]
-        obs = self._clip(obs)
+        obs = self._clip(_observe(p, outputs, f, self.observation)[0])
         return obs, -fitness, False, p.remaining == 0, self._info()
-
-    def _clip(self, obs: np.ndarray) -> np.ndarray:
-        space = self.observation_space
-        obs = np.nan_to_num(obs, nan=0.0, posinf=space.high, neginf=space.low)
-        return np.clip(obs, space.low, space.high)
-
-    def render(self) -> None:
-        return None
 
 
 class EMAFaultVectorEnv(_EpisodeMixin, VectorEnv):
@@ -343,17 +340,11 @@ class EMAFaultVectorEnv(_EpisodeMixin, VectorEnv):
 
     metadata: dict[str, Any] = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
 
-    def __init__(self, num_envs: int = 1, case: Any = "small", track: str = "reference",
-                 budget: int | None = DEFAULT_BUDGET, observation: str = "traces",
-                 normalise: bool = True, heterogeneity: float = 1.0,
-                 render_mode: str | None = None, root_seed: int = 0,
-                 tier: int | str | None = None, condition: str | None = None,
-                 suite: str = ENV_SUITES[ENV_ID_V2]) -> None:
+    def __init__(self, num_envs: int = 1, *args: Any, **kwargs: Any) -> None:
         if isinstance(num_envs, bool) or not isinstance(num_envs, int | np.integer) \
                 or num_envs < 1:
             raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
-        self._configure(case, tier, condition, track, budget, observation, normalise,
-                        heterogeneity, render_mode, root_seed, suite)
+        self._configure(*args, **kwargs)
         if self.budget < num_envs:
             raise ProblemError(f"budget {self.budget} cannot take one batch of {num_envs} "
                                "candidates")
@@ -385,10 +376,7 @@ class EMAFaultVectorEnv(_EpisodeMixin, VectorEnv):
                 info
         X = p.from_unit(_actions_to_unit(actions, (n, p.dim), p.names))
         fitness, outputs = p.evaluate_outputs(X)                # one call, n evaluations
-        obs = _observe(p, outputs, fitness, self.observation)
-        space = self.single_observation_space
-        obs = np.clip(np.nan_to_num(obs, nan=0.0, posinf=space.high, neginf=space.low),
-                      space.low, space.high)
+        obs = self._clip(_observe(p, outputs, fitness, self.observation))
         truncated = p.remaining < n
         self._autoreset = truncated
         return (obs, -fitness, np.zeros(n, dtype=np.bool_), np.full(n, truncated),
@@ -399,9 +387,6 @@ class EMAFaultVectorEnv(_EpisodeMixin, VectorEnv):
         for i in range(self.num_envs):
             out = self._add_info(out, info, i)
         return out
-
-    def render(self) -> None:
-        return None
 
 
 #: The registered versions: one entry point, the version's keyword arguments (v2: a tier
