@@ -117,14 +117,6 @@ _SPAN_MARGIN = 0.01  # the traces box is each sensor's span widened by this frac
 _RESIDUAL_BOUND = float(np.sqrt(PENALTY))
 
 
-def _check_config(case: Any, track: str, budget: Any, observation: str,
-                  heterogeneity: float) -> None:
-    """Fail at construction (not at the first reset) on a bad configuration."""
-    if observation not in OBSERVATIONS:
-        raise ValueError(f"unknown observation {observation!r}; known: {list(OBSERVATIONS)}")
-    check_settings(case, track, budget, heterogeneity)
-
-
 def observation_box(observation: str, tests: Sequence = STANDARD_TESTS) -> spaces.Box:
     """Finite bounds (check_env warns on infinite ones): sensor spans for traces; for residuals
     a box that also holds the traces returned by ``reset``.  ``tests``: the test specs of the
@@ -159,15 +151,6 @@ def _actions_to_unit(actions: Any, shape: tuple[int, ...], names: Sequence[str])
     return np.clip(a, 0.0, 1.0)
 
 
-def _observe(problem: Problem, outputs: Mapping[str, np.ndarray], fitness: np.ndarray,
-             observation: str) -> np.ndarray:
-    """Observations (n, N) of evaluated candidates: their monitor traces or their weighted
-    residuals, both in ``Traces.stacked`` layout (the objective's)."""
-    if observation == "residuals":
-        return problem.objective.residuals(outputs, fitness)
-    return problem.objective.stack(outputs)
-
-
 class _EpisodeMixin:
     """Configuration, problem building and info shared by the single and the vector
     environment."""
@@ -199,7 +182,10 @@ class _EpisodeMixin:
         inst = find(self._pool[0])
         if budget is None:
             budget = inst.budget if inst is not None else DEFAULT_BUDGET
-        _check_config(self._pool[0], track, budget, observation, heterogeneity)
+        if observation not in OBSERVATIONS:
+            raise ValueError(f"unknown observation {observation!r}; known: "
+                             f"{list(OBSERVATIONS)}")
+        check_settings(self._pool[0], track, budget, heterogeneity)
         self.root_seed, self.case, self.track, self.budget = int(root_seed), case, track, \
             int(budget)
         self.tier = None if tier is None and condition is None else inst.dim
@@ -258,8 +244,15 @@ class _EpisodeMixin:
         """The current episode's problem (for the scorer: ``problem.score(x)``)."""
         return self._require_problem()
 
-    def _clip(self, obs: np.ndarray) -> np.ndarray:
-        """Observations (one, or one per row) clipped into the single observation box."""
+    def _observe(self, p: Problem, outputs: Mapping[str, np.ndarray],
+                 fitness: np.ndarray) -> np.ndarray:
+        """Observations (n, N) of evaluated candidates: their monitor traces or their weighted
+        residuals, both in ``Traces.stacked`` layout (the objective's), clipped into the
+        single observation box."""
+        if self.observation == "residuals":
+            obs = p.objective.residuals(outputs, fitness)
+        else:
+            obs = p.objective.stack(outputs)
         space = self._single_spaces[0]
         obs = np.nan_to_num(obs, nan=0.0, posinf=space.high, neginf=space.low)
         return np.clip(obs, space.low, space.high)
@@ -319,7 +312,7 @@ class EMAFaultEnv(_EpisodeMixin, gym.Env):
         x = p.from_unit(_actions_to_unit(action, (p.dim,), p.names))
         f, outputs = p.evaluate_outputs(x[None, :])         # one evaluation, one simulation
         fitness = float(f[0])
-        obs = self._clip(_observe(p, outputs, f, self.observation)[0])
+        obs = self._observe(p, outputs, f)[0]
         return obs, -fitness, False, p.remaining == 0, self._info()
 
 
@@ -376,7 +369,7 @@ class EMAFaultVectorEnv(_EpisodeMixin, VectorEnv):
                 info
         X = p.from_unit(_actions_to_unit(actions, (n, p.dim), p.names))
         fitness, outputs = p.evaluate_outputs(X)                # one call, n evaluations
-        obs = self._clip(_observe(p, outputs, fitness, self.observation))
+        obs = self._observe(p, outputs, fitness)
         truncated = p.remaining < n
         self._autoreset = truncated
         return (obs, -fitness, np.zeros(n, dtype=np.bool_), np.full(n, truncated),
@@ -389,15 +382,11 @@ class EMAFaultVectorEnv(_EpisodeMixin, VectorEnv):
         return out
 
 
-#: The registered versions: one entry point, the version's keyword arguments (v2: a tier
-#: and a condition, whose budget is the default).
-VERSIONS: dict[str, dict[str, Any]] = {
-    ENV_ID: {},
-    ENV_ID_V2: {"tier": 4, "condition": "prior", "case": None, "budget": None,
-                "suite": ENV_SUITES[ENV_ID_V2]},
-    ENV_ID_V3: {"tier": 4, "condition": "prior", "case": None, "budget": None,
-                "suite": ENV_SUITES[ENV_ID_V3]},
-}
+#: The registered versions: one entry point, the version's keyword arguments (v2, v3: a
+#: tier and a condition of the version's suite, whose budget is the default).
+VERSIONS: dict[str, dict[str, Any]] = {ENV_ID: {}} | {
+    env_id: {"tier": 4, "condition": "prior", "case": None, "budget": None, "suite": suite}
+    for env_id, suite in ENV_SUITES.items()}
 
 
 def register() -> None:
