@@ -117,14 +117,6 @@ _SPAN_MARGIN = 0.01  # the traces box is each sensor's span widened by this frac
 _RESIDUAL_BOUND = float(np.sqrt(PENALTY))
 
 
-def _check_config(case: Any, track: str, budget: Any, observation: str,
-                  heterogeneity: float) -> None:
-    """Fail at construction (not at the first reset) on a bad configuration."""
-    if observation not in OBSERVATIONS:
-        raise ValueError(f"unknown observation {observation!r}; known: {list(OBSERVATIONS)}")
-    check_settings(case, track, budget, heterogeneity)
-
-
 def observation_box(observation: str, tests: Sequence = STANDARD_TESTS) -> spaces.Box:
     """Finite bounds (check_env warns on infinite ones): sensor spans for traces; for residuals
     a box that also holds the traces returned by ``reset``.  ``tests``: the test specs of the
@@ -159,15 +151,6 @@ def _actions_to_unit(actions: Any, shape: tuple[int, ...], names: Sequence[str])
     return np.clip(a, 0.0, 1.0)
 
 
-def _observe(problem: Problem, outputs: Mapping[str, np.ndarray], fitness: np.ndarray,
-             observation: str) -> np.ndarray:
-    """Observations (n, N) of evaluated candidates: their monitor traces or their weighted
-    residuals, both in ``Traces.stacked`` layout (the objective's)."""
-    if observation == "residuals":
-        return problem.objective.residuals(outputs, fitness)
-    return problem.objective.stack(outputs)
-
-
 class _EpisodeMixin:
     """Configuration, problem building and info shared by the single and the vector
     environment."""
@@ -180,14 +163,17 @@ class _EpisodeMixin:
     heterogeneity: float
     _problem: Problem | None
 
-    def _configure(self, case: Any, tier: int | str | None, condition: str | None,
-                   track: str, budget: int | None, observation: str, normalise: bool,
-                   heterogeneity: float, render_mode: str | None, root_seed: int,
-                   suite: str) -> None:
-        """Check every setting (a clear error at construction, not at the first reset) and
-        derive the episodes' cases, the action's parameters and the observation's tests
-        from the first case's suite instance (true faults, ``seeded``: the four faults, the
-        standard tests)."""
+    def _configure(self, case: Any = "small", track: str = "reference",
+                   budget: int | None = DEFAULT_BUDGET, observation: str = "traces",
+                   normalise: bool = True, heterogeneity: float = 1.0,
+                   render_mode: str | None = None, root_seed: int = 0,
+                   tier: int | str | None = None, condition: str | None = None,
+                   suite: str = ENV_SUITES[ENV_ID_V2]) -> None:
+        """The keyword arguments of both environments (:class:`EMAFaultEnv` documents them;
+        one signature for both): check every setting (a clear error at construction, not at
+        the first reset) and derive the episodes' cases, the action's parameters and the
+        observation's tests from the first case's suite instance (true faults, ``seeded``:
+        the four faults, the standard tests)."""
         if render_mode is not None:
             raise ValueError(f"render_mode {render_mode!r} is not supported (no rendering)")
         run_seed(root_seed, 0)  # a valid root seed, checked now
@@ -196,7 +182,10 @@ class _EpisodeMixin:
         inst = find(self._pool[0])
         if budget is None:
             budget = inst.budget if inst is not None else DEFAULT_BUDGET
-        _check_config(self._pool[0], track, budget, observation, heterogeneity)
+        if observation not in OBSERVATIONS:
+            raise ValueError(f"unknown observation {observation!r}; known: "
+                             f"{list(OBSERVATIONS)}")
+        check_settings(self._pool[0], track, budget, heterogeneity)
         self.root_seed, self.case, self.track, self.budget = int(root_seed), case, track, \
             int(budget)
         self.tier = None if tier is None and condition is None else inst.dim
@@ -255,6 +244,22 @@ class _EpisodeMixin:
         """The current episode's problem (for the scorer: ``problem.score(x)``)."""
         return self._require_problem()
 
+    def _observe(self, p: Problem, outputs: Mapping[str, np.ndarray],
+                 fitness: np.ndarray) -> np.ndarray:
+        """Observations (n, N) of evaluated candidates: their monitor traces or their weighted
+        residuals, both in ``Traces.stacked`` layout (the objective's), clipped into the
+        single observation box."""
+        if self.observation == "residuals":
+            obs = p.objective.residuals(outputs, fitness)
+        else:
+            obs = p.objective.stack(outputs)
+        space = self._single_spaces[0]
+        obs = np.nan_to_num(obs, nan=0.0, posinf=space.high, neginf=space.low)
+        return np.clip(obs, space.low, space.high)
+
+    def render(self) -> None:
+        return None
+
 
 class EMAFaultEnv(_EpisodeMixin, gym.Env):
     """Fault identification as an episodic Gymnasium environment (see the module docstring).
@@ -289,14 +294,8 @@ class EMAFaultEnv(_EpisodeMixin, gym.Env):
 
     metadata: dict[str, Any] = {"render_modes": []}
 
-    def __init__(self, case: Any = "small", track: str = "reference",
-                 budget: int | None = DEFAULT_BUDGET, observation: str = "traces",
-                 normalise: bool = True, heterogeneity: float = 1.0,
-                 render_mode: str | None = None, root_seed: int = 0,
-                 tier: int | str | None = None, condition: str | None = None,
-                 suite: str = ENV_SUITES[ENV_ID_V2]) -> None:
-        self._configure(case, tier, condition, track, budget, observation, normalise,
-                        heterogeneity, render_mode, root_seed, suite)
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        self._configure(*args, **kwargs)
         self.observation_space, self.action_space = self._single_spaces
 
     def reset(self, *, seed: int | None = None,
@@ -313,17 +312,8 @@ class EMAFaultEnv(_EpisodeMixin, gym.Env):
         x = p.from_unit(_actions_to_unit(action, (p.dim,), p.names))
         f, outputs = p.evaluate_outputs(x[None, :])         # one evaluation, one simulation
         fitness = float(f[0])
-        obs = _observe(p, outputs, f, self.observation)[0]
-        obs = self._clip(obs)
+        obs = self._observe(p, outputs, f)[0]
         return obs, -fitness, False, p.remaining == 0, self._info()
-
-    def _clip(self, obs: np.ndarray) -> np.ndarray:
-        space = self.observation_space
-        obs = np.nan_to_num(obs, nan=0.0, posinf=space.high, neginf=space.low)
-        return np.clip(obs, space.low, space.high)
-
-    def render(self) -> None:
-        return None
 
 
 class EMAFaultVectorEnv(_EpisodeMixin, VectorEnv):
@@ -343,17 +333,11 @@ class EMAFaultVectorEnv(_EpisodeMixin, VectorEnv):
 
     metadata: dict[str, Any] = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
 
-    def __init__(self, num_envs: int = 1, case: Any = "small", track: str = "reference",
-                 budget: int | None = DEFAULT_BUDGET, observation: str = "traces",
-                 normalise: bool = True, heterogeneity: float = 1.0,
-                 render_mode: str | None = None, root_seed: int = 0,
-                 tier: int | str | None = None, condition: str | None = None,
-                 suite: str = ENV_SUITES[ENV_ID_V2]) -> None:
+    def __init__(self, num_envs: int = 1, *args: Any, **kwargs: Any) -> None:
         if isinstance(num_envs, bool) or not isinstance(num_envs, int | np.integer) \
                 or num_envs < 1:
             raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
-        self._configure(case, tier, condition, track, budget, observation, normalise,
-                        heterogeneity, render_mode, root_seed, suite)
+        self._configure(*args, **kwargs)
         if self.budget < num_envs:
             raise ProblemError(f"budget {self.budget} cannot take one batch of {num_envs} "
                                "candidates")
@@ -385,10 +369,7 @@ class EMAFaultVectorEnv(_EpisodeMixin, VectorEnv):
                 info
         X = p.from_unit(_actions_to_unit(actions, (n, p.dim), p.names))
         fitness, outputs = p.evaluate_outputs(X)                # one call, n evaluations
-        obs = _observe(p, outputs, fitness, self.observation)
-        space = self.single_observation_space
-        obs = np.clip(np.nan_to_num(obs, nan=0.0, posinf=space.high, neginf=space.low),
-                      space.low, space.high)
+        obs = self._observe(p, outputs, fitness)
         truncated = p.remaining < n
         self._autoreset = truncated
         return (obs, -fitness, np.zeros(n, dtype=np.bool_), np.full(n, truncated),
@@ -400,19 +381,12 @@ class EMAFaultVectorEnv(_EpisodeMixin, VectorEnv):
             out = self._add_info(out, info, i)
         return out
 
-    def render(self) -> None:
-        return None
 
-
-#: The registered versions: one entry point, the version's keyword arguments (v2: a tier
-#: and a condition, whose budget is the default).
-VERSIONS: dict[str, dict[str, Any]] = {
-    ENV_ID: {},
-    ENV_ID_V2: {"tier": 4, "condition": "prior", "case": None, "budget": None,
-                "suite": ENV_SUITES[ENV_ID_V2]},
-    ENV_ID_V3: {"tier": 4, "condition": "prior", "case": None, "budget": None,
-                "suite": ENV_SUITES[ENV_ID_V3]},
-}
+#: The registered versions: one entry point, the version's keyword arguments (v2, v3: a
+#: tier and a condition of the version's suite, whose budget is the default).
+VERSIONS: dict[str, dict[str, Any]] = {ENV_ID: {}} | {
+    env_id: {"tier": 4, "condition": "prior", "case": None, "budget": None, "suite": suite}
+    for env_id, suite in ENV_SUITES.items()}
 
 
 def register() -> None:

@@ -51,16 +51,17 @@ class Progress:
 
 @contextmanager
 def progress(total: int | None, desc: str, unit: str = "item", quiet: bool = False,
-             tty: bool | None = None) -> Iterator[Progress]:
+             tty: bool | None = None, leave: bool = True) -> Iterator[Progress]:
     """A :class:`Progress` over ``total`` items (None: unknown): a tqdm bar on stderr when
-    it is a terminal (``tty`` overrides the check), log lines otherwise, nothing when
-    ``quiet``."""
+    it is a terminal (``tty`` overrides the check; ``leave``: the bar stays when done), log
+    lines otherwise, nothing when ``quiet``."""
     tty = sys.stderr.isatty() if tty is None else tty
     bar = None
     if tty and not quiet:
         from tqdm import tqdm
 
-        bar = tqdm(total=total, desc=desc, unit=unit, file=sys.stderr, dynamic_ncols=True)
+        bar = tqdm(total=total, desc=desc, unit=unit, file=sys.stderr, dynamic_ncols=True,
+                   leave=leave)
     p = Progress(total, desc, unit, bar=bar, quiet=quiet)
     try:
         yield p

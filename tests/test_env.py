@@ -108,6 +108,19 @@ def test_bad_configuration_fails_at_construction():
         EMAFaultEnv(render_mode="human")
 
 
+def test_both_environments_take_the_same_arguments_in_the_same_order():
+    # one signature for both (issue 43): positional as before, the vector env after num_envs
+    single = EMAFaultEnv("full", "twin", 7, "residuals", False, 0.5, None, 3)
+    vector = EMAFaultVectorEnv(2, "full", "twin", 7, "residuals", False, 0.5, None, 3)
+    for env in (single, vector):
+        assert (env.case, env.track, env.budget, env.observation, env.normalise,
+                env.heterogeneity, env.root_seed) == ("full", "twin", 7, "residuals", False,
+                                                      0.5, 3)
+    assert vector.num_envs == 2
+    with pytest.raises(TypeError, match="colour"):
+        EMAFaultVectorEnv(2, colour="red")
+
+
 # ---- reset ---------------------------------------------------------------------------------------
 
 

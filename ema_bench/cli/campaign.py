@@ -20,6 +20,7 @@ import argparse
 import json
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 from ..jsonio import plain
@@ -60,16 +61,20 @@ def register(sub: argparse._SubParsersAction) -> None:
     _register_policy(actions)
 
 
+def _action(actions: argparse._SubParsersAction, name: str,
+            run: Callable[[argparse.Namespace], int], summary: str) -> argparse.ArgumentParser:
+    """An action's parser: ``summary`` in ``campaign --help``, ``run`` its handler, whose
+    docstring is its description (as a command's is its module's docstring)."""
+    p = actions.add_parser(name, help=summary, description=run.__doc__)
+    p.set_defaults(func=run)
+    return p
+
+
 # --- make (campaign drawing and files) -------------------------------------------------------
 
 def _register_make(actions: argparse._SubParsersAction) -> None:
-    p = actions.add_parser(
-        "make", help="draw a campaign and write its inspection traces, manifest and truth",
-        description="Draw a fleet of actuators from the named campaign's degradation laws, "
-                    "inspect each unit every K flights (step and sine tests) and write "
-                    "DIR/manifest.json (what a tracker sees), DIR/uNNN/iNNN.npz (traces) and "
-                    "DIR/truth.json (hidden: faults, end of life, true RUL).  Same seed, same "
-                    "files.  An existing campaign in DIR is replaced.")
+    p = _action(actions, "make", _run_make,
+                "draw a campaign and write its inspection traces, manifest and truth")
     p.add_argument("name", metavar="NAME", help="campaign name (e.g. fleet-v1)")
     p.add_argument("--units", type=count(1, 10_000), default=20,
                    help="units of the fleet (default 20)")
@@ -92,10 +97,13 @@ def _register_make(actions: argparse._SubParsersAction) -> None:
                         "seedS-nN)")
     add_json(p, "the summary")
     add_quiet(p)
-    p.set_defaults(func=_run_make)
 
 
 def _run_make(args: argparse.Namespace) -> int:
+    """Draw a fleet of actuators from the named campaign's degradation laws, inspect each unit
+    every K flights (step and sine tests) and write DIR/manifest.json (what a tracker sees),
+    DIR/uNNN/iNNN.npz (traces) and DIR/truth.json (hidden: faults, end of life, true RUL).
+    Same seed, same files.  An existing campaign in DIR is replaced."""
     # --units, --every and --seed are bounded by their argparse types; before any work (a
     # CampaignError is a ValueError: one line by main())
     get_spec(args.name)
@@ -125,19 +133,8 @@ def _run_make(args: argparse.Namespace) -> int:
 # --- track (trackers) ------------------------------------------------------------------------
 
 def _register_track(actions: argparse._SubParsersAction) -> None:
-    p = actions.add_parser(
-        "track", help="run a tracker over a campaign: fault estimates and RUL per inspection",
-        description="Run a registered tracker over every unit of the campaign in DIR, "
-                    "inspection by inspection, and write DIR2/track.jsonl (one line per unit "
-                    "and inspection: estimates with 95 % intervals, RUL median and 95 % "
-                    "interval, failing fault, replace) as each finishes, plus "
-                    "DIR2/manifest.json.  Rerunning the same command resumes: units already "
-                    "complete are skipped.  Every inspection is tracked to the unit's cut, also "
-                    "after a replacement call (the first call is the unit's maintenance "
-                    "decision); a tracker that raises on a unit is recorded as a failed unit, "
-                    "a killed worker or a full disk is not (a rerun tries it again).  'ema-bench "
-                    "campaign track --list' lists the trackers (the 'ema_bench.trackers' "
-                    "entry-point group: the baselines and any installed plugin).")
+    p = _action(actions, "track", _run_track,
+                "run a tracker over a campaign: fault estimates and RUL per inspection")
     p.add_argument("campaign", metavar="DIR", nargs="?", help="campaign folder")
     p.add_argument("--tracker", metavar="NAME", help="registered tracker (see --list)")
     p.add_argument("--out", metavar="DIR2", help="output folder (created; resumed if it "
@@ -149,10 +146,18 @@ def _register_track(actions: argparse._SubParsersAction) -> None:
     p.add_argument("--list", action="store_true", help="list the registered trackers and exit")
     add_json(p, "the summary (or the list)")
     add_quiet(p)
-    p.set_defaults(func=_run_track)
 
 
 def _run_track(args: argparse.Namespace) -> int:
+    """Run a registered tracker over every unit of the campaign in DIR, inspection by
+    inspection, and write DIR2/track.jsonl (one line per unit and inspection: estimates with
+    95 % intervals, RUL median and 95 % interval, failing fault, replace) as each finishes, plus
+    DIR2/manifest.json.  Rerunning the same command resumes: units already complete are
+    skipped.  Every inspection is tracked to the unit's cut, also after a replacement call (the
+    first call is the unit's maintenance decision); a tracker that raises on a unit is recorded
+    as a failed unit, a killed worker or a full disk is not (a rerun tries it again).
+    'ema-bench campaign track --list' lists the trackers (the 'ema_bench.trackers' entry-point
+    group: the baselines and any installed plugin)."""
     if args.list:
         trackers = available_trackers()
         width = max((len(n) for n in trackers), default=0)
@@ -192,23 +197,8 @@ def _run_track(args: argparse.Namespace) -> int:
 # --- score (metrics) -------------------------------------------------------------------------
 
 def _register_score(actions: argparse._SubParsersAction) -> None:
-    p = actions.add_parser(
-        "score", help="score tracking runs against the campaign's hidden truth",
-        description="Score one or more tracking runs (DIR2 of 'ema-bench campaign track') "
-                    "against their campaign's truth (--truth, default the campaign folder's "
-                    "truth.json; another campaign's is refused).  Headline: the RUL at each "
-                    "failing unit's hidden cut (its last inspection): the expected share "
-                    "within +-20 % (under each unit's futures from its true state) and the "
-                    "realised one, MAE, RMSE, PHM08 per unit (predictions clipped to a "
-                    "horizon) and its median, 95 % interval coverage, width and interval "
-                    "score, and from RUL quantiles the CRPS and 50/80 % figures, each with a "
-                    "bootstrap interval over units and as a ratio to the honest Bayes oracle "
-                    "(paired bootstrap); --markdown adds tables by failing fault and cut "
-                    "position.  "
-                    "Also maintenance decisions (false and early replacements, failures in "
-                    "service, cost) and diagnostics (alpha-lambda over lambda 0.5-0.9, "
-                    "prognostic horizons, monotonicity, per-fault tracking, detection).  "
-                    "Rules: ema_bench/prognostics/scoring.py.")
+    p = _action(actions, "score", _run_score,
+                "score tracking runs against the campaign's hidden truth")
     p.add_argument("runs", metavar="DIR2", nargs="+", help="tracking run folder(s)")
     p.add_argument("--truth", metavar="FILE",
                    help="the campaign's truth file (default: truth.json in the campaign folder "
@@ -231,10 +221,20 @@ def _register_score(actions: argparse._SubParsersAction) -> None:
     p.add_argument("--plots", metavar="DIR", help="write PNG plots here")
     p.add_argument("--markdown", metavar="FILE", help="write the table as Markdown here")
     add_json(p, "the figures (one object per run, with per-unit rows)")
-    p.set_defaults(func=_run_score)
 
 
 def _run_score(args: argparse.Namespace) -> int:
+    """Score one or more tracking runs (DIR2 of 'ema-bench campaign track') against their
+    campaign's truth (--truth, default the campaign folder's truth.json; another campaign's is
+    refused).  Headline: the RUL at each failing unit's hidden cut (its last inspection): the
+    expected share within +-20 % (under each unit's futures from its true state) and the
+    realised one, MAE, RMSE, PHM08 per unit (predictions clipped to a horizon) and its median,
+    95 % interval coverage, width and interval score, and from RUL quantiles the CRPS and
+    50/80 % figures, each with a bootstrap interval over units and as a ratio to the honest Bayes
+    oracle (paired bootstrap); --markdown adds tables by failing fault and cut position.  Also
+    maintenance decisions (false and early replacements, failures in service, cost) and
+    diagnostics (alpha-lambda over lambda 0.5-0.9, prognostic horizons, monotonicity, per-fault
+    tracking, detection).  Rules: ema_bench/prognostics/scoring.py."""
     if not 0.0 < args.alpha < 1.0:
         raise CLIError("--alpha must lie in (0, 1)")
     if args.replay or args.replay_unit:
@@ -338,16 +338,8 @@ def _plots(runs: list[str], results: list[dict], folder, alpha: float, truth_fil
 # --- sealed (the maintainer's board on a secret campaign) -------------------------------------
 
 def _register_sealed(actions: argparse._SubParsersAction) -> None:
-    p = actions.add_parser(
-        "sealed", help="the board on a sealed campaign: secret seed, every tracker, scored",
-        description="Draw a test campaign from a secret seed (63 bits of the OS's entropy) "
-                    "into DIR/campaign, move its truth to DIR/truth.json before any tracker "
-                    "runs (it holds the seed: keep it, never publish it), track it with every "
-                    "board tracker in worker processes (DIR/runs/NAME), score every run and "
-                    "write DIR/scores.md and DIR/scores.json, which name the campaign as "
-                    "sealed with the SHA-256 of its truth file and never its seed.  "
-                    "Rerunning resumes.  Trackers tune on the published campaign only "
-                    "(leaderboards/campaign/training_split.json).")
+    p = _action(actions, "sealed", _run_sealed,
+                "the board on a sealed campaign: secret seed, every tracker, scored")
     p.add_argument("--units", type=count(1, 10_000), required=True,
                    help="units of the sealed campaign")
     p.add_argument("--out", metavar="DIR", required=True, help="folder (created; resumed)")
@@ -364,10 +356,15 @@ def _register_sealed(actions: argparse._SubParsersAction) -> None:
                         "'campaign policy --tune'): adds the policy costs to the table")
     add_json(p, "the summary")
     add_quiet(p)
-    p.set_defaults(func=_run_sealed)
 
 
 def _run_sealed(args: argparse.Namespace) -> int:
+    """Draw a test campaign from a secret seed (63 bits of the OS's entropy) into DIR/campaign,
+    move its truth to DIR/truth.json before any tracker runs (it holds the seed: keep it, never
+    publish it), track it with every board tracker in worker processes (DIR/runs/NAME), score
+    every run and write DIR/scores.md and DIR/scores.json, which name the campaign as sealed
+    with the SHA-256 of its truth file and never its seed.  Rerunning resumes.  Trackers tune
+    on the published campaign only (leaderboards/campaign/training_split.json)."""
     get_spec(args.name)
     check_output(args.out, "--out", folder=True)
     if args.policy is not None:
@@ -385,18 +382,8 @@ def _run_sealed(args: argparse.Namespace) -> int:
 # --- policy (replacement costs against the oracle policy) ------------------------------------
 
 def _register_policy(actions: argparse._SubParsersAction) -> None:
-    p = actions.add_parser(
-        "policy", help="replacement-policy costs of tracking runs beside the oracle policy's",
-        description="Cost a replacement policy per tracking run (replace at the first "
-                    "inspection where the tracker's RUL signal is at most a threshold, or "
-                    "when its forecast at the cut runs down to it) and the oracle policy (the "
-                    "true state at the cut) on the same failing units and futures, with "
-                    "Maintain-v0's costs (inspection 0.5, replacement 40, failure 400 "
-                    "flights' revenue): cost per 100 flights, per unit, expected failures and "
-                    "the ratio to the oracle's.  --tune FILE chooses each tracker's signal and "
-                    "threshold on these runs (the published training split only) and writes "
-                    "them; --thresholds FILE applies tuned ones.  Rules: "
-                    "ema_bench/prognostics/policy.py.")
+    p = _action(actions, "policy", _run_policy,
+                "replacement-policy costs of tracking runs beside the oracle policy's")
     p.add_argument("runs", metavar="DIR2", nargs="+", help="tracking run folder(s)")
     p.add_argument("--truth", metavar="FILE", help="the campaign's truth file (default: "
                                                    "truth.json in the campaign folder)")
@@ -405,10 +392,17 @@ def _register_policy(actions: argparse._SubParsersAction) -> None:
     mode.add_argument("--thresholds", metavar="FILE", help="apply the thresholds of FILE")
     p.add_argument("--markdown", metavar="FILE", help="write the table as Markdown here")
     add_json(p, "the figures (one object per run)")
-    p.set_defaults(func=_run_policy)
 
 
 def _run_policy(args: argparse.Namespace) -> int:
+    """Cost a replacement policy per tracking run (replace at the first inspection where the
+    tracker's RUL signal is at most a threshold, or when its forecast at the cut runs down to
+    it) and the oracle policy (the true state at the cut) on the same failing units and
+    futures, with Maintain-v0's costs (inspection 0.5, replacement 40, failure 400 flights'
+    revenue): cost per 100 flights, per unit, expected failures and the ratio to the oracle's.
+    --tune FILE chooses each tracker's signal and threshold on these runs (the published
+    training split only) and writes them; --thresholds FILE applies tuned ones.  Rules:
+    ema_bench/prognostics/policy.py."""
     from ..prognostics.policy import policy_table, read_thresholds, score_policies, tune
 
     if args.tune:

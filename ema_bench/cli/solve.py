@@ -40,6 +40,7 @@ from ..faults import FAULTS
 from ..interval_calibration_files import describe
 from ..monitor import monitor_traces
 from ..objective import KNOWN_TESTS, N_FAULTS
+from ..progress import progress
 from ..reference import SimulationError
 from ..registry import available_solvers, get_solver, run_solver
 from ..seeding import stream
@@ -158,31 +159,28 @@ def _make_problem(args: argparse.Namespace):
 
 @contextmanager
 def _progress(problem, enabled: bool) -> Iterator[None]:
-    """A tqdm bar on stderr that follows the problem's own evaluation count (a polling
-    thread: solvers know nothing of it)."""
+    """A progress bar on stderr (:func:`~ema_bench.progress.progress`, cleared when done) that
+    follows the problem's own evaluation count (a polling thread: solvers know nothing of
+    it)."""
     if not enabled:
         yield
         return
-    from tqdm import tqdm
-
     done = threading.Event()
-    bar = tqdm(total=problem.budget, unit="eval", file=sys.stderr, leave=False,
-               dynamic_ncols=True)
 
     def poll() -> None:
         while not done.wait(0.2):
             n = problem.evaluations
-            if n != bar.n:
-                bar.update(n - bar.n)
+            if n != bar.done:
+                bar.update(n=n - bar.done)
 
-    t = threading.Thread(target=poll, daemon=True)
-    t.start()
-    try:
-        yield
-    finally:
-        done.set()
-        t.join()
-        bar.close()
+    with progress(problem.budget, "", unit="eval", tty=True, leave=False) as bar:
+        t = threading.Thread(target=poll, daemon=True)
+        t.start()
+        try:
+            yield
+        finally:
+            done.set()
+            t.join()
 
 
 def run(args: argparse.Namespace) -> int:

@@ -22,6 +22,17 @@ def _truth_path(truth: Mapping) -> tuple[np.ndarray, np.ndarray]:
     return flights, np.array([pts[f] for f in flights], dtype=float)
 
 
+def _finish(fig: plt.Figure, ax: plt.Axes, path: str | os.PathLike, title: str,
+            legend: str | None = "best", grid: str = "both") -> None:
+    """The end of a one-axes plot: a grid (on ``grid``'s axes), the legend (at ``legend``;
+    None: no legend), the title, and the figure saved to ``path`` and closed."""
+    ax.grid(alpha=0.3, axis=grid)
+    if legend is not None:
+        ax.legend(fontsize=8, loc=legend)
+    ax.set_title(title, fontsize=10)
+    save_figure(fig, path)
+
+
 def plot_unit(rows: Sequence[Mapping], truth: Mapping, thresholds: Mapping[str, float],
               path: str | os.PathLike, title: str = "") -> None:
     """A unit's failing faults over flights: the truth (dashed past the last inspection), the
@@ -96,10 +107,7 @@ def plot_rul(units: Mapping[str, Sequence[Mapping]], truth: Mapping[str, Mapping
     ax.set_ylim(0, 2.0 * top)
     ax.set_xlabel("true RUL [flights]")
     ax.set_ylabel("predicted RUL [flights] (median, 95 % band)")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8, loc="upper left")
-    ax.set_title(title or "RUL predictions over life", fontsize=10)
-    save_figure(fig, path)
+    _finish(fig, ax, path, title or "RUL predictions over life", legend="upper left")
 
 
 def plot_errors(errors: Mapping[str, Sequence[float]], path: str | os.PathLike,
@@ -117,9 +125,7 @@ def plot_errors(errors: Mapping[str, Sequence[float]], path: str | os.PathLike,
         ax.plot(i + rng.uniform(-0.12, 0.12, d.size), d, "o", ms=3, alpha=0.6)
     ax.axhline(0.0, color="k", lw=0.8)
     ax.set_ylabel("RUL error at the cut [flights] (late > 0)")
-    ax.grid(alpha=0.3, axis="y")
-    ax.set_title(title or "RUL error over the fleet", fontsize=10)
-    save_figure(fig, path)
+    _finish(fig, ax, path, title or "RUL error over the fleet", legend=None, grid="y")
 
 
 #: Trackers drawn dashed in :func:`plot_alpha_lambda`: the no-sensing references.
@@ -143,10 +149,7 @@ def plot_alpha_lambda(curves: Mapping[str, Mapping[str, Mapping]], path: str | o
     ax.set_xlabel("lambda (share of life from the first inspection)")
     ax.set_ylabel(f"share within +-{alpha:.0%} of the true RUL")
     ax.set_ylim(-0.02, 1.02)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    ax.set_title(title or "alpha-lambda over lambda (diagnostic)", fontsize=10)
-    save_figure(fig, path)
+    _finish(fig, ax, path, title or "alpha-lambda over lambda (diagnostic)")
 
 
 def plot_reliability(points: Mapping[str, Mapping[str, float]], path: str | os.PathLike,
@@ -167,7 +170,4 @@ def plot_reliability(points: Mapping[str, Mapping[str, float]], path: str | os.P
     ax.set_ylabel("observed share holding the true RUL")
     ax.set_xlim(0.4, 1.0)
     ax.set_ylim(0.0, 1.02)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    ax.set_title(title or "reliability of the RUL intervals at the cut", fontsize=10)
-    save_figure(fig, path)
+    _finish(fig, ax, path, title or "reliability of the RUL intervals at the cut")
