@@ -163,14 +163,12 @@ class _EpisodeMixin:
     heterogeneity: float
     _problem: Problem | None
 
-    def _configure(self, case: Any = "small", track: str = "reference",
-                   budget: int | None = DEFAULT_BUDGET, observation: str = "traces",
-                   normalise: bool = True, heterogeneity: float = 1.0,
-                   render_mode: str | None = None, root_seed: int = 0,
-                   tier: int | str | None = None, condition: str | None = None,
-                   suite: str = ENV_SUITES[ENV_ID_V2]) -> None:
-        """The keyword arguments of both environments (:class:`EMAFaultEnv` documents them;
-        one signature for both): check every setting (a clear error at construction, not at
+    def _configure(self, case: Any, track: str, budget: int | None, observation: str,
+                   normalise: bool, heterogeneity: float, render_mode: str | None,
+                   root_seed: int, tier: int | str | None, condition: str | None,
+                   suite: str) -> None:
+        """The settings of both environments (:class:`EMAFaultEnv` documents them, in its
+        signature's order): check every setting (a clear error at construction, not at
         the first reset) and derive the episodes' cases, the action's parameters and the
         observation's tests from the first case's suite instance (true faults, ``seeded``:
         the four faults, the standard tests)."""
@@ -294,8 +292,14 @@ class EMAFaultEnv(_EpisodeMixin, gym.Env):
 
     metadata: dict[str, Any] = {"render_modes": []}
 
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
-        self._configure(*args, **kwargs)
+    def __init__(self, case: Any = "small", track: str = "reference",
+                 budget: int | None = DEFAULT_BUDGET, observation: str = "traces",
+                 normalise: bool = True, heterogeneity: float = 1.0,
+                 render_mode: str | None = None, root_seed: int = 0,
+                 tier: int | str | None = None, condition: str | None = None,
+                 suite: str = ENV_SUITES[ENV_ID_V2]) -> None:
+        self._configure(case, track, budget, observation, normalise, heterogeneity,
+                        render_mode, root_seed, tier, condition, suite)
         self.observation_space, self.action_space = self._single_spaces
 
     def reset(self, *, seed: int | None = None,
@@ -333,11 +337,17 @@ class EMAFaultVectorEnv(_EpisodeMixin, VectorEnv):
 
     metadata: dict[str, Any] = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
 
-    def __init__(self, num_envs: int = 1, *args: Any, **kwargs: Any) -> None:
+    def __init__(self, num_envs: int = 1, case: Any = "small", track: str = "reference",
+                 budget: int | None = DEFAULT_BUDGET, observation: str = "traces",
+                 normalise: bool = True, heterogeneity: float = 1.0,
+                 render_mode: str | None = None, root_seed: int = 0,
+                 tier: int | str | None = None, condition: str | None = None,
+                 suite: str = ENV_SUITES[ENV_ID_V2]) -> None:
         if isinstance(num_envs, bool) or not isinstance(num_envs, int | np.integer) \
                 or num_envs < 1:
             raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
-        self._configure(*args, **kwargs)
+        self._configure(case, track, budget, observation, normalise, heterogeneity,
+                        render_mode, root_seed, tier, condition, suite)
         if self.budget < num_envs:
             raise ProblemError(f"budget {self.budget} cannot take one batch of {num_envs} "
                                "candidates")

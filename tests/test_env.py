@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import inspect
 import warnings
 from collections.abc import Mapping
 
@@ -117,6 +118,10 @@ def test_both_environments_take_the_same_arguments_in_the_same_order():
                 env.heterogeneity, env.root_seed) == ("full", "twin", 7, "residuals", False,
                                                       0.5, 3)
     assert vector.num_envs == 2
+    # the signature a user (help(), an IDE) sees names every setting, the same in both
+    names = list(inspect.signature(EMAFaultEnv).parameters)
+    assert names[:3] == ["case", "track", "budget"] and "suite" in names
+    assert list(inspect.signature(EMAFaultVectorEnv).parameters) == ["num_envs", *names]
     with pytest.raises(TypeError, match="colour"):
         EMAFaultVectorEnv(2, colour="red")
 
