@@ -45,13 +45,22 @@ def tolerance_cases() -> list[str]:
     return [c for c in v3.SUITE.case_order() if v3.tolerance_case(instance(c)) == c]
 
 
+def _laplace(case: str):
+    """The Laplace intervals at the truth of ``case`` (no polish, datasheet noise)."""
+    p = make_problem(case, track="twin", seed=run_seed(0, 0), budget=1)
+    return intervals(p.objective, instance(case).truth, method="laplace", polish=False,
+                     calibrate=False, noise="known", model_form="none")
+
+
 def covariance(case: str) -> np.ndarray:
     """The best fit's covariance at the truth (physical units), datasheet noise."""
-    inst = instance(case)
-    p = make_problem(case, track="twin", seed=run_seed(0, 0), budget=1)
-    iv = intervals(p.objective, inst.truth, method="laplace", polish=False, calibrate=False,
-                   noise="known", model_form="none")
-    return iv.cov
+    return _laplace(case).cov
+
+
+def condition_number(case: str) -> float:
+    """The condition number of the noise-whitened Jacobian at the truth of ``case``."""
+    s = np.asarray(_laplace(case).identifiability["singular_values"])
+    return float(s[0] / s[-1])
 
 
 def _x(entry: dict, names) -> np.ndarray:
@@ -106,10 +115,12 @@ def linearisation(cases: list[str], draws: int, max_evals: int) -> None:
     1000, so none is a board's): the refits' standard deviation against ``sigma``, and how
     many lie inside every 1 % of range and every tolerance."""
     table = v3.shipped_tolerances()["entries"]
-    print("\n## Linearisation check: refits from the truth on redrawn noise (twin)\n")
-    print("| case | refits | evaluations each | std / sigma per parameter (median, max) | "
-          "inside 1 % | inside the tolerance | predicted p_old, p_new |")
-    print("|---|---|---|---|---|---|---|")
+    print("\n## Linearisation check: refits from the truth on redrawn noise (twin, model "
+          f"version {v3.V3_MODEL_VERSION})\n")
+    print("| case | condition number at the truth | refits | evaluations each | std / sigma "
+          "per parameter (median, max) | inside 1 % | inside the tolerance | predicted "
+          "p_old, p_new |")
+    print("|---|---|---|---|---|---|---|---|")
     for case in cases:
         inst = instance(case)
         e = table.get(v3.tolerance_key(case, "twin"))
@@ -129,7 +140,8 @@ def linearisation(cases: list[str], draws: int, max_evals: int) -> None:
         ratio = d.std(axis=0, ddof=1) / sigma
         old = int(np.sum(np.all(np.abs(d) <= v3.FLOOR * inst.ranges, axis=1)))
         new = int(np.sum(np.all(np.abs(d) <= tol, axis=1)))
-        print(f"| {case} | {draws} | {int(np.median(evals))} | {np.median(ratio):.2f}, "
+        print(f"| {case} | {condition_number(case):.0f} | {draws} | "
+              f"{int(np.median(evals))} | {np.median(ratio):.2f}, "
               f"{ratio.max():.2f} ({inst.names[int(np.argmax(ratio))]}) | {old}/{draws} | "
               f"{new}/{draws} | {e['p_old']:.3f}, {e['p_new']:.3f} |", flush=True)
 
