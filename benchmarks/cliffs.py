@@ -12,10 +12,13 @@ vanishes); at the two points :func:`jump_kinds.first_flip` names the test whose 
 moves and the first discrete state that differs (controller sample).  Then the monitor's
 step is halved (25 us) and the same line measured again (its largest step, zoomed and
 bisected, and the state that flips at that step): a jump that shrinks with the step is
-numerical, one that keeps its size belongs to the problem.  Prints markdown.
+numerical, one that keeps its size belongs to the problem.  With ``--outputs-along NAME``,
+the monitor's and the reference model's outputs along that parameter's axis
+(:func:`output_steps`): whether the model that makes the reference track's data jumps too.
+Prints markdown.
 
-    nice python benchmarks/cliffs.py --case v3-t12-s06@prior \\
-        > benchmarks/results/cliffs_t12_s06.md
+    nice python benchmarks/cliffs.py --case v3-t12-s06@prior --half-widths 0.002,0.01 \\
+        --outputs-along Gprop > benchmarks/results/cliffs_t12_s06.md
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ import jump_kinds
 import numpy as np
 from landscape_atlas import _at, _directions, _f, jumps
 
+from ema_bench.reference import simulate_reference
 from ema_bench.seeding import run_seed
 from ema_bench.suites import instance, v2, v3
 from ema_bench.suites.problem import make_problem
@@ -108,6 +112,38 @@ def hunt(case: str, track: str, seed: int, halves: list[float], k: int, directio
     return rows, len(dirs) * len(halves)
 
 
+def output_steps(case: str, track: str, seed: int, name: str, half: float,
+                 k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Along parameter ``name``'s axis through ``x*`` (``2 k + 1`` points over +-``half`` of
+    the box): between neighbouring points, how far the outputs move, in the fitness's units
+    (every test's weighted mean square of the change, over ``f*``: the fitness one point
+    would have against the other's noise-free outputs), for the monitor and for the reference
+    model (1 us, three-phase drive: the model behind the reference track's data, noise-free).
+    A discontinuity of the model shows as an isolated large value; ``(t, monitor,
+    reference)``, the offsets of each pair's left point."""
+    inst = instance(case)
+    e = inst.best_known(track, seed)
+    p = make_problem(case, track=track, seed=run_seed(0, seed), budget=1)
+    ob, space = p.objective, p.objective.space
+    u = space.to_unit(np.array([[e["x_star"][n] for n in inst.names]]))[0]
+    t = np.linspace(-half, half, 2 * k + 1)
+    U = np.repeat(u[None], t.size, axis=0)
+    U[:, inst.names.index(name)] += t
+    X = space.from_unit(U)
+    E = space.effects_for(X, ob.effects)
+    mon = ob.outputs(X)[0]
+    ref = [simulate_reference(X[j, :4], E[j], tests=ob.tests, params=ob.params, noise=False,
+                              adc=False).data for j in range(t.size)]
+
+    def moved(Y: dict) -> np.ndarray:
+        return sum(np.einsum("nsk,k->n" if ob.weights[s].ndim == 1 else "nsk,sk->n",
+                             np.diff(Y[s], axis=0) ** 2, ob.weights[s]) / Y[s].shape[1]
+                   for s in Y) / e["f_star"]
+
+    return (t[:-1], moved({s: mon[s] for s in mon}),
+            moved({s: np.array([r[s] for r in ref]) for s in ref[0]}))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--case", default="v3-t12-s06@prior")
@@ -119,6 +155,9 @@ def main() -> None:
     ap.add_argument("--directions", type=int, default=6)
     ap.add_argument("--threshold", type=float, default=0.01,
                     help="a step of at least this many f* is a cliff")
+    ap.add_argument("--outputs-along", default="",
+                    help="a parameter: how far the monitor's and the reference model's "
+                         "outputs move between neighbouring points of its axis")
     a = ap.parse_args()
     t0, c0 = time.perf_counter(), time.process_time()
     halves = [float(h) for h in a.half_widths.split(",")]
@@ -141,6 +180,21 @@ def main() -> None:
             c = r[label]
             print(f"| {r['line']} | {r['half']:g} | {label} | {c['step']:.2e} | "
                   f"{c['zoom']:.2e} | {c['pair']:+.2e} | {c['at']:+.5f} | {c['flip']} |")
+    if a.outputs_along:
+        half = halves[0]
+        t, mon, ref = output_steps(a.case, a.track, a.seed, a.outputs_along, half, 2 * a.points)
+        print(f"\n## Monitor and reference model along {a.outputs_along}\n")
+        print(f"{t.size + 1} points over +-{half:g} of the box along {a.outputs_along} through "
+              "x*; between neighbours, how far the outputs move in the fitness's units (every "
+              "test's weighted mean square of the change, over f*), for the monitor and the "
+              "noise-free reference model (1 us, three-phase drive): median, and every pair "
+              "where either moves by 1e-2 f* or more.\n")
+        print(f"median: monitor {np.median(mon):.1e}, reference {np.median(ref):.1e}\n")
+        print("| offset | monitor | reference |")
+        print("|---|---|---|")
+        for tt, m, r in zip(t, mon, ref):
+            if max(m, r) >= 1e-2:
+                print(f"| {tt:+.5f} | {m:.2e} | {r:.2e} |")
     print(f"\n(wall {time.perf_counter() - t0:.0f} s, CPU {time.process_time() - c0:.0f} s)")
 
 

@@ -96,3 +96,19 @@ def test_t12_s06s_cliffs_are_anti_windup_flips_that_keep_their_size_at_half_the_
         c = cliffs.cliff(p, u_star, d, t, F, e["f_star"], step, inst.model_version)
         assert abs(c["pair"]) > 0.1 and abs(c["pair"]) > 0.9 * c["zoom"]
         assert re.fullmatch(r"PI integrating \(step, sample \d+\)", c["flip"])
+
+
+def test_the_reference_model_jumps_as_much_near_t12_s06s_optimum(bench):
+    """The model behind the reference track's data (1 us, three-phase drive, noise-free) has
+    its own discontinuities of the cliffs' size along ``Gprop`` near ``x*``: between x* and
+    2.5e-4 of the box below it its outputs move by 0.11 f* in the fitness's units (its jump
+    there measured 0.12 f* on 121 points; the monitor's cliffs are 0.15 f*), where the
+    monitor's move smoothly by 1.3e-3 f*: the cliffs are not an artefact of the monitor's
+    averaged drive or of its step."""
+    import cliffs
+
+    t, monitor, reference = cliffs.output_steps("v3-t12-s06@prior", "twin", 0, "Gprop",
+                                                2.5e-4, 1)
+    assert np.allclose(t, [-2.5e-4, 0.0])
+    assert reference[0] > 0.05 and reference[0] > 20 * monitor[0]
+    assert monitor[0] < 1e-2 and monitor[1] < 1e-2
