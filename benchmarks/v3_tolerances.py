@@ -9,7 +9,8 @@ for which the best fit lies within ``max(1 % of range, z sigma)`` of the truth o
 judged parameter with probability >= 0.95 (Monte Carlo over the Gaussian; on the reference
 track centred on the clean-data bias: ``clean_x`` of v3's own best-known table,
 ``suite_targets_v3.json``, model version 4 like the covariance's objective).  Prints the
-per-instance table (old and new rule) as markdown, and with
+per-instance table (old and new rule, the condition number of the noise-whitened Jacobian
+at the truth) as markdown, and with
 ``--linearisation CASES`` checks the Gaussian by refits from the truth on redrawn noise.
 
     nice python benchmarks/v3_tolerances.py --out ema_bench/suite_tolerances_v3.json \
@@ -45,13 +46,19 @@ def tolerance_cases() -> list[str]:
     return [c for c in v3.SUITE.case_order() if v3.tolerance_case(instance(c)) == c]
 
 
-def covariance(case: str) -> np.ndarray:
-    """The best fit's covariance at the truth (physical units), datasheet noise."""
-    inst = instance(case)
+def _laplace(case: str):
+    """The Laplace intervals at the truth of ``case`` (no polish, datasheet noise): ``.cov``
+    is the best fit's covariance (physical units)."""
     p = make_problem(case, track="twin", seed=run_seed(0, 0), budget=1)
-    iv = intervals(p.objective, inst.truth, method="laplace", polish=False, calibrate=False,
-                   noise="known", model_form="none")
-    return iv.cov
+    return intervals(p.objective, instance(case).truth, method="laplace", polish=False,
+                     calibrate=False, noise="known", model_form="none")
+
+
+def condition_number(case: str, iv=None) -> float:
+    """The condition number of the noise-whitened Jacobian at the truth of ``case`` (from
+    its Laplace intervals ``iv`` where given)."""
+    s = np.asarray((iv or _laplace(case)).identifiability["singular_values"])
+    return float(s[0] / s[-1])
 
 
 def _x(entry: dict, names) -> np.ndarray:
@@ -106,10 +113,12 @@ def linearisation(cases: list[str], draws: int, max_evals: int) -> None:
     1000, so none is a board's): the refits' standard deviation against ``sigma``, and how
     many lie inside every 1 % of range and every tolerance."""
     table = v3.shipped_tolerances()["entries"]
-    print("\n## Linearisation check: refits from the truth on redrawn noise (twin)\n")
-    print("| case | refits | evaluations each | std / sigma per parameter (median, max) | "
-          "inside 1 % | inside the tolerance | predicted p_old, p_new |")
-    print("|---|---|---|---|---|---|---|")
+    print("\n## Linearisation check: refits from the truth on redrawn noise (twin, model "
+          f"version {v3.V3_MODEL_VERSION})\n")
+    print("| case | condition number at the truth | refits | evaluations each | std / sigma "
+          "per parameter (median, max) | inside 1 % | inside the tolerance | predicted "
+          "p_old, p_new |")
+    print("|---|---|---|---|---|---|---|---|")
     for case in cases:
         inst = instance(case)
         e = table.get(v3.tolerance_key(case, "twin"))
@@ -129,7 +138,8 @@ def linearisation(cases: list[str], draws: int, max_evals: int) -> None:
         ratio = d.std(axis=0, ddof=1) / sigma
         old = int(np.sum(np.all(np.abs(d) <= v3.FLOOR * inst.ranges, axis=1)))
         new = int(np.sum(np.all(np.abs(d) <= tol, axis=1)))
-        print(f"| {case} | {draws} | {int(np.median(evals))} | {np.median(ratio):.2f}, "
+        print(f"| {case} | {condition_number(case):.0f} | {draws} | "
+              f"{int(np.median(evals))} | {np.median(ratio):.2f}, "
               f"{ratio.max():.2f} ({inst.names[int(np.argmax(ratio))]}) | {old}/{draws} | "
               f"{new}/{draws} | {e['p_old']:.3f}, {e['p_new']:.3f} |", flush=True)
 
@@ -144,12 +154,13 @@ def main() -> None:
     a = ap.parse_args()
     t0, c0 = time.perf_counter(), time.process_time()
     if not a.no_write:
-        entries = {}
+        entries, conds = {}, {}
         cases = tolerance_cases()
         for i, case in enumerate(cases):
-            cov = covariance(case)
+            iv = _laplace(case)
+            conds[case] = condition_number(case, iv)
             for j, track in enumerate(TRACKS):
-                entries[v3.tolerance_key(case, track)] = entry(case, cov, track,
+                entries[v3.tolerance_key(case, track)] = entry(case, iv.cov, track,
                                                                2 * i + j)
         data = {"suite": v3.SUITE_ID, "model_version": v3.V3_MODEL_VERSION,
                 "method": {"coverage": v3.COVERAGE, "floor": v3.FLOOR,
@@ -158,41 +169,45 @@ def main() -> None:
                 "entries": entries}
         write_atomic(Path(a.out), json.dumps(data, indent=0, sort_keys=True) + "\n")
         v3.shipped_tolerances.cache_clear()
-        report(entries)
+        report(entries, conds)
     if a.linearisation:
         linearisation(a.linearisation.split(","), a.draws, a.max_evals)
     print(f"\n(wall {time.perf_counter() - t0:.0f} s, CPU {time.process_time() - c0:.0f} s)")
 
 
-def report(entries: dict) -> None:
+def report(entries: dict, conds: dict) -> None:
     """Per tier, condition and track: the joint probabilities under the old and new rule,
-    and the shipped noisy best fits inside each; then every entry."""
+    the shipped noisy best fits inside each and the condition numbers of the noise-whitened
+    Jacobian at the truth (``conds``, per case); then every entry."""
     groups: dict = defaultdict(list)
     rows = []
     for key, e in entries.items():
         case, track = key.split("|")
         inst = instance(case)
         old, new, n = shipped_inside(case, track, e)
-        groups[(inst.group[0], inst.group[1], track)].append((e, old, new, n))
+        groups[(inst.group[0], inst.group[1], track)].append((e, old, new, n, conds[case]))
         sig = np.array(e["sigma"]) / inst.ranges
         worst = int(np.argmax(np.where(e["judged"], sig, -1)))
         rows.append(f"| {case} | {track} | {e['p_old']:.3f} | {e['p_new']:.3f} | "
                     f"{e['z']:.2f} | {inst.names[worst]} {100 * sig[worst]:.2f} % | "
-                    f"{old}/{n} | {new}/{n} |")
+                    f"{old}/{n} | {new}/{n} | {conds[case]:.0f} |")
     print("## Per tier, objective and track\n")
     print("| tier | condition | track | cases | p_old min / median | p_new min | z max | "
-          "shipped x* inside 1 % | inside the tolerance |")
-    print("|---|---|---|---|---|---|---|---|---|")
+          "shipped x* inside 1 % | inside the tolerance | condition number min / median / "
+          "max |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for (d, cond, track), g in sorted(groups.items()):
         po = [e["p_old"] for e, *_ in g]
+        n = sum(r[3] for r in g)
+        cn = [r[4] for r in g]
         print(f"| {d} | {cond} | {track} | {len(g)} | {min(po):.3f} / {np.median(po):.3f} | "
-              f"{min(e['p_new'] for e, *_ in g):.3f} | {max(e['z'] for e, *_ in g):.2f} | "
-              f"{sum(o for _, o, _, _ in g)}/{sum(n for *_, n in g)} | "
-              f"{sum(w for _, _, w, _ in g)}/{sum(n for *_, n in g)} |")
+              f"{min(r[0]['p_new'] for r in g):.3f} | {max(r[0]['z'] for r in g):.2f} | "
+              f"{sum(r[1] for r in g)}/{n} | {sum(r[2] for r in g)}/{n} | "
+              f"{min(cn):.0f} / {np.median(cn):.0f} / {max(cn):.0f} |")
     print("\n## Every entry\n")
     print("| case | track | p_old | p_new | z | widest sigma (% of range) | shipped x* "
-          "inside 1 % | inside the tolerance |")
-    print("|---|---|---|---|---|---|---|---|")
+          "inside 1 % | inside the tolerance | condition number |")
+    print("|---|---|---|---|---|---|---|---|---|")
     print("\n".join(rows), flush=True)
 
 
