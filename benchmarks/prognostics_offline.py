@@ -33,16 +33,14 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
+from prognostics_subset import judge  # benchmarks/ (the script's folder) is on the path
 
 import ema_bench_trackers._common as common
 import ema_bench_trackers.fleet_bayes as fb
 from ema_bench.faults import FAULT_NAMES
 from ema_bench.prognostics import track_io, track_run, tracking
 from ema_bench.prognostics.campaign import load_campaign, load_truth
-from ema_bench.prognostics.expected import FUTURES_SEED, hit_probability
-from ema_bench.prognostics.oracle import N_PATHS, oracle_unit, unit_futures
 from ema_bench.prognostics.tables import GROUPS
-from ema_bench.seeding import child
 
 _AT_CUT = {"now": False}
 _SERVED: dict[int, dict] = {}
@@ -100,8 +98,7 @@ def measure(run: str, tracker: str, out: Path, units: list[str] | None,
         _TRUE.update({u: t["faults"] for u, t in truth.items()})
     manifest = json.loads((camp.root / "manifest.json").read_text())
     listed = {u["unit"]: u["inspections"] for u in manifest["units"]}
-    order, srt = list(camp.units), sorted(truth)
-    stop = tuple(camp.cut_rule["stop"])
+    order = list(camp.units)
     failing = [u for u in order if truth[u]["eol"] is not None]
     done = ({json.loads(x)["unit"] for x in out.read_text().splitlines()} if out.exists()
             else set())
@@ -109,17 +106,11 @@ def measure(run: str, tracker: str, out: Path, units: list[str] | None,
         if u in done:
             continue
         t0 = time.process_time()
-        k = srt.index(u)
-        rul, w, _ = unit_futures(truth[u], camp.laws, camp.thresholds, camp.inspection_every,
-                                 stop, np.random.default_rng(child(FUTURES_SEED, k)), N_PATHS)
-        oracle = oracle_unit(truth[u], camp.laws, camp.thresholds, camp.inspection_every, stop,
-                             np.random.default_rng(child(0, k)))["rul"]
         point = cut_rul(tracker, camp.info(), listed[u], log.steps[u], order)
         line = {"unit": u, "failing_fault": truth[u]["failing_fault"],
                 "life_fraction": truth[u]["life_fraction"], "rul": point,
-                "tracker": hit_probability(point, rul, w),
-                "committed": hit_probability(log.steps[u][-1]["rul"], rul, w),
-                "oracle": hit_probability(oracle, rul, w), "cpu_s": time.process_time() - t0}
+                **judge(camp, truth, u, point, log.steps[u][-1]["rul"]),
+                "cpu_s": time.process_time() - t0}
         with out.open("a") as fh:
             fh.write(json.dumps(line) + "\n")
     return [json.loads(x) for x in out.read_text().splitlines()]
