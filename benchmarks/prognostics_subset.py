@@ -30,13 +30,27 @@ from ema_bench.prognostics.oracle import N_PATHS, oracle_unit, unit_futures
 from ema_bench.seeding import child
 
 
+def judge(camp, truth: dict, unit: str, point: float, committed: float) -> dict:
+    """Expected hits at the unit's cut of the tracker's ``point``, the committed run's RUL and
+    the oracle's, on the board's futures of the unit (unit ``k`` of the sorted truth: child
+    ``k`` of ``FUTURES_SEED``; the oracle's own futures: child ``k`` of 0)."""
+    k = sorted(truth).index(unit)
+    stop = tuple(camp.cut_rule["stop"])
+    rul, w, _ = unit_futures(truth[unit], camp.laws, camp.thresholds, camp.inspection_every,
+                             stop, np.random.default_rng(child(FUTURES_SEED, k)), N_PATHS)
+    oracle = oracle_unit(truth[unit], camp.laws, camp.thresholds, camp.inspection_every, stop,
+                         np.random.default_rng(child(0, k)))["rul"]
+    return {"tracker": hit_probability(point, rul, w),
+            "committed": hit_probability(committed, rul, w),
+            "oracle": hit_probability(oracle, rul, w)}
+
+
 def measure(camp_dir: str, tracker: str, committed: str, units: list[str], out: Path) -> list:
     camp = load_campaign(camp_dir)
     log = track_io.read_track(committed)
     truth = json.loads((track_io.campaign_path(committed, log.manifest) / "truth.json").read_text())
     truth = truth["units"]
-    order, srt = list(camp.units), sorted(truth)
-    stop = tuple(camp.cut_rule["stop"])
+    order = list(camp.units)
     done = {json.loads(x)["unit"] for x in out.read_text().splitlines()} if out.exists() else set()
     for u in units:
         if u in done:
@@ -47,15 +61,9 @@ def measure(camp_dir: str, tracker: str, committed: str, units: list[str], out: 
         rows, _ = track_run.run_unit(tracking.get_tracker(tracker), settings, u, inspections,
                                      track_run.unit_seed(0, order.index(u)))
         point = track_io.regroup(rows)[0][u][-1]["rul"]
-        k = srt.index(u)
-        rul, w, _ = unit_futures(truth[u], camp.laws, camp.thresholds, camp.inspection_every,
-                                 stop, np.random.default_rng(child(FUTURES_SEED, k)), N_PATHS)
-        oracle = oracle_unit(truth[u], camp.laws, camp.thresholds, camp.inspection_every, stop,
-                             np.random.default_rng(child(0, k)))["rul"]
         line = {"unit": u, "fault": truth[u]["failing_fault"],
-                "tracker": hit_probability(point, rul, w),
-                "committed": hit_probability(log.steps[u][-1]["rul"], rul, w),
-                "oracle": hit_probability(oracle, rul, w), "cpu_s": time.process_time() - t0}
+                **judge(camp, truth, u, point, log.steps[u][-1]["rul"]),
+                "cpu_s": time.process_time() - t0}
         with out.open("a") as fh:
             fh.write(json.dumps(line) + "\n")
     return [json.loads(x) for x in out.read_text().splitlines()]

@@ -105,3 +105,58 @@ def test_another_tracker_config_or_an_unknown_unit_is_refused(run):
     assert not r.ok and "config" in r.findings[0]
     with pytest.raises(TrackerError, match="no tracked unit 'u009'"):
         replay_track(run, units=["u009"])
+
+
+# --- ``campaign policy`` costs verified track files only (issue 47) ---------------------------
+
+@pytest.fixture(scope="module")
+def published(tmp_path_factory):
+    """A 2-unit published campaign (truth in place) tracked by ``life-table``, as the
+    committed board's runs are, with thresholds tuned on it by the command."""
+    root = tmp_path_factory.mktemp("policy")
+    assert main(["campaign", "make", "fleet-v1", "--units", "2", "--every", "50", "--seed",
+                 "5", "--out", str(root / "campaign"), "--quiet"]) == 0
+    assert main(["campaign", "track", str(root / "campaign"), "--tracker", "life-table",
+                 "--out", str(root / "run"), "--quiet"]) == 0
+    assert main(["campaign", "policy", str(root / "run"), "--tune", str(root / "t.json"),
+                 "--replay", "1", "--json"]) == 0
+    return root
+
+
+def test_the_policy_table_says_what_it_replayed(published, capsys):
+    capsys.readouterr()
+    md = published / "policy.md"
+    assert main(["campaign", "policy", str(published / "run"), "--thresholds",
+                 str(published / "t.json"), "--markdown", str(md), "--json"]) == 0
+    said = [x for x in md.read_text().splitlines() if x.startswith("Replayed before costing: ")]
+    assert len(said) == 1 and "life-table, 2 of 2 units re-tracked (u000, u001; sample seed" \
+        in said[0] and "every line agrees" in said[0]
+    doc = json.loads(capsys.readouterr().out)[0]
+    assert doc["replay"]["units"] == ["u000", "u001"] and doc["replay"]["tracked"] == 2
+    assert f"sample seed {doc['replay']['sample_seed']}" in said[0]
+
+
+def test_an_edited_track_file_is_refused_by_policy(published, capsys):
+    from ema_bench.prognostics.policy import score_policies
+
+    rows = lines(published / "run")
+    failing = json.loads((published / "campaign" / "truth.json").read_text())["units"]
+    unit = next(u for u, t in sorted(failing.items()) if t["eol"] is not None)
+    # the unit's last step claims an early end: replaced at once, a dearer policy
+    for r in (r for r in rows if r["unit"] == unit):
+        r["rul_low"] = r["rul"] = 0.0
+    bad = copy(published / "run", "edited")
+    (bad / "track.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+    t = published / "t.json"
+    honest, edited = (score_policies([run], t, n_boot=10)[0]["cost_per_100_flights"]["value"]
+                      for run in (published / "run", bad))
+    assert edited != honest   # unverified, the edit moves the table
+    capsys.readouterr()
+    assert main(["campaign", "policy", str(bad), "--thresholds", str(t), "--replay-unit",
+                 unit]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and "not costed" in err[0] and f"{unit} inspection 0.rul" in err[0]
+    # the tune refuses it too, and writes nothing
+    assert main(["campaign", "policy", str(bad), "--tune", str(published / "t2.json"),
+                 "--replay-unit", unit]) == 2
+    assert not (published / "t2.json").exists()

@@ -210,14 +210,9 @@ def _register_score(actions: argparse._SubParsersAction) -> None:
     p.add_argument("--tracked-only", action="store_true",
                    help="score only the units each run has tracked to their cut (a partial "
                         "run; the table says how many); default: a missing unit is a miss")
-    p.add_argument("--replay", metavar="K", type=count(0, 10_000), default=0,
-                   help="first re-track K sampled units of each run with its registered "
-                        "tracker and seed, and refuse the run (exit 1, naming unit, "
-                        "inspection and field) if any line differs: the steps are the "
-                        "submitter's, the tracker is deterministic (needs the campaign's "
-                        "traces; ema_bench/prognostics/replay.py)")
-    p.add_argument("--replay-unit", metavar="UNITS", type=option_list, default=None,
-                   help="comma-separated units to replay instead of a sample")
+    add_replay(p, 0, "first re-track K sampled units of each run with its registered "
+                     "tracker and seed, and refuse the run (exit 1, naming unit, inspection "
+                     "and field) if any line differs")
     p.add_argument("--plots", metavar="DIR", help="write PNG plots here")
     p.add_argument("--markdown", metavar="FILE", help="write the table as Markdown here")
     add_json(p, "the figures (one object per run, with per-unit rows)")
@@ -268,20 +263,32 @@ def _campaign_label(run: str, truth: str | None) -> str:
     return campaign_label(camp, truth_path(camp.root if truth is None else truth))
 
 
-def _replayed(args: argparse.Namespace) -> bool:
-    """Replay each run (``--replay``/``--replay-unit``); print what was found (stderr)."""
+def add_replay(p: argparse.ArgumentParser, default: int, what: str) -> None:
+    """``--replay K`` and ``--replay-unit``: the re-tracking of a run's units before it is
+    judged (:func:`replays`; ``score`` and ``policy``)."""
+    p.add_argument("--replay", metavar="K", type=count(0 if default == 0 else 1, 10_000),
+                   default=default,
+                   help=f"{what} (default {default}): the steps are the submitter's, the "
+                        "tracker is deterministic (needs the campaign's traces, which "
+                        "'campaign make' remakes for a committed campaign; "
+                        "ema_bench/prognostics/replay.py)")
+    p.add_argument("--replay-unit", metavar="UNITS", type=option_list, default=None,
+                   help="comma-separated units to replay instead of a sample")
+
+
+def replays(args: argparse.Namespace) -> list:
+    """Each run's :class:`~ema_bench.prognostics.replay.TrackReplay` (``--replay`` K sampled
+    units, or ``--replay-unit``), in the order of ``args.runs``."""
     from ..prognostics.replay import replay_track
 
+    return [replay_track(run, k=args.replay, units=args.replay_unit) for run in args.runs]
+
+
+def _replayed(args: argparse.Namespace) -> bool:
+    """Replay each run; print what was found (stderr); False if a line disagrees."""
     ok = True
-    for run in args.runs:
-        r = replay_track(run, k=args.replay, units=args.replay_unit)
-        print(f"replay: {run}: {r.tracker}, {len(r.units)} of {r.tracked} units re-tracked "
-              f"({', '.join(r.units)}"
-              + (f"; sample seed {r.seed}" if r.seed is not None else "") + "): "
-              + ("every line agrees" if r.ok else f"{len(r.findings)} difference(s)")
-              + (f"; a single forged unit escapes a sample this size with probability "
-                 f"{r.escape_chance:.2f}" if r.ok and args.replay_unit is None else ""),
-              file=sys.stderr)
+    for r in replays(args):
+        print(f"replay: {r.summary()}", file=sys.stderr)
         for line in r.findings[:20]:
             print(f"  {line}", file=sys.stderr)
         ok = ok and r.ok
@@ -390,8 +397,9 @@ def _register_policy(actions: argparse._SubParsersAction) -> None:
     mode = p.add_mutually_exclusive_group(required=True)
     mode.add_argument("--tune", metavar="FILE", help="tune on these runs and write FILE")
     mode.add_argument("--thresholds", metavar="FILE", help="apply the thresholds of FILE")
+    add_replay(p, 2, "re-track K sampled units of each run (at least 1) before costing it")
     p.add_argument("--markdown", metavar="FILE", help="write the table as Markdown here")
-    add_json(p, "the figures (one object per run)")
+    add_json(p, "the figures (one object per run, with what was replayed)")
 
 
 def _run_policy(args: argparse.Namespace) -> int:
@@ -401,19 +409,32 @@ def _run_policy(args: argparse.Namespace) -> int:
     futures, with Maintain-v0's costs (inspection 0.5, replacement 40, failure 400 flights'
     revenue): cost per 100 flights, per unit, expected failures and the ratio to the oracle's.
     --tune FILE chooses each tracker's signal and threshold on these runs (the published
-    training split only) and writes them; --thresholds FILE applies tuned ones.  Rules:
-    ema_bench/prognostics/policy.py."""
+    training split only) and writes them; --thresholds FILE applies tuned ones.  Only
+    verified track files are costed: each run's sampled units are first re-tracked as
+    'campaign score --replay K' does, and a run whose lines differ is refused (exit 2, one
+    line); the output says what was replayed.  Rules: ema_bench/prognostics/policy.py."""
     from ..prognostics.policy import policy_table, read_thresholds, score_policies, tune
 
     if args.tune:
         check_output(args.tune, "--tune", folder=False)
-        doc = tune(args.runs, args.truth)
-        Path(args.tune).write_text(json.dumps(plain(doc), indent=1) + "\n")
     else:
         doc = read_thresholds(args.thresholds)
-    scored = score_policies(args.runs, doc, args.truth)
-    lines = policy_table(scored)
     if args.markdown:
         check_output(args.markdown, "--markdown", folder=False)
+    checked = replays(args)   # before anything is tuned or costed on the lines
+    for r in checked:
+        if not r.ok:
+            raise CLIError(f"replay of {r.summary()}, first {r.findings[0]}: the track file "
+                           "is not what its tracker gives, not costed")
+    if args.tune:
+        doc = tune(args.runs, args.truth)
+        Path(args.tune).write_text(json.dumps(plain(doc), indent=1) + "\n")
+    scored = score_policies(args.runs, doc, args.truth)
+    for s, r in zip(scored, checked):
+        s["replay"] = {"units": r.units, "tracked": r.tracked, "sample_seed": r.seed,
+                       "escape_chance": r.escape_chance}
+    lines = policy_table(scored) + [""] + [f"Replayed before costing: {r.summary()}."
+                                           for r in checked]
+    if args.markdown:
         Path(args.markdown).write_text("\n".join(lines) + "\n")
     return print_result(args, scored, lines)

@@ -57,6 +57,15 @@ class TrackReplay:
         fresh entropy: nobody knew beforehand which units it would hold)."""
         return escape_chance(self.tracked, len(self.units))
 
+    def summary(self) -> str:
+        """One line: what was re-tracked (units, the sample's seed) and what was found."""
+        return (f"{self.run}: {self.tracker}, {len(self.units)} of {self.tracked} units "
+                f"re-tracked ({', '.join(self.units)}"
+                + (f"; sample seed {self.seed}" if self.seed is not None else "") + "): "
+                + ("every line agrees" if self.ok else f"{len(self.findings)} difference(s)")
+                + (f"; a single forged unit escapes a sample this size with probability "
+                   f"{self.escape_chance:.2f}" if self.ok and self.seed is not None else ""))
+
 
 def _differences(got: object, want: object, where: str) -> list[str]:
     if isinstance(want, dict) and isinstance(got, dict):
