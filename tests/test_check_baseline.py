@@ -12,11 +12,14 @@ of the checkout, so both branches run in this process.
 from __future__ import annotations
 
 import importlib.metadata
+import json
 from pathlib import Path
 
 import pytest
 
 from ema_bench.leaderboard import check
+from ema_bench.leaderboard.judge import JudgeError
+from ema_bench.trace_cache import MODEL_VERSION
 
 QUICK = "share/ema-bench/leaderboards/quick/runs.jsonl"
 
@@ -111,3 +114,67 @@ def test_require_baseline_takes_a_folder_with_runs_and_refuses_one_without(tmp_p
     assert str(err.value) == (
         f"--check {empty}: no committed runs there (runs.jsonl or */runs.jsonl); this "
         "installation has no baseline (install the wheel, or use a checkout)")
+
+
+# --- per-case budgets, the suite of a check, the records a baseline judges -----------------
+
+def _run(case: str, seed: int, budget: int, solver: str = "a", suite: str = "emafdi-v1"
+         ) -> dict:
+    """The identity fields ``baseline`` and ``compare``'s suite checks read (no evidence)."""
+    return {"solver": solver, "case": case, "track": "twin", "seed": seed, "budget": budget,
+            "root_seed": 0, "model_version": MODEL_VERSION, "suite": suite}
+
+
+def test_a_per_case_budget_picks_and_re_scores_each_case_at_its_own_budget():
+    per_case = {"small": 100, "nominal": 200}
+    runs = [_run("small", 0, 100), _run("small", 0, 400), _run("nominal", 0, 150),
+            _run("nominal", 0, 400), _run("nominal", 1, 200)]
+    base, used = check.baseline(runs, per_case.__getitem__, 2)
+    assert sorted((r["case"], r["seed"], r["budget"]) for r in base) == [
+        ("nominal", 0, 200), ("nominal", 1, 200), ("small", 0, 100)]
+    assert used == {"same_budget": 2, "re_scored": 1, "other_model_version": 0}
+    assert check.budget_of(per_case.__getitem__, "nominal") == 200
+    assert check.budget_of(300, "nominal") == 300
+
+
+V2 = "t12-s00@prior"
+
+
+def test_compare_checks_both_sides_against_the_suite_of_this_runs_cases():
+    assert check.compare([], [_run("small", 0, 100)]) == []          # nothing run
+    now, base = [_run(V2, 0, 100, suite="emafdi-v2")], [_run(V2, 1, 100, suite="emafdi-v2")]
+    assert check.compare(now, base) == []                             # no run in common
+    with pytest.raises(ValueError) as err:
+        check.compare(now, [_run("small", 0, 100)])
+    assert str(err.value).startswith("the baseline holds runs of suite version emafdi-v1; "
+                                     "this is emafdi-v2:")
+    with pytest.raises(ValueError) as err:
+        check.compare([*now, _run("small", 0, 100)], base)
+    assert str(err.value) == "this run mixes suites emafdi-v1, emafdi-v2: check each apart"
+
+
+def test_load_baseline_judges_only_the_runs_it_compares_and_counts_other_versions(tmp_path):
+    """A doctored committed record (its fitness doubled: the judge refuses it) beyond the
+    check's seeds or outside its keys does not block the check; a record of another model
+    version is counted, not judged."""
+    quick = Path(__file__).resolve().parent.parent / "leaderboards" / "quick" / "runs.jsonl"
+    s00 = [json.loads(ln) for ln in quick.read_text().splitlines() if '"case": "s00"' in ln]
+    good = s00[0]
+    seed1 = next(r for r in s00 if r["seed"] == 1 and r["solver"] == good["solver"]
+                 and r["track"] == good["track"])
+    other = next(r for r in s00 if r["seed"] == 0 and r["solver"] != good["solver"])
+    doctor = lambda r: {**r, "fitness": 2 * r["fitness"]}   # noqa: E731
+    (tmp_path / "a").mkdir()
+    (tmp_path / "a" / "runs.jsonl").write_text("".join(
+        json.dumps(r) + "\n" for r in (good, {**good, "model_version": "1"}, doctor(seed1))))
+    base, used = check.load_baseline(tmp_path / "a", 400, 1)
+    assert [r["solver"] for r in base] == [good["solver"]]
+    assert used == {"same_budget": 1, "re_scored": 0, "other_model_version": 1}
+    (tmp_path / "b").mkdir()
+    (tmp_path / "b" / "runs.jsonl").write_text(
+        json.dumps(good) + "\n" + json.dumps(doctor(other)) + "\n")
+    key = check.run_id(good)
+    base, used = check.load_baseline(tmp_path / "b", 400, 1, keys={key})
+    assert [check.run_id(r) for r in base] == [key] and used["other_model_version"] == 0
+    with pytest.raises(JudgeError, match=r"^--check baseline: \d+ finding.* in 2 records"):
+        check.load_baseline(tmp_path / "b", 400, 1)
