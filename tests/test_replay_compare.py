@@ -61,6 +61,11 @@ def test_an_exact_replay_is_reproduced_and_each_difference_is_named():
         msg = rp.compare(rec, h, x)
         assert (msg == f"trace at evaluation 7: recorded {f7!r}, replayed "
                        f"{float(h['best'][6])!r}") if found else msg is None
+    # the replayed value named is the log's at that evaluation (the first, one before an
+    # improvement, the last)
+    for e, f, got in ((1, 2 * f1, f1), (6, 2 * f1, f1), (100, 2 * f7, f7)):
+        assert rp.compare({**rec, "trace": [[e, f]]}, hist, x) == (
+            f"trace at evaluation {e}: recorded {f!r}, replayed {got!r}")
     for e in (0, 101):   # outside the log
         bad = {**rec, "trace": [[e, f1]]}
         assert rp.compare(bad, hist, x) == (f"trace at evaluation {e}: recorded {f1!r}, "
@@ -68,6 +73,11 @@ def test_an_exact_replay_is_reproduced_and_each_difference_is_named():
     b = rec["best_at"][0][0]
     assert rp.compare({**rec, "best_at": [[b, 2 * f7]]}, hist, x) == (
         f"best_at {b}: recorded {2 * f7!r}, replayed {float(hist['best'][b - 1])!r}")
+    assert rp.compare({**rec, "best_at": [[7, 2 * f7]]}, hist, x) == (
+        f"best_at 7: recorded {2 * f7!r}, replayed {f7!r}")
+    assert rp.compare({**rec, "best_at": [[1, f1], [6, f1], [7, f7], [100, f7]]}, hist,
+                      x) is None
+    assert rp.compare({k: v for k, v in rec.items() if k != "best_at"}, hist, x) is None
     assert rp.compare({**rec, "best_at": [[0, f7]]}, hist, x) == (
         f"best_at 0: recorded {f7!r}, replayed {float(hist['best'][-1])!r}")
     assert rp.compare({**rec, "best_at": [[101, f7]]}, hist, x) == (
@@ -80,6 +90,19 @@ def test_an_exact_replay_is_reproduced_and_each_difference_is_named():
     near = x.copy()
     near[1] *= 1 + 0.5e-6
     assert rp.compare(rec, hist, near) is None
+    # no absolute slack: a fault at exactly 0 replayed at 1e-10 is not reproduced
+    zero = {**rec, "x": {**rec["x"], "BLK": 0.0}}
+    tiny = x.copy()
+    tiny[2] = 1e-10
+    assert rp.compare(zero, hist, tiny).startswith("x: recorded")
+    zero["x"]["BLK"] = 1e-10
+    assert rp.compare(zero, hist, tiny) is None
+    h0 = {**hist, "x": hist["x"].copy()}
+    h0["x"][99] = [9.0, 9.0, 1e-10, 9.0]
+    for v, found in (([9.0, 9.0, 0.0, 9.0], True), ([9.0, 9.0, 1e-10, 9.0], False)):
+        msg = rp.compare({**rec, "trajectory": [[100, f7, v]]}, h0, x)
+        assert (msg == "trajectory vector at evaluation 100: not reproduced") is found
+        assert found or msg is None
     tj = [list(p) for p in rec["trajectory"]]
     tj[0] = [1, tj[0][1], [tj[0][2][0] * (1 + 2e-6), *tj[0][2][1:]]]
     assert rp.compare({**rec, "trajectory": tj}, hist, x) == (
@@ -141,6 +164,8 @@ def test_names_and_installed_solvers():
     assert rp._name({"key": "a\x1b[2Jb"}) == "a [2Jb" and rp._name({}) == "?"
     assert rp._name("k\nx") == "k x"
     assert rp._installed("random") and not rp._installed("no-such-solver")
+    # an entry point of another group (the console script) is no solver
+    assert not rp._installed("ema-bench")
 
 
 def test_replay_reports_every_record_in_sample_order(monkeypatch):
@@ -180,3 +205,26 @@ def test_replay_reports_every_record_in_sample_order(monkeypatch):
     assert out[4].finding.startswith(first) and "BLAS" not in out[4].finding
     rp.replay([run], None, 0, workers=2)
     assert used[-1][1] == 2
+    # one job: one worker; an unknown core count: one at a time
+    rp.replay([run], None, 0)
+    assert used[-1][1] == 1
+    monkeypatch.setattr(os, "cpu_count", lambda: None)
+    rp.replay([run, run], None, 0)
+    assert used[-1][1] == 1
+    # a worker that fails is a finding, and a record without a kernel says so
+    failed = rp.replay([{**run, "seed_scheme": 99, "manifest": {}}], None, 0)
+    assert failed[0].finding.startswith("replay failed: ValueError: unknown seed scheme 99")
+    assert failed[0].finding.endswith(f" (made under BLAS kernel unrecorded, replayed under "
+                                      f"{blas_kernel()}: OPENBLAS_CORETYPE picks the kernel)")
+    assert failed[0].wall_s >= 0
+
+
+def test_replay_draws_its_sample_with_the_seed_and_keeps_to_the_keys():
+    """Records it cannot replay cost nothing to sample: which of eight are replayed is the
+    sample of :func:`~ema_bench.leaderboard.replay.sample` for that seed."""
+    base = evidence.record([(1, at(0.5), evidence.vector("small", 0.3))])
+    recs = [{**base, "key": f"k{i}", "solver": "scipy-adapter"} for i in range(8)]
+    for seed in (1, 2):
+        picked = [r.key for r in rp.replay(recs, 3, seed)]
+        assert picked == [r["key"] for r in rp.sample(recs, 3, seed)] and len(picked) == 3
+    assert [r.key for r in rp.replay(recs, None, 0, keys={"k5", "k2"})] == ["k2", "k5"]
