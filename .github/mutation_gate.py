@@ -50,11 +50,17 @@ def module_of(name: str) -> str:
     return name.rsplit(".", 1)[0]
 
 
+def select(results: dict[str, str], only: list[str] | None) -> dict[str, str]:
+    """The results of the mutants ``only``'s globs match (all of them for None)."""
+    if not only:
+        return results
+    return {n: s for n, s in results.items() if any(fnmatchcase(n, g) for g in only)}
+
+
 def gate(results: dict[str, str], listed: str, only: list[str] | None = None,
          ratchet: dict | None = None) -> tuple[list[str], list[str]]:
     """The failures and the notes of one shard (see the module's docstring)."""
-    if only:
-        results = {n: s for n, s in results.items() if any(fnmatchcase(n, g) for g in only)}
+    results = select(results, only)
     if not results:
         return [f"no mutant{' of ' + ' '.join(only) if only else ''} in the results: "
                 "nothing was checked"], []
@@ -86,8 +92,7 @@ def record(results: dict[str, str], listed: str, only: list[str] | None,
     """``ratchet`` with the entries of the modules in ``results`` (those ``only`` matches)
     set from them: the unlisted survivors by name and the count of caught mutants; a module
     left with none drops out.  Other modules' entries are kept."""
-    if only:
-        results = {n: s for n, s in results.items() if any(fnmatchcase(n, g) for g in only)}
+    results = select(results, only)
     modules = dict(ratchet.get("modules", {}))
     for module in sorted({module_of(n) for n in results}):
         mine = {n: s for n, s in results.items() if module_of(n) == module}
