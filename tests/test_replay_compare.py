@@ -197,7 +197,8 @@ def test_replay_reports_every_record_in_sample_order(monkeypatch):
         "run, e.g. SciPy through ema_bench.adapters, has no registered solver to re-run): "
         "install its package, or do not --replay it") and out[0].wall_s == 0.0
     assert out[1].finding is None and out[1].wall_s > 0
-    assert out[2].finding.startswith("replay failed: ") and out[2].wall_s == 0.0
+    assert out[2].finding.startswith("replay failed: ProblemError: unknown case "
+                                     "'no-such-case'") and out[2].wall_s == 0.0
     first = f"trace at evaluation 1: recorded {run['trace'][0][1] * 2!r}"
     assert out[3].finding.startswith(first) and out[3].finding.endswith(
         f" (made under BLAS kernel NoSuchKernel, replayed under {blas_kernel()}: "
