@@ -561,6 +561,30 @@ def test_crossover_ratio_and_mutation_fallback_reach_the_operators():
         assert sum(bool(np.any(np.all(U == kid, axis=1))) for kid in p.batches[1][61:]) == copies
 
 
+def test_the_mutation_space_and_the_nominal_individual_by_their_settings():
+    """An unknown mutation space is refused by name before any evaluation; the fallback
+    reaches the mutation in the problem's units too (on the unit box the two spaces agree:
+    MATLAB's copy fallback copies all 15 generation-1 mutants); ``include_nominal=False``
+    leaves the start vector out of generation 0."""
+    p = BoxProblem(sphere, budget=100)
+    with pytest.raises(ValueError, match=r"^mutation_space must be one of \['unit', "
+                                         r"'units'\], got 'metres'$"):
+        run_paper_ga(p, mutation_space="metres")
+    assert p.evaluations == 0
+    for fallback, copies in (("copy", 15), ("shrink", 0)):
+        p = BoxProblem(sphere, budget=80 + 76)
+        p.lower, p.upper = np.zeros(4), np.ones(4)
+        run_paper_ga(p, mutation_fallback=fallback, mutation_space="units")
+        U = p.batches[0]
+        assert sum(bool(np.any(np.all(U == kid, axis=1))) for kid in p.batches[1][61:]) == copies
+    start = np.full(4, 0.25)
+    for include, first_is_start in ((True, True), (False, False)):
+        p = BoxProblem(sphere, budget=80, start=start)
+        run_paper_ga(p, include_nominal=include, max_generations=0)
+        assert bool(np.all(p.batches[0][0] == start)) is first_is_start
+        assert np.sum(np.all(p.batches[0] == start, axis=1)) == int(first_is_start)
+
+
 def test_elites_are_the_best_with_ties_in_population_order(monkeypatch):
     """MATLAB sorts stably: among individuals with the same score the earlier ones are the
     elites, in that order, at the head of the next population.  A scaling that gives the

@@ -86,7 +86,7 @@ def compare(record: dict, history: dict[str, np.ndarray], x: np.ndarray) -> str 
             return f"trace at evaluation {e}: recorded {f!r}, replayed {got!r}"
     for b, f in record.get("best_at", []):
         if not 1 <= b <= n or not math.isclose(f, best[b - 1], rel_tol=REPLAY_RTOL):
-            return f"best_at {b}: recorded {f!r}, replayed {best[min(b, n) - 1]!r}"
+            return f"best_at {b}: recorded {f!r}, replayed {float(best[min(b, n) - 1])!r}"
     mine = [record["x"][k] for k in FAULT_NAMES]
     if not np.allclose(mine, x[:len(mine)], rtol=REPLAY_RTOL, atol=0.0):
         return f"x: recorded {mine}, replayed {[float(v) for v in x[:len(mine)]]}"
