@@ -105,6 +105,30 @@ def test_a_shared_time_shift_is_proposed_on_every_channel_too(records):
     assert ranked4.count("time_shift(all)") == 1
 
 
+def test_the_best_whole_record_shift_is_always_fitted(records):
+    """A drift of ``theta_u`` and a hum on ``i_eq`` (40 noise sd each) outscore a 1-sample
+    shift of ``theta_m`` and ``omega_m``: the workflow's acquisition singles are the two best
+    suspects and, below them, ``time_shift(all)`` (the base fit understates a shift of the
+    whole record); without the shift, the two best alone."""
+    from ema_bench.diagnosis.results import Fit
+    from ema_bench.diagnosis.stiction import stick_weights
+    from ema_bench.diagnosis.workflow import _Search
+
+    clean, noisy = records
+    sd = dict(zip(SIGNALS, map(float, NOISE_STD)))
+    tr = decoys.mains_hum(decoys.drift(noisy, "theta_u", 40 * sd["theta_u"]), "i_eq",
+                          40 * sd["i_eq"])
+    shifted = decoys.time_shift(decoys.time_shift(tr, "theta_m", 1), "omega_m", 1)
+    base = Fit((), np.zeros(4), 0.0, clean, 0, (), clean)
+    for record, extra in ((shifted, ["time_shift(all)"]), (tr, [])):
+        ranked = [e.fault.name for e in acq.screen(clean, record.data, stick_weights(record),
+                                                   TRAIN) if e.score >= MIN_SCORE]
+        search = _Search(record, {}, Settings(), 0, base, None, print)
+        got = [e.fault.name for e in search.screen_acquisition(base)]
+        assert got == ranked[:2] + extra
+        assert "time_shift(all)" not in ranked[:2]
+
+
 def test_one_channel_faults_make_no_group(records):
     """A drift on one channel: no group screened; the names a group may take."""
     clean, noisy = records
