@@ -332,27 +332,33 @@ def test_a_drift_of_the_whole_chain_is_named_as_one_fault():
 
 
 @pytest.mark.slow
-def test_a_shift_of_the_whole_record_is_fitted_at_its_size():
+@pytest.mark.parametrize("seed, rounds, index, name", [
+    (4189, {"chain": 6}, 3, "time_shift(all)"),
+    (2154, {"fourth": 6}, 1, "time_shift(i_eq)"),
+])
+def test_a_time_shift_is_fitted_at_its_size(seed, rounds, index, name):
     """Eccentricity 0.17 beside every channel 3 samples late (root seed 4189, case 3 of
-    ``blind --chain 6``): at the base fit the screen finds the shift at 2 samples (the
-    physics lags to meet the rest); the fit of ``time_shift(all)`` started there profiles
-    it and ends at the true 3 samples, its training fitness under a third of the fit held
-    at 2 samples.  About 15 CPU-s."""
+    ``blind --chain 6``), and cogging 0.054 beside ``i_eq`` 2 samples late (root seed 2154,
+    case 1 of ``blind --fourth 6``, the fourth round's miss): at the base fit the screen
+    finds the shift a sample short (the physics lags to meet the rest); the fit started
+    there profiles it and ends at the true size, its training fitness under a third of the
+    fit held at the screened shift.  About 10 CPU-s each."""
     from ema_bench.diagnosis import fitting
     from ema_bench.diagnosis.blind import draw_cases, measured_traces
     from ema_bench.diagnosis.stiction import stick_weights
 
-    case = next(c for c in draw_cases(0, 4189, chain=6) if c.index == 3)
-    assert case.decoy == "time_shift" and case.decoy_params["signal"] == "all"
-    truth = case.decoy_params["parts"][0]["samples"]
-    tr = measured_traces(case, 4189)
+    case = next(c for c in draw_cases(0, seed, **rounds) if c.index == index)
+    params = case.decoy_params
+    assert case.decoy == "time_shift" and f"time_shift({params['signal']})" == name
+    truth = params["parts"][0]["samples"] if "parts" in params else params["samples"]
+    tr = measured_traces(case, seed)
     s = Settings()
     base = fitting.fit(tr, (), s, 5)
     found = next(e for e in acq.screen(base.raw, tr.data, stick_weights(tr), TRAIN)
-                 if e.fault.name == "time_shift(all)")
-    assert found.fault.value < truth
+                 if e.fault.name == name)
+    assert found.fault.value == truth - 1
     held = fitting._fit_through(tr, (), s, 6, base.x.copy(), (found.fault,))
     f = fitting.fit(tr, (), s, 6, base.x.copy(), (found.fault,))
     assert held.acquisition[0].value == found.fault.value
-    assert f.acquisition[0].value == truth
+    assert f.acquisition[0].name == name and f.acquisition[0].value == truth
     assert f.fitness < held.fitness / 3 and f.evaluations >= 3 * s.budget
