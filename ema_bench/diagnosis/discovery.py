@@ -27,6 +27,10 @@ accounts for the residuals:
    the best two together with the price per added term (``pair_penalty``).  Between
    accepted terms the training fit decides: a torque at the motor and one at the surface
    differ only through the transmission's twist, which the held-out test may not see.
+4. **The rest** (:func:`_rest`): when no selected term is accepted, every other term is
+   fitted alone from zero and the two with the best training fit are judged, as the
+   library's rest is fitted when no screened effect is accepted (the selection is linear at
+   a base fit that strong nonlinear physics can pull far off).
 """
 
 from __future__ import annotations
