@@ -5,6 +5,7 @@ profile intervals and the screening of candidate effects."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -13,7 +14,7 @@ from ..monitor import simulate_monitor
 from ..objective import KNOWN_TESTS, N_FAULTS, Objective, SearchSpace
 from ..reference import simulate_reference
 from ..registry import run_solver
-from ..seeding import SeedLike
+from ..seeding import SeedLike, child
 from ..suites.problem import make_problem
 from ..traces import OUTPUT_DT, Traces
 from . import acquisition as acq
@@ -92,7 +93,20 @@ def fit(measured: Traces, augment: tuple[str, ...], settings: Settings, seed: Se
 
     With acquisition ``faults`` (their starting values) the model carries them: the physics
     is fitted through them held fixed, then each is fitted again at the new monitor outputs
-    (one alternation; their parameters need no simulation, :mod:`.acquisition`)."""
+    (one alternation; their parameters need no simulation, :mod:`.acquisition`).  A time
+    shift is then profiled (:func:`_climb_shift`): the physics follows a shift of the whole
+    record (it lags to meet part of it), so the shift found at one fit's outputs stops short
+    of the truth."""
+    f = _fit_through(measured, augment, settings, seed, start, faults)
+    if any(a.kind == "time_shift" for a in f.acquisition):
+        f = _climb_shift(measured, augment, settings, seed, f)
+    return f
+
+
+def _fit_through(measured: Traces, augment: tuple[str, ...], settings: Settings,
+                 seed: SeedLike, start: np.ndarray | None,
+                 faults: tuple[Acquisition, ...]) -> Fit:
+    """One fit of the physics through ``faults`` held, then the faults refitted (:func:`fit`)."""
     train = subset_traces(measured, TRAIN)
     weights = _fit_weights(train, faults)
     problem = make_problem(measured=train, budget=settings.budget, augment=augment,
@@ -113,6 +127,50 @@ def fit(measured: Traces, augment: tuple[str, ...], settings: Settings, seed: Se
     obj = CarriedObjective(train, problem.space, sample_weights=weights, faults=new)
     fitness = float(obj.evaluate(res.x[None, :])[0][0])
     return Fit(augment, res.x, fitness, acq.carry(raw, new), res.evaluations, new, raw, ivs)
+
+
+def _moved(faults: tuple[Acquisition, ...], step: int) -> tuple[Acquisition, ...] | None:
+    """``faults`` with every time shift ``step`` samples later (``None``: out of bounds)."""
+    out = []
+    for a in faults:
+        if a.kind == "time_shift":
+            v = a.value + step
+            if not acq.KINDS["time_shift"].lower <= v <= acq.KINDS["time_shift"].upper:
+                return None
+            parts = {"parts": tuple(replace(p, value=v) for p in a.parts())} \
+                if "parts" in a.detail else {}
+            a = replace(a, value=v, detail={**a.detail, **parts})
+        out.append(a)
+    return tuple(out)
+
+
+def _climb_shift(measured: Traces, augment: tuple[str, ...], settings: Settings,
+                 seed: SeedLike, f: Fit) -> Fit:
+    """Profile the time shifts of ``f``: the physics fitted again (warm, from ``f``) with
+    every shift one sample later, then earlier, while the training fitness improves.
+
+    A shift of every channel by 3 samples (root seed 4189, case 3) was found at 2 at the
+    base fit's outputs; the physics fitted through 2 samples lagged the third one and the
+    refitted shift stayed at 2 (training fitness 1.4e-3; through 3 samples: 3.4e-4).  Each
+    step is one fit (``settings.budget`` evaluations), at least two per model."""
+    tried = {tuple(a.value for a in f.acquisition if a.kind == "time_shift")}
+    evaluations, k = f.evaluations, 0
+    for step in (1, -1):
+        moved = False
+        while (faults := _moved(f.acquisition, step)) is not None:
+            key = tuple(a.value for a in faults if a.kind == "time_shift")
+            if key in tried:
+                break
+            tried.add(key)
+            k += 1
+            c = _fit_through(measured, augment, settings, child(seed, k), f.x, faults)
+            evaluations += c.evaluations
+            if c.fitness >= f.fitness:
+                break
+            f, moved = c, True
+        if moved:
+            break
+    return replace(f, evaluations=evaluations)
 
 
 def assess(measured: Traces, model: Fit, weights: dict[str, np.ndarray],
