@@ -171,11 +171,10 @@ def _rest(search, selected: tuple[str, ...], keep: int = 2) -> list[Trial]:
                 search.start((n,), {}, base.x[:N_FAULTS]))
         search.evaluations += f.evaluations
         fits.append((f.fitness, n, f.x))
+    best = sorted(fits, key=lambda v: v[0])[:keep]
     search.stage("term dictionary: the rest fitted alone, best "
-                 + ", ".join(n for _, n, _ in sorted(fits, key=lambda v: v[0])[:keep]))
-    return [search.run((n,), x, None, 0.0)
-            for fitness, n, x in sorted(fits, key=lambda v: v[0])[:keep]
-            if fitness < base.fitness]
+                 + ", ".join(n for _, n, _ in best))
+    return [search.run((n,), x, None, 0.0) for fitness, n, x in best if fitness < base.fitness]
 
 
 def discover(search, against: Trial | None) -> Trial | None:
