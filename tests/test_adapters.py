@@ -115,8 +115,9 @@ def test_scipy_differential_evolution_batches_and_stops_at_the_budget():
 
 # --- pymoo -----------------------------------------------------------------------------
 
-def test_pymoo_pattern_search_solves_the_small_case_vectorised():
+def test_pymoo_pattern_search_solves_the_small_case_vectorised(monkeypatch):
     pytest.importorskip("pymoo", reason="pymoo not installed (pip install 'ema-bench[pymoo]')")
+    import pymoo.algorithms.soo.nonconvex.pattern as pattern
     from pymoo.algorithms.soo.nonconvex.ga import GA
     from pymoo.algorithms.soo.nonconvex.pattern import PatternSearch
 
@@ -124,6 +125,12 @@ def test_pymoo_pattern_search_solves_the_small_case_vectorised():
 
     run = AdapterRun("pymoo-pattern-search", case="small", track="twin", budget=300,
                      library="pymoo")
+    # pymoo 0.6 draws PatternSearch's exploration order from an unseeded generator (its
+    # `seed` does not reach `exploration_move`; docs/adapters.md): seeded here, so the
+    # test is deterministic (unseeded, a CI run missed the target within 300 evaluations)
+    rng, explore = np.random.default_rng(run.solver_seed()), pattern.exploration_move
+    monkeypatch.setattr(pattern, "exploration_move",
+                        lambda *a, **k: explore(*a, random_state=rng, **k))
     solve(run.problem, PatternSearch(x0=run.problem.to_unit(run.problem.start)),
           seed=run.solver_seed())
     rec = run.record("budget")
