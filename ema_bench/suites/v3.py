@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import json
 from collections.abc import Sequence
 from importlib.resources.abc import Traversable
 
@@ -104,23 +103,12 @@ def tolerance_key(case: str, track: str) -> str:
 ENTRY_FIELDS = ("names", "sigma", "bias", "judged", "z", "p_old", "p_new")
 
 
-def tolerances_path() -> Traversable:
-    return package_file(TOLERANCES_FILE)
-
-
 @functools.cache
 def shipped_tolerances() -> dict:
     """The shipped tolerance table (empty entries while it is absent); SuiteError for a
     table of another suite or model version."""
-    path = tolerances_path()
-    if not path.is_file():
-        return {"suite": SUITE_ID, "model_version": V3_MODEL_VERSION, "entries": {}}
-    data = json.loads(path.read_text())
-    if data.get("suite") != SUITE_ID or data.get("model_version") != V3_MODEL_VERSION:
-        raise SuiteError(f"{TOLERANCES_FILE} is for suite {data.get('suite')!r} on model "
-                         f"version {data.get('model_version')!r}, not {SUITE_ID} on "
-                         f"{V3_MODEL_VERSION}: regenerate it (benchmarks/v3_tolerances.py)")
-    return data
+    return read_targets(package_file(TOLERANCES_FILE), SUITE_ID,
+                        model_version=V3_MODEL_VERSION, remake="(benchmarks/v3_tolerances.py)")
 
 
 def tolerance(ranges: np.ndarray, sigma: np.ndarray, z: float) -> np.ndarray:
@@ -269,14 +257,10 @@ def target_keys(seeds: int | None = None, tracks: Sequence[str] = ("reference", 
 def _target_keys(sel: Selection, seeds: int | None,
                  tracks: Sequence[str] | None) -> list[str]:
     """:func:`target_keys` of the tiers, conditions and instances selected."""
-    if sel.cases:
-        raise SuiteError(f"--suite {SUITE_ID} picks its instances with --tiers, --conditions "
-                         "and --per-tier, not --cases")
     from ..instances import TRACKS
 
-    return target_keys(seeds, tracks or TRACKS,
-                       [int(t) for t in sel.tiers] if sel.tiers else None, sel.conditions,
-                       sel.per_tier)
+    return target_keys(seeds, tracks or TRACKS, v2.selected_tiers(sel, SUITE_ID),
+                       sel.conditions, sel.per_tier)
 
 
 def _best_known(inst: Instance, track: str, seed: int, root_seed: int,
