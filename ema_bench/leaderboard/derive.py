@@ -94,6 +94,16 @@ def params_of(record: dict) -> EMAParams:
                          f"{', '.join(sorted(MODEL_PARAMS))}") from None
 
 
+def best_known_of(record: dict) -> dict | None:
+    """The best-known entry a record is judged on: its instance's, at the record's track,
+    seed, root seed and model version (:meth:`~ema_bench.suites.base.Instance.best_known`),
+    never the record's own claim; None where the suite has no fixed target."""
+    inst = find(str(record["case"]))
+    return None if inst is None else inst.best_known(
+        str(record["track"]), int(record["seed"]), int(record.get("root_seed") or 0),
+        model_version(record))
+
+
 def truth_of(record: dict) -> np.ndarray:
     """The true faults of the record's instance, from the suite (or, for a case drawn from the
     seed, the rebuilt instance), never from the record."""
@@ -165,10 +175,7 @@ def derive(record: dict) -> Derived:
         except (KeyError, TypeError, ValueError) as exc:
             raise DerivationError(f"final vector x unreadable ({exc})") from None
     err = range_error(final, truth)
-    inst = find(record["case"])
-    known = None if inst is None else inst.best_known(
-        record["track"], int(record["seed"]), int(record.get("root_seed", 0)),
-        model_version(record))
+    inst, known = find(record["case"]), best_known_of(record)
     # improvements only: a legacy trace ends with the last evaluation, which may repeat
     imp = [i for i in range(len(fit)) if i == 0 or fit[i] < fit[i - 1]]
     last = ev[imp[-1]]
