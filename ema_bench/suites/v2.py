@@ -380,14 +380,14 @@ def _judged(inst: Instance, track: str) -> np.ndarray | None:
     """Which parameters carry parameter targets on ``track``, or None (all of them).
 
     On the reference track: those :func:`judged_parameters` keeps on the instance's
-    clean-data fit (``clean_x`` of its seed-0 reference entry in the v2 table, noise-free
-    reference traces, same objective).  The twin track (no model-form bias), v1's problems
-    (:func:`_v1_entries`: v1's clean-data fits exclude nothing, docs/suite-v2.md) and cases
-    without a computed entry judge all."""
+    clean-data fit (``clean_x`` of its seed-0 reference entry in its suite's best-known
+    table: v2's, or v3's own fits on model version 4; noise-free reference traces, same
+    objective).  The twin track (no model-form bias), v1's problems (:func:`_v1_entries`:
+    v1's clean-data fits exclude nothing, docs/suite-v2.md) and cases without a computed
+    entry judge all."""
     if track != "reference" or _v1_entries(inst):
         return None
-    entry = shipped_targets()["entries"].get(target_key(target_case(inst), track,
-                                                        CLEAN_SEED))
+    entry = inst.best_known(track, CLEAN_SEED)
     return None if entry is None else judged_by_entry(inst, entry)
 
 

@@ -273,20 +273,8 @@ def _best_known(inst: Instance, track: str, seed: int, root_seed: int,
     return shipped_targets()["entries"].get(key)
 
 
-def _judged(inst: Instance, track: str) -> np.ndarray | None:
-    """v2's rule (:func:`ema_bench.suites.v2.judged_by_entry`) on v3's own clean-data fits:
-    on the reference track the parameters whose clean-data bias is within
-    :data:`~ema_bench.suites.v2.MAX_TARGET_BIAS` of range; all on the twin track, on v1's
-    problems (tier 4 with full information) and without an entry."""
-    if track != "reference" or v2._v1_entries(inst):
-        return None
-    entry = shipped_targets()["entries"].get(target_key(tolerance_case(inst), track,
-                                                        v2.CLEAN_SEED))
-    return None if entry is None else v2.judged_by_entry(inst, entry)
-
-
 SUITE = Suite(id=SUITE_ID, lookup=_lookup, best_known=_best_known,
-              judged=_judged, ioh_instance=v2.SUITE.ioh_instance,
+              judged=v2.SUITE.judged, ioh_instance=v2.SUITE.ioh_instance,
               ioh_functions=v2.SUITE.ioh_functions, complete_cases=_complete_cases,
               case_order=lambda: cases(list(v2.TIERS), list(v2.CONDITIONS)),
               sweep_cases=lambda sel: [PREFIX + c for c in v2.SUITE.sweep_cases(sel)],
