@@ -146,11 +146,10 @@ def run_record(problem: Problem, result: SolveResult, *, case: str, track: str, 
         every, ranges, judged = (inst.frame(track) if inst is not None else
                                  (np.array(list(problem.score(problem.lower).truth.values())),
                                   None, None))
-    keep = trajectory_indices(hist["x"], hist["fitness"], every,
-                              [] if known is None else
-                              fitness_targets(known["f_star"], known["f_nominal"],
-                                              inst.fitness_precisions), ranges,
-                              judged)
+    precisions = FITNESS_PRECISIONS if inst is None else inst.fitness_precisions
+    levels = [] if known is None else fitness_targets(known["f_star"], known["f_nominal"],
+                                                      precisions)
+    keep = trajectory_indices(hist["x"], hist["fitness"], every, levels, ranges, judged)
     rec["trajectory"] = trajectory(hist["x"], hist["fitness"], keep)
     # the trace is the trajectory without vectors, and the last evaluation
     rec["trace"] = [[p[0], p[1]] for p in rec["trajectory"]]
@@ -170,9 +169,7 @@ def run_record(problem: Problem, result: SolveResult, *, case: str, track: str, 
                        (SUCCESS_RANGE_ERROR,), judged=judged, scales=ranges)[0]
                    if success else None,
                    accuracy=score.accuracy, range_error=score.range_error,
-                   targets=anytime_targets(best, hits, known,
-                                           FITNESS_PRECISIONS if inst is None
-                                           else inst.fitness_precisions))
+                   targets=anytime_targets(best, hits, known, precisions))
     return rec
 
 

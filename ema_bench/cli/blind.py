@@ -51,26 +51,22 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "traces of 'ema-bench simulate --root-seed R --seed i' (reference-model "
                         "cases, before any acquisition decoy), the diagnosis of 'ema-bench "
                         "diagnose --root-seed R --seed i'")
-    p.add_argument("--extra", type=count(0, 1000), default=0, metavar="K",
-                   help="K more cases of each third-round category (an effect beside an "
-                        "acquisition-chain fault, three effects at once), after the --cases "
-                        "cases, which they leave as they were (default 0)")
-    p.add_argument("--fourth", type=count(0, 1000), default=0, metavar="K",
-                   help="K more cases of each fourth-round category (an effect beside an "
-                        "acquisition fault sized at 1-4x, and at 1-1.5x, its detection "
-                        "threshold), after the others, which they leave as they were "
-                        "(default 0)")
-    p.add_argument("--chain", type=count(0, 1000), default=0, metavar="K",
-                   help="K more cases of each whole-chain category (an effect beside a fault "
-                        "of the whole recording chain sized at 1-4x its threshold, and "
-                        "beside heavy-tailed noise on every channel), after the others, "
-                        "which they leave as they were (default 0)")
-    p.add_argument("--outside", type=count(0, 1000), default=0, metavar="K",
-                   help="K more cases of each outside-library category (physics of a known "
-                        "form no library effect holds, judged on the term the diagnosis "
-                        "names; nulls made by the reference and by the monitor, judged on "
-                        "discovering nothing), after the others, which they leave as they "
-                        "were (default 0)")
+    # the later rounds' categories, each drawn after the cases before it
+    for flag, what in (
+            ("--extra", "third-round category (an effect beside an acquisition-chain fault, "
+                        "three effects at once), after the --cases cases"),
+            ("--fourth", "fourth-round category (an effect beside an acquisition fault sized "
+                         "at 1-4x, and at 1-1.5x, its detection threshold), after the others"),
+            ("--chain", "whole-chain category (an effect beside a fault of the whole "
+                        "recording chain sized at 1-4x its threshold, and beside heavy-tailed "
+                        "noise on every channel), after the others"),
+            ("--outside", "outside-library category (physics of a known form no library "
+                          "effect holds, judged on the term the diagnosis names; nulls made "
+                          "by the reference and by the monitor, judged on discovering "
+                          "nothing), after the others")):
+        p.add_argument(flag, type=count(0, 1000), default=0, metavar="K",
+                       help=f"K more cases of each {what}, which they leave as they were "
+                            "(default 0)")
     p.add_argument("--only", default=None, metavar="CATEGORIES",
                    help="comma-separated categories: run and summarise only their cases of "
                         "the suite drawn (e.g. a rerun of part of a committed suite)")

@@ -38,15 +38,10 @@ ALPHA = 0.05
 PACKAGED_BASELINE = "share/ema-bench/leaderboards"
 
 
-def record_suite(record: dict) -> str:
-    """The suite version a record was scored under (records before suites: ``"none"``)."""
-    return str(record.get("suite", "none"))
-
-
 def check_suites(records: list[dict], where: str, suite: str = DEFAULT.id) -> None:
     """ValueError naming both versions when ``records`` are of another suite version than
-    ``suite``."""
-    other = sorted({record_suite(r) for r in records} - {suite})
+    ``suite`` (a record written before suite versions: ``"none"``)."""
+    other = sorted({str(r.get("suite", "none")) for r in records} - {suite})
     if other:
         raise ValueError(f"{where} holds runs of suite version {', '.join(other)}; this is "
                          f"{suite}: their targets differ and they cannot be compared "

@@ -43,7 +43,6 @@ from ..scoring import SUCCESS_RANGE_ERROR, paper_accuracy, range_error
 from ..suites import find
 from ..suites.targets import (
     BUDGET_CHECKPOINTS,
-    FITNESS_PRECISIONS,
     PARAMETER_TARGETS,
     fitness_targets,
     precision_key,
@@ -95,6 +94,16 @@ def params_of(record: dict) -> EMAParams:
                          f"{', '.join(sorted(MODEL_PARAMS))}") from None
 
 
+def best_known_of(record: dict) -> dict | None:
+    """The best-known entry a record is judged on: its instance's, at the record's track,
+    seed, root seed and model version (:meth:`~ema_bench.suites.base.Instance.best_known`),
+    never the record's own claim; None where the suite has no fixed target."""
+    inst = find(str(record["case"]))
+    return None if inst is None else inst.best_known(
+        str(record["track"]), int(record["seed"]), int(record.get("root_seed") or 0),
+        model_version(record))
+
+
 def truth_of(record: dict) -> np.ndarray:
     """The true faults of the record's instance, from the suite (or, for a case drawn from the
     seed, the rebuilt instance), never from the record."""
@@ -126,22 +135,16 @@ def frame_of(record: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def _points(record: dict) -> tuple[list[int], list[float], list[np.ndarray] | None]:
     """Evaluations, fitness and (schema 2) vectors of the record's evidence."""
-    if schema(record) >= 2:
-        tr = record.get("trajectory")
-        if not isinstance(tr, list) or not tr:
-            raise DerivationError("schema-2 record without a trajectory")
-        try:
-            return ([int(p[0]) for p in tr], [float(p[1]) for p in tr],
-                    [np.asarray(p[2], dtype=float) for p in tr])
-        except (TypeError, ValueError, IndexError) as exc:
-            raise DerivationError(f"malformed trajectory ({exc})") from None
-    tr = record.get("trace")
+    exact = schema(record) >= 2
+    name = "trajectory" if exact else "trace"
+    tr = record.get(name)
     if not isinstance(tr, list) or not tr:
-        raise DerivationError("legacy record without a trace")
+        raise DerivationError(f"{'schema-2' if exact else 'legacy'} record without a {name}")
     try:
-        return [int(p[0]) for p in tr], [float(p[1]) for p in tr], None
+        return ([int(p[0]) for p in tr], [float(p[1]) for p in tr],
+                [np.asarray(p[2], dtype=float) for p in tr] if exact else None)
     except (TypeError, ValueError, IndexError) as exc:
-        raise DerivationError(f"malformed trace ({exc})") from None
+        raise DerivationError(f"malformed {name} ({exc})") from None
 
 
 def _first(values: list[bool], ev: list[int]) -> int | None:
@@ -172,10 +175,7 @@ def derive(record: dict) -> Derived:
         except (KeyError, TypeError, ValueError) as exc:
             raise DerivationError(f"final vector x unreadable ({exc})") from None
     err = range_error(final, truth)
-    inst = find(record["case"])
-    known = None if inst is None else inst.best_known(
-        record["track"], int(record["seed"]), int(record.get("root_seed", 0)),
-        model_version(record))
+    inst, known = find(record["case"]), best_known_of(record)
     # improvements only: a legacy trace ends with the last evaluation, which may repeat
     imp = [i for i in range(len(fit)) if i == 0 or fit[i] < fit[i - 1]]
     last = ev[imp[-1]]
@@ -187,10 +187,9 @@ def derive(record: dict) -> Derived:
         known_final = full_imp[-1] <= cut
     f_hits = None
     if known is not None:
-        ladder = FITNESS_PRECISIONS if inst is None else inst.fitness_precisions
-        levels = fitness_targets(known["f_star"], known["f_nominal"], ladder)
+        levels = fitness_targets(known["f_star"], known["f_nominal"], inst.fitness_precisions)
         f_hits = {precision_key(p): _first([f <= lv for f in fit], ev)
-                  for p, lv in zip(ladder, levels)}
+                  for p, lv in zip(inst.fitness_precisions, levels)}
     if vecs is not None:
         worst = [float(np.max((np.abs(v[:every.size] - every) / ranges)[judged]))
                  for v in vecs]

@@ -72,7 +72,8 @@ from ..faults import FAULT_NAMES
 from ..suites import DEFAULT, SUITES, find
 from ..suites.targets import FITNESS_PRECISIONS, PARAMETER_TARGETS
 from ..suites.v1 import SANITY_CASES
-from .run_store import is_error, model_version
+from .derive import best_known_of
+from .run_store import is_error
 
 log = logging.getLogger("ema_bench")
 
@@ -125,10 +126,7 @@ def optimum(record: Mapping[str, Any]) -> tuple[float, float] | None:
     re-derivation uses, else None (root seed other than 0, seed beyond the shipped ones, the
     sanity case, a custom case).  Never the record's own claim: a record that states a lower
     ``f_star`` would export better precisions than it reached."""
-    inst = find(str(record["case"]))
-    known = None if inst is None else inst.best_known(
-        str(record["track"]), int(record["seed"]), int(record.get("root_seed") or 0),
-        model_version(record))
+    known = best_known_of(record)
     return None if known is None else (float(known["f_star"]), float(known["f_nominal"]))
 
 

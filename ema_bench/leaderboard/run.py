@@ -13,7 +13,7 @@ from .. import jsonio
 from ..escape import code_span
 from ..faults import CASES
 from ..records import schema
-from ..suites import DEFAULT, board_suite, find
+from ..suites import DEFAULT, board_suite
 from ..suites.targets import targets_note
 from ..suites.v1 import SANITY_CASES
 from ..sweep.executors import Runner
@@ -22,6 +22,7 @@ from ..sweep.schema import opt, req
 from ..trace_cache import MODEL_VERSION
 from . import by_instance
 from .anytime import anytime_scores
+from .derive import best_known_of
 from .figures import (
     ECDF_KINDS,
     convergence_plot,
@@ -101,15 +102,6 @@ SUMMARY_SCHEMA = {"command": req("str"), "runs": req("int"), "suite": req("str")
                   "saturation": opt("dict"), "claims_by_instance": opt("list")}
 
 
-def _has_f_star(record: dict) -> bool:
-    """Whether a run is scored on fitness targets: its instance has a best-known ``f*``
-    (looked up as the scores' re-derivation does, :mod:`.derive`)."""
-    inst = find(str(record["case"]))
-    return inst is not None and inst.best_known(
-        str(record["track"]), int(record["seed"]), int(record.get("root_seed") or 0),
-        model_version(record)) is not None
-
-
 def write_outputs(records: list[dict], out: Path, command: str, plots: bool = True,
                   landscape_n: int = 40, expected: int | None = None) -> dict[str, object]:
     """Tables and plots of ``records`` under ``out``; returns a summary."""
@@ -122,7 +114,7 @@ def write_outputs(records: list[dict], out: Path, command: str, plots: bool = Tr
     suites = ", ".join(sorted({str(r.get("suite", DEFAULT.id)) for r in records}))
     ranked = [r for r in records if r["case"] not in SANITY_CASES]
     targets = targets_note(sorted({int(r.get("root_seed") or 0) for r in ranked}),
-                           sum(_has_f_star(r) for r in ranked), len(ranked))
+                           sum(best_known_of(r) is not None for r in ranked), len(ranked))
     # the models the records were made with (a compatible earlier version's show as such)
     versions = ", ".join(sorted({model_version(r) for r in records})) or MODEL_VERSION
     legacy = sum(1 for r in records if not is_error(r) and schema(r) < 2)

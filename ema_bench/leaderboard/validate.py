@@ -40,8 +40,8 @@ from ..suites.targets import (
     precision_key,
 )
 from ..trace_cache import COMPATIBLE_VERSIONS, MODEL_VERSION, is_comparable
-from .derive import DerivationError, Derived, derive, frame_of, params_of, truth_of
-from .run_store import IDENTITY_FIELDS, is_error, model_version
+from .derive import DerivationError, Derived, best_known_of, derive, frame_of, params_of, truth_of
+from .run_store import IDENTITY_FIELDS, is_error
 
 #: A fitness this far (in units of the instance's f*-to-nominal gap) below the suite's
 #: best-known f* is a claim to confirm, not a record to accept.
@@ -210,7 +210,7 @@ def _check_claims(r: dict, d: Derived) -> list[str]:
                 not _close(claimed.get(n), derived[n]) for n in FAULT_NAMES):
             bad.append(_claim(field, claimed, derived))
     t = r["targets"] if isinstance(r["targets"], dict) else {}
-    known = find(r["case"]).best_known(r["track"], r["seed"], r["root_seed"], model_version(r))
+    known = best_known_of(r)
     if known is not None:
         for k in ("f_star", "f_nominal"):
             if t.get(k) != known[k]:

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..faults import NOMINAL, faults_to_dict
+from ..faults import NOMINAL
 from ..instances import TRACKS
 from ..jsonio import write_atomic
 from ..registry import run_solver
@@ -105,7 +105,7 @@ def polish(case: str, track: str, seed: int,
     best_x, best_f, stages, first = _run_stages(make, STAGES, truth, nominal, node)
     f_nominal = float(first.objective.evaluate(nominal[None, :])[0][0])
     entry = {"key": target_key(case, track, seed), "f_star": float(best_f),
-             "x_star": faults_to_dict(best_x), "f_nominal": f_nominal,
+             "x_star": dict(zip(first.names, map(float, best_x))), "f_nominal": f_nominal,
              "fitness_at_truth": first.fitness_at_truth(),
              "bias_range_error": float(np.max(range_error(best_x[:NOMINAL.size],
                                                           truth[:NOMINAL.size]))),
@@ -113,7 +113,6 @@ def polish(case: str, track: str, seed: int,
     if root_seed != TARGET_ROOT_SEED:
         entry["root_seed"] = int(root_seed)
     errs = np.abs(best_x - truth) / (first.upper - first.lower)
-    entry["x_star"] = dict(zip(first.names, map(float, best_x)))
     entry["bias_range_errors"] = dict(zip(first.names, map(float, errs)))
     if inst.suite.clean_fits and track == "reference" and seed == CLEAN_SEED:
         entry.update(clean_fit(case))

@@ -70,11 +70,13 @@ TABLE_SCHEMA = {"suite": req("str"), "model_version": req("str"), "method": opt(
 
 
 def read_targets(path: Traversable, suite: str, missing_ok: bool = True,
-                 model_version: str = SUITE_MODEL_VERSION) -> dict:
-    """A best-known table of ``suite`` on its ``model_version``; an empty ``entries`` when
-    the file is missing and ``missing_ok`` (a checkout before ``ema-bench targets``), else
-    :class:`SuiteError`; SuiteError when it is labelled for another suite or model
-    version."""
+                 model_version: str = SUITE_MODEL_VERSION,
+                 remake: str = "with 'ema-bench targets'") -> dict:
+    """A best-known table of ``suite`` on its ``model_version`` (or another table of a suite
+    labelled so: v3's tolerances); an empty ``entries`` when the file is missing and
+    ``missing_ok`` (a checkout before ``ema-bench targets``), else :class:`SuiteError`;
+    SuiteError when it is labelled for another suite or model version (the message says how
+    to regenerate it: ``remake``)."""
     name = getattr(path, "name", str(path))
     if not path.is_file():
         if missing_ok:
@@ -85,7 +87,7 @@ def read_targets(path: Traversable, suite: str, missing_ok: bool = True,
     if data.get("suite") != suite or data.get("model_version") != model_version:
         raise SuiteError(f"{name} is for suite {data.get('suite')!r} on model version "
                          f"{data.get('model_version')!r}, not {suite} on "
-                         f"{model_version}: regenerate it with 'ema-bench targets'")
+                         f"{model_version}: regenerate it {remake}")
     return data
 
 

@@ -380,14 +380,14 @@ def _judged(inst: Instance, track: str) -> np.ndarray | None:
     """Which parameters carry parameter targets on ``track``, or None (all of them).
 
     On the reference track: those :func:`judged_parameters` keeps on the instance's
-    clean-data fit (``clean_x`` of its seed-0 reference entry in the v2 table, noise-free
-    reference traces, same objective).  The twin track (no model-form bias), v1's problems
-    (:func:`_v1_entries`: v1's clean-data fits exclude nothing, docs/suite-v2.md) and cases
-    without a computed entry judge all."""
+    clean-data fit (``clean_x`` of its seed-0 reference entry in its suite's best-known
+    table: v2's, or v3's own fits on model version 4; noise-free reference traces, same
+    objective).  The twin track (no model-form bias), v1's problems (:func:`_v1_entries`:
+    v1's clean-data fits exclude nothing, docs/suite-v2.md) and cases without a computed
+    entry judge all."""
     if track != "reference" or _v1_entries(inst):
         return None
-    entry = shipped_targets()["entries"].get(target_key(target_case(inst), track,
-                                                        CLEAN_SEED))
+    entry = inst.best_known(track, CLEAN_SEED)
     return None if entry is None else judged_by_entry(inst, entry)
 
 
@@ -430,13 +430,19 @@ def _complete_cases(entered, per_tier: int | None) -> list[str]:
             for n in instance_names(d)[:per_tier]]
 
 
-def _sweep_cases(sel: Selection) -> list[str]:
-    """Tiers x conditions (default all), the first ``per_tier`` instances of each."""
+def selected_tiers(sel: Selection, suite: str = SUITE_ID) -> list[int] | None:
+    """The tiers a selection of a suite with tiers names (None: all); SuiteError where it
+    names cases instead."""
     if sel.cases:
-        raise SuiteError(f"--suite {SUITE_ID} picks its instances with --tiers, --conditions "
+        raise SuiteError(f"--suite {suite} picks its instances with --tiers, --conditions "
                          "and --per-tier, not --cases")
     # a tier that is not a number: a ValueError, one line on the command line
-    return cases([int(t) for t in (sel.tiers or TIERS)], sel.conditions or list(CONDITIONS),
+    return [int(t) for t in sel.tiers] if sel.tiers else None
+
+
+def _sweep_cases(sel: Selection) -> list[str]:
+    """Tiers x conditions (default all), the first ``per_tier`` instances of each."""
+    return cases(selected_tiers(sel) or list(TIERS), sel.conditions or list(CONDITIONS),
                  sel.per_tier)
 
 
@@ -453,14 +459,10 @@ def _sweep_budget(keys: Sequence[str], budget: int | None, per_dim: int | None,
 def _target_keys(sel: Selection, seeds: int | None,
                  tracks: Sequence[str] | None) -> list[str]:
     """:func:`target_keys` of the tiers, conditions and instances selected."""
-    if sel.cases:
-        raise SuiteError(f"--suite {SUITE_ID} picks its instances with --tiers, --conditions "
-                         "and --per-tier, not --cases")
     from ..instances import TRACKS
 
-    keys = target_keys(seeds or TARGET_SEEDS, tracks or TRACKS,
-                       [int(t) for t in sel.tiers] if sel.tiers else None, sel.conditions,
-                       sel.per_tier)
+    keys = target_keys(seeds or TARGET_SEEDS, tracks or TRACKS, selected_tiers(sel),
+                       sel.conditions, sel.per_tier)
     if not keys:
         raise SuiteError("no v2 case there needs its own entries (tier 4 with full "
                          "information uses v1's table)")

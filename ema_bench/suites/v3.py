@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import json
 from collections.abc import Sequence
 from importlib.resources.abc import Traversable
 
@@ -104,23 +103,12 @@ def tolerance_key(case: str, track: str) -> str:
 ENTRY_FIELDS = ("names", "sigma", "bias", "judged", "z", "p_old", "p_new")
 
 
-def tolerances_path() -> Traversable:
-    return package_file(TOLERANCES_FILE)
-
-
 @functools.cache
 def shipped_tolerances() -> dict:
     """The shipped tolerance table (empty entries while it is absent); SuiteError for a
     table of another suite or model version."""
-    path = tolerances_path()
-    if not path.is_file():
-        return {"suite": SUITE_ID, "model_version": V3_MODEL_VERSION, "entries": {}}
-    data = json.loads(path.read_text())
-    if data.get("suite") != SUITE_ID or data.get("model_version") != V3_MODEL_VERSION:
-        raise SuiteError(f"{TOLERANCES_FILE} is for suite {data.get('suite')!r} on model "
-                         f"version {data.get('model_version')!r}, not {SUITE_ID} on "
-                         f"{V3_MODEL_VERSION}: regenerate it (benchmarks/v3_tolerances.py)")
-    return data
+    return read_targets(package_file(TOLERANCES_FILE), SUITE_ID,
+                        model_version=V3_MODEL_VERSION, remake="(benchmarks/v3_tolerances.py)")
 
 
 def tolerance(ranges: np.ndarray, sigma: np.ndarray, z: float) -> np.ndarray:
@@ -269,14 +257,10 @@ def target_keys(seeds: int | None = None, tracks: Sequence[str] = ("reference", 
 def _target_keys(sel: Selection, seeds: int | None,
                  tracks: Sequence[str] | None) -> list[str]:
     """:func:`target_keys` of the tiers, conditions and instances selected."""
-    if sel.cases:
-        raise SuiteError(f"--suite {SUITE_ID} picks its instances with --tiers, --conditions "
-                         "and --per-tier, not --cases")
     from ..instances import TRACKS
 
-    return target_keys(seeds, tracks or TRACKS,
-                       [int(t) for t in sel.tiers] if sel.tiers else None, sel.conditions,
-                       sel.per_tier)
+    return target_keys(seeds, tracks or TRACKS, v2.selected_tiers(sel, SUITE_ID),
+                       sel.conditions, sel.per_tier)
 
 
 def _best_known(inst: Instance, track: str, seed: int, root_seed: int,
@@ -289,20 +273,8 @@ def _best_known(inst: Instance, track: str, seed: int, root_seed: int,
     return shipped_targets()["entries"].get(key)
 
 
-def _judged(inst: Instance, track: str) -> np.ndarray | None:
-    """v2's rule (:func:`ema_bench.suites.v2.judged_by_entry`) on v3's own clean-data fits:
-    on the reference track the parameters whose clean-data bias is within
-    :data:`~ema_bench.suites.v2.MAX_TARGET_BIAS` of range; all on the twin track, on v1's
-    problems (tier 4 with full information) and without an entry."""
-    if track != "reference" or v2._v1_entries(inst):
-        return None
-    entry = shipped_targets()["entries"].get(target_key(tolerance_case(inst), track,
-                                                        v2.CLEAN_SEED))
-    return None if entry is None else v2.judged_by_entry(inst, entry)
-
-
 SUITE = Suite(id=SUITE_ID, lookup=_lookup, best_known=_best_known,
-              judged=_judged, ioh_instance=v2.SUITE.ioh_instance,
+              judged=v2.SUITE.judged, ioh_instance=v2.SUITE.ioh_instance,
               ioh_functions=v2.SUITE.ioh_functions, complete_cases=_complete_cases,
               case_order=lambda: cases(list(v2.TIERS), list(v2.CONDITIONS)),
               sweep_cases=lambda sel: [PREFIX + c for c in v2.SUITE.sweep_cases(sel)],
