@@ -400,3 +400,8 @@ def test_v3s_table_keys_are_v2s_objectives_and_v1s_problems_and_select_as_v2s():
         ["v3-t12-s00@surface-current|twin|0", "v3-t12-s00@surface-current|twin|1"]
     with pytest.raises(SuiteError, match="not --cases"):
         sel(cases=["small"])
+    # the sweep's selection names the suite the user asked for, not the one v3 builds on
+    from ema_bench.suites import SUITES
+    from ema_bench.suites.base import Selection
+    with pytest.raises(SuiteError, match="^--suite emafdi-v3 picks its instances"):
+        SUITES["emafdi-v3"].sweep_cases(Selection(cases=["small"]))

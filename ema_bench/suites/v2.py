@@ -440,9 +440,10 @@ def selected_tiers(sel: Selection, suite: str = SUITE_ID) -> list[int] | None:
     return [int(t) for t in sel.tiers] if sel.tiers else None
 
 
-def _sweep_cases(sel: Selection) -> list[str]:
-    """Tiers x conditions (default all), the first ``per_tier`` instances of each."""
-    return cases(selected_tiers(sel) or list(TIERS), sel.conditions or list(CONDITIONS),
+def sweep_cases(sel: Selection, suite: str = SUITE_ID) -> list[str]:
+    """Tiers x conditions (default all), the first ``per_tier`` instances of each (v2's
+    names; ``suite`` names the suite in the error for a selection by --cases)."""
+    return cases(selected_tiers(sel, suite) or list(TIERS), sel.conditions or list(CONDITIONS),
                  sel.per_tier)
 
 
@@ -479,6 +480,6 @@ SUITE = Suite(id=SUITE_ID, lookup=_lookup, best_known=_best_known, judged=_judge
               ioh_instance=_ioh_instance, ioh_functions=lambda: list(CONDITIONS),
               complete_cases=_complete_cases,
               case_order=lambda: cases(list(TIERS), list(CONDITIONS)),
-              sweep_cases=_sweep_cases, sweep_budget=_sweep_budget, target_keys=_target_keys,
+              sweep_cases=sweep_cases, sweep_budget=_sweep_budget, target_keys=_target_keys,
               targets_file=lambda: targets_path(), grouped=True, clean_fits=True,
               tier_cases=_env_cases)
