@@ -30,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..suites import instance
 from .anytime import CONFIDENCE, group_seed, run_area
 from .scaling import FIFTH, groups, registered_scopes
 
@@ -108,8 +109,8 @@ def _cells(recs: list[dict], a: Sequence[str], b: Sequence[str]) -> list[list[fl
     runs: dict[str, dict[tuple[str, int], dict[str, float]]] = defaultdict(
         lambda: defaultdict(dict))
     for r in recs:
-        cell = (r["case"].rpartition("@")[2], int(r["seed"]))
-        runs[r["case"].rpartition("@")[0]][cell][r["solver"]] = run_area(r)
+        inst = instance(r["case"])
+        runs[inst.name][(inst.group[1], int(r["seed"]))][r["solver"]] = run_area(r)
     out = []
     for inst in sorted(runs):
         diffs = [math.fsum(v[s] for s in a) / len(a) - math.fsum(v[s] for s in b) / len(b)
@@ -167,7 +168,7 @@ def claims(records: list[dict], rank: int = FIFTH, condition: str = "no-prior",
             c = _ranking_claim(track, tier, what, recs, ranked, i, j)
             if c is not None:
                 out.append(c)
-        nop = [r for r in recs if r["case"].rpartition("@")[2] == condition]
+        nop = [r for r in recs if instance(r["case"]).group[1] == condition]
         glob = tuple(s for s in _ranked(nop) if scopes.get(s) == "global")
         loc = tuple(s for s in _ranked(nop) if scopes.get(s) == "local")
         if not glob or not loc:
