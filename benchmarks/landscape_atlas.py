@@ -376,8 +376,8 @@ def kinds_markdown(rows: list[dict]) -> list[str]:
 
     md = ["", "## Kinds of jump: attribution, and model version 4", "",
           "Each kind on its witness line (the atlas's line through x* named below): the line's "
-          "jump and its largest step zoomed 40x, at 50 us / 25 us on model version 3 (v1, v2 "
-          "and v3's shipped tables) / 50 us / 25 us on version 4 (`locate_commutation`, "
+          "jump and its largest step zoomed 40x, at 50 us / 25 us on model version 3 (v1's "
+          "and v2's; before the fix) / 50 us / 25 us on version 4 (v3's; `locate_commutation`, "
           "`ema_bench.params.model_params('4')`), and the jump between the two points 1e-13 "
           "of the box apart that bisection of each zoomed step finds (a discontinuity keeps "
           "its size, a steep continuous stretch vanishes); then, on version 3 at 50 us, the "
