@@ -201,6 +201,7 @@ def atlas(per_tier: int, directions: int, half: float, k: int, starts: int,
                 "zoom": refine(p, u_star, dirs[worst], F["full"][worst], half, f_star),
                 "case": case, "names": inst.names, "cond": float(s[0] / s[-1]),
                 **{f"jump_{key}": jumps(F[key], f_star) for key in SCANS},
+                "worst": worst_flip(p, u_star, dirs, F["full"], half, f_star, AFTER),
                 "before_worst": worst_flip(p, u_star, dirs, F["before"], half, f_star, BEFORE),
                 "census": {key: census(p, u_star, dirs, F[key], half, f_star, v, step)
                            for key, step, v in (("before", "full", BEFORE), ("full", "full", AFTER),
@@ -427,17 +428,19 @@ def markdown(data: dict, kind_rows: list[dict], args, cost: str, images: list[st
            f"last is version {AFTER}'s; the last is version {BEFORE}'s, before the fix.", "",
            f"| case | condition number | largest jump (50 us) | median jump (50 us) | "
            "largest jump (25 us) | median (25 us) | axis of the largest | it zoomed 40x: "
-           f"largest step 50 us / 25 us | before the fix, model version {BEFORE} (50 us): "
+           "largest step 50 us / 25 us | it bisected to 1e-13, first discrete state to "
+           f"differ across it | before the fix, model version {BEFORE} (50 us): "
            "largest jump, median, its line, zoomed 40x, bisected to 1e-13, first discrete "
            "state to differ across it |",
-           "|---|---|---|---|---|---|---|---|---|"]
+           "|---|---|---|---|---|---|---|---|---|---|"]
     for rows in data.values():
         for r in rows:
             axis = _line_name(r, int(np.argmax(r["jump_full"])))
             md.append(f"| {r['case']} | {r['cond']:.0f} | {r['jump_full'].max():.2e} | "
                       f"{np.median(r['jump_full']):.2e} | {r['jump_half'].max():.2e} | "
                       f"{np.median(r['jump_half']):.2e} | {axis} | "
-                      f"{r['zoom'][0]:.2e} / {r['zoom'][1]:.2e} | {_before_cell(r)} |")
+                      f"{r['zoom'][0]:.2e} / {r['zoom'][1]:.2e} | {r['worst'][2]:.1e}, "
+                      f"{r['worst'][3]} | {_before_cell(r)} |")
     md += ["", "Per tier, the ratio (25 us / 50 us) of each line's jump: median and range "
            "(a ratio near 1: the jump stays, near 0.5 or below: it shrinks with the step), "
            f"on version {AFTER} and, before the fix, on version {BEFORE}.", "",
