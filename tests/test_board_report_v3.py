@@ -96,6 +96,6 @@ def test_the_report_of_a_v3_board_has_the_issues_answers(v3_slice, tmp_path):
     for kind in ("", "_fitness", "_parameters"):
         assert (tmp_path / f"ecdf_tiers_reference{kind}.png").stat().st_size > 0
     # v3's ladders: 21 fitness precisions and the noise-allowed parameter scale
-    assert ("fitness within 21 precisions 0.1 .. 1e-06" in md
+    assert ("fitness within 21 precisions 1e-1 .. 1e-6" in md
             and "of its noise-allowed scale" in md)
     assert summary["cost"]["runs"] == len(recs)

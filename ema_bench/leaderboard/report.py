@@ -159,13 +159,18 @@ def group_heading(tier: int, cond: str, records: list[dict]) -> str:
             f"{', '.join(map(str, budgets))}, {n} instance{'s' if n != 1 else ''})")
 
 
+def _power(p: float) -> str:
+    """``1e-1``, ``1e-6``: a precision of the fitness ladder."""
+    return f"{p:.0e}".replace("e-0", "e-")
+
+
 def group_targets(tier: int, records: list[dict]) -> str:
     """What the targets of a (tier, condition) group are (its suite's ladders)."""
     suite = board_suite(records)
     with_f = any(hits(r).keys() & set(FITNESS_TARGETS) for r in records)
     ladder = suite.fitness_precisions
-    fit = (f"fitness within {len(ladder)} precisions {ladder[0]:g} .. {ladder[-1]:g} of the "
-           "instance's f*-to-nominal gap and "
+    fit = (f"fitness within {len(ladder)} precisions {_power(ladder[0])} .. "
+           f"{_power(ladder[-1])} of the instance's f*-to-nominal gap and "
            if with_f else "no fitness targets (no shipped f* for these instances yet); ")
     scale = ("range" if suite.target_scales is None else
              "its noise-allowed scale (max(1 % of range, z sigma) / 1 %)")
