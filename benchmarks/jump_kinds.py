@@ -54,7 +54,8 @@ KINDS: tuple[Kind, ...] = (
          "whatever the step. Version 4 starts the missed transfer where the crossing was "
          "(inside the last step, along the current speed): the zoomed step falls to the "
          "line's continuous slope and the bisected jump to rounding, at 50 and 25 us. Also "
-         "on v3-t12-s00 along sensor_offset (sine test, 8e-3 f*)."),
+         "on v3-t12-s00 along sensor_offset (sine test, 8e-3 f*; model version 3's data and "
+         "x*)."),
     Kind("speed-loop anti-windup at a controller sample", "v3-small@prior", "Gprop", True,
          "The speed PI integrates only while its torque reference is unsaturated or the "
          "error pulls it out of saturation (conditional integration, ema_bench.physics.ace); "
@@ -78,9 +79,11 @@ KINDS: tuple[Kind, ...] = (
          "zoomed 40x the largest step is 5 % of the line's jump and bisected to 1e-13 it "
          "falls to 8e-6 f* (2e-6 at 25 us): continuous up to a micro-step that shrinks with "
          "the step, five orders below the kink and below v3's finest fitness target (not "
-         "attributed further); the line's values at 50, 25 and 12.5 us agree to 2e-3 f*; "
+         "attributed further); the line's values at 50, 25 and 12.5 us agree to 2e-3 f* "
+         "(measured on model version 3's data and x*); "
          "between the zoomed step's ends the sector index is the first discrete state to "
-         "differ, near the record's end (sample 5853 of 6000); version 4 changes nothing "
+         "differ, near the record's end (the table's sample, of 6000); version 4 changes "
+         "nothing "
          "(the crossing is predicted)."),
 )
 

@@ -1,7 +1,10 @@
 """Landscape atlas of suite emafdi-v3, per tier: writes docs/landscape-atlas.md and its plots.
 
 A small sample (``--per-tier`` instances of each tier, twin track, noise seed 0, the prior's
-objective), around each instance's best-known fit ``x*`` (the shipped twin entry):
+objective), around each instance's best-known fit ``x*`` (the shipped twin entry), on the
+suite's model version (:data:`AFTER`, version 4: its data, ``x*`` and fitness) and, for the
+jumps, on version 3 too (:data:`BEFORE`: the same data and lines, the monitor before the
+located commutation transfer), so that the atlas shows the jumps before and after the fix:
 
 - **conditioning at the truth**: the condition number of the noise-whitened Jacobian
   (:func:`ema_bench.uncertainty.methods.intervals`' singular values);
@@ -16,8 +19,10 @@ objective), around each instance's best-known fit ``x*`` (the shipped twin entry
   refit`) from ``--starts`` uniform random points, end points within 2 % of the box merged;
 - **zoom**: each instance's worst line's largest jump resampled 40x closer (:func:`refine`):
   a discontinuity keeps its size, a steep continuous stretch splits into small steps;
-- **model version 4**: the same lines with ``locate_commutation`` on
-  (:func:`ema_bench.params.model_params`), which removes the numerical kind of jump;
+- **model version 3, before the fix**: the same lines with ``locate_commutation`` off
+  (:func:`ema_bench.params.model_params`), which has the numerical kind of jump; its worst
+  line zoomed, bisected and attributed (:func:`worst_flip`), and a census of every line on
+  both versions (:func:`census`);
 - **kinds of jump**: each kind of :mod:`jump_kinds` on its witness line, at 50 and 25 us on
   versions 3 and 4: the line's jump, its largest step zoomed 40x and bisected to 1e-13, and
   the first discrete state that differs across it (:func:`kinds`);
@@ -26,6 +31,8 @@ objective), around each instance's best-known fit ``x*`` (the shipped twin entry
   f*-to-nominal gap) and of v3 (1e-6).
 
     nice python benchmarks/landscape_atlas.py --per-tier 3 --out docs/landscape-atlas.md
+
+``--tiers 4`` runs one tier (to time it; its output is not the committed atlas).
 """
 
 from __future__ import annotations
@@ -50,6 +57,8 @@ from ema_bench.uncertainty.methods import intervals
 
 SEED = 20261128
 TRACK = "twin"
+#: The model version the atlas describes (the suite's) and the one before the fix.
+AFTER, BEFORE = v3.V3_MODEL_VERSION, "3"
 
 
 def _problem(case: str):
@@ -67,9 +76,10 @@ def _half_step():
     return functools.partial(simulate_monitor, dt=DEFAULT_PARAMS.dt_mon / 2)
 
 
-def _at(step: str, p=None, version: str = "3"):
+def _at(step: str, p=None, version: str = AFTER):
     """The objective module's monitor at the standard or the halved step; with ``p``, its
-    objective on model ``version`` (:func:`ema_bench.params.model_params`)."""
+    objective on model ``version`` (:func:`ema_bench.params.model_params`; default the
+    suite's, :data:`AFTER`)."""
     objective_module.simulate_monitor = simulate_monitor if step == "full" else _half_step()
     if p is not None:
         p.objective.params = model_params(version)
@@ -109,7 +119,7 @@ def refine(p, u_star: np.ndarray, direction: np.ndarray, F: np.ndarray, half: fl
     tt = np.linspace(t[k], t[k + 1], zoom + 1)
     out = []
     for step in ("full", "half"):
-        _at(step)
+        _at(step)   # the objective's model version as the caller set it
         f = _f(p, u_star[None, :] + tt[:, None] * direction[None, :])
         out.append(float(np.max(np.abs(np.diff(f))) / f_star))
     _at("full")
@@ -157,10 +167,16 @@ def valley(p, u_star: np.ndarray, f_star: float, gap: float,
     return out
 
 
+#: The atlas's line scans: key -> (monitor step, model version).
+SCANS = {"full": ("full", AFTER), "half": ("half", AFTER),
+         "before": ("full", BEFORE), "before_half": ("half", BEFORE)}
+
+
 def atlas(per_tier: int, directions: int, half: float, k: int, starts: int,
-          max_evals: int) -> dict:
+          max_evals: int, tiers=v2.TIERS) -> dict:
+    """Per tier, one row per case: every measurement of the module docstring."""
     out = {}
-    for d in v2.TIERS:
+    for d in tiers:
         rows = []
         for idx, name in enumerate(v2.instance_names(d)[:per_tier]):
             case = v3.case_key(name, "prior")
@@ -176,8 +192,7 @@ def atlas(per_tier: int, directions: int, half: float, k: int, starts: int,
             s = np.array(iv.identifiability["singular_values"])
             dirs = _directions(d, idx, inst.dim, directions)
             F = {}
-            for key, step, version in (("full", "full", "3"), ("half", "half", "3"),
-                                       ("v4", "full", "4"), ("v4half", "half", "4")):
+            for key, (step, version) in SCANS.items():
                 _at(step, p, version)
                 F[key] = lines(p, u_star, dirs, half, k)
             _at("full", p)
@@ -185,12 +200,12 @@ def atlas(per_tier: int, directions: int, half: float, k: int, starts: int,
             rows.append({
                 "zoom": refine(p, u_star, dirs[worst], F["full"][worst], half, f_star),
                 "case": case, "names": inst.names, "cond": float(s[0] / s[-1]),
-                "jump_full": jumps(F["full"], f_star), "jump_half": jumps(F["half"], f_star),
-                "jump_v4": jumps(F["v4"], f_star),
-                "v4_worst": worst_flip(p, u_star, dirs, F["v4"], half, f_star, "4"),
+                **{f"jump_{key}": jumps(F[key], f_star) for key in SCANS},
+                "worst": worst_flip(p, u_star, dirs, F["full"], half, f_star, AFTER),
+                "before_worst": worst_flip(p, u_star, dirs, F["before"], half, f_star, BEFORE),
                 "census": {key: census(p, u_star, dirs, F[key], half, f_star, v, step)
-                           for key, step, v in (("full", "full", "3"), ("v4", "full", "4"),
-                                                ("v4half", "half", "4"))},
+                           for key, step, v in (("before", "full", BEFORE), ("full", "full", AFTER),
+                                                ("half", "half", AFTER))},
                 "F": F, "f_star": f_star,
                 "minima": minima(p, u_star, f_star, e["f_nominal"], starts,
                                  child(SEED, 7 + 1000 * d + idx), max_evals),
@@ -258,7 +273,7 @@ def census(p, u_star: np.ndarray, dirs: np.ndarray, F: np.ndarray, half: float,
 
 
 #: Each kind's witness line is measured at these (step, model version) settings.
-SETTINGS = (("full", "3"), ("half", "3"), ("full", "4"), ("half", "4"))
+SETTINGS = (("full", BEFORE), ("half", BEFORE), ("full", AFTER), ("half", AFTER))
 
 
 def kinds(directions: int, half: float, k: int) -> list[dict]:
@@ -296,9 +311,10 @@ def kinds(directions: int, half: float, k: int) -> list[dict]:
             if (step, version) == SETTINGS[0]:
                 j = int(np.argmax(np.abs(np.diff(FF))))
                 ends = tt[j:j + 2]
-        _at("full", p)
+        _at("full", p, BEFORE)   # the kind as version 3 has it (the first setting)
         X = space.from_unit(np.clip(u_star[None] + ends[:, None] * d[None], 0.0, 1.0))
-        row["flip"] = jump_kinds.first_flip(p.objective, X, DEFAULT_PARAMS)
+        row["flip"] = jump_kinds.first_flip(p.objective, X, model_params(BEFORE))
+        _at("full", p)
         rows.append(row)
     return rows
 
@@ -310,12 +326,14 @@ def plots(data: dict, folder: Path) -> list[str]:
     names = []
     fig, axes = plt.subplots(1, len(data), figsize=(4.4 * len(data), 3.4), squeeze=False)
     for ax, (d, rows) in zip(axes[0], data.items()):
-        full = np.concatenate([r["jump_full"] for r in rows])
-        halfs = np.concatenate([r["jump_half"] for r in rows])
-        bins = np.geomspace(max(min(full.min(), halfs.min()), 1e-12), max(full.max(),
-                                                                          halfs.max()), 30)
-        ax.hist(full, bins=bins, alpha=0.6, label="step 50 us")
-        ax.hist(halfs, bins=bins, alpha=0.6, label="step 25 us")
+        sets = {key: np.concatenate([r[f"jump_{key}"] for r in rows])
+                for key in ("before", "full", "half")}
+        every = np.concatenate(list(sets.values()))
+        bins = np.geomspace(max(every.min(), 1e-12), every.max(), 30)
+        for key, label in (("before", f"version {BEFORE}, 50 us"),
+                           ("full", f"version {AFTER}, 50 us"),
+                           ("half", f"version {AFTER}, 25 us")):
+            ax.hist(sets[key], bins=bins, alpha=0.5, label=label)
         ax.set_xscale("log")
         ax.set_title(f"tier {d}: largest jump per line")
         ax.set_xlabel("jump / f*")
@@ -328,8 +346,10 @@ def plots(data: dict, folder: Path) -> list[str]:
         r = rows[0]
         i = int(np.argmax(r["jump_full"]))
         t = np.linspace(-1, 1, r["F"]["full"].shape[1])
-        for step, ls in (("full", "-"), ("half", "--")):
-            ax.plot(t, r["F"][step][i] / r["f_star"] - 1, ls, label=f"step {step}")
+        for key, ls, label in (("full", "-", f"version {AFTER}, 50 us"),
+                               ("half", "--", f"version {AFTER}, 25 us"),
+                               ("before", ":", f"version {BEFORE}, 50 us")):
+            ax.plot(t, r["F"][key][i] / r["f_star"] - 1, ls, label=label)
         label = r["names"][i] if i < len(r["names"]) else f"random direction {i - len(r['names'])}"
         ax.set_title(f"{r['case']}: {label}", fontsize=9)
         ax.set_xlabel("offset / half-width")
@@ -344,10 +364,10 @@ def _line_name(r: dict, i: int) -> str:
     return r["names"][i] if i < len(r["names"]) else f"random direction {i - len(r['names'])}"
 
 
-def _v4_cell(r: dict) -> str:
-    i, zoomed, bisected, flip = r["v4_worst"]
-    return (f"{r['jump_v4'].max():.2e}, {_line_name(r, i)}, {zoomed:.2e}, {bisected:.1e}, "
-            f"{flip}")
+def _before_cell(r: dict) -> str:
+    i, zoomed, bisected, flip = r["before_worst"]
+    return (f"{r['jump_before'].max():.2e}, {np.median(r['jump_before']):.2e}, {_line_name(r, i)}, "
+            f"{zoomed:.2e}, {bisected:.1e}, {flip}")
 
 
 def kinds_markdown(rows: list[dict]) -> list[str]:
@@ -357,8 +377,8 @@ def kinds_markdown(rows: list[dict]) -> list[str]:
 
     md = ["", "## Kinds of jump: attribution, and model version 4", "",
           "Each kind on its witness line (the atlas's line through x* named below): the line's "
-          "jump and its largest step zoomed 40x, at 50 us / 25 us on model version 3 (v1, v2 "
-          "and v3's shipped tables) / 50 us / 25 us on version 4 (`locate_commutation`, "
+          "jump and its largest step zoomed 40x, at 50 us / 25 us on model version 3 (v1's "
+          "and v2's; before the fix) / 50 us / 25 us on version 4 (v3's; `locate_commutation`, "
           "`ema_bench.params.model_params('4')`), and the jump between the two points 1e-13 "
           "of the box apart that bisection of each zoomed step finds (a discontinuity keeps "
           "its size, a steep continuous stretch vanishes); then, on version 3 at 50 us, the "
@@ -387,53 +407,68 @@ def markdown(data: dict, kind_rows: list[dict], args, cost: str, images: list[st
     md = ["# Landscape atlas (suite emafdi-v3, per tier)", "",
           f"Generated by `python benchmarks/landscape_atlas.py --per-tier {args.per_tier} "
           f"--directions {args.directions} --half-width {args.half_width:g} --points "
-          f"{args.points} --starts {args.starts} --max-evals {args.max_evals}` ({cost}); do "
+          f"{args.points} --starts {args.starts} --max-evals {args.max_evals}"
+          + (f" --tiers {args.tiers}" if args.tiers != ",".join(map(str, v2.TIERS)) else "")
+          + f"` ({cost}); do "
           "not edit by hand. A small sample: the first "
           f"{args.per_tier} instances of each tier, twin track, noise seed 0, the prior's "
-          "objective, around the shipped best fit x* (twin, seed 0). The script's docstring "
-          "defines every column.", ""]
+          f"objective, on model version {AFTER} (the suite's: its twin data, its fitness and "
+          f"the shipped best fit x* of `ema_bench/suite_targets_v3.json`, twin, seed 0), "
+          f"around x*; the jumps also on version {BEFORE} (the same data, lines and points, "
+          "the monitor before the located commutation transfer): before and after the fix. "
+          "The script's docstring defines every column.", ""]
     md += ["## Conditioning and jumps", "",
            "Jump: per line through x* (each parameter's axis, then random directions), the "
            "largest step between neighbouring points beyond the local slope (a difference "
            f"minus the mean of its two neighbours), over +-{args.half_width:g} of the unit "
            f"box in {2 * args.points + 1} "
            "points, in units of f*. Halved step: the same lines with the monitor at 25 us "
-           "(the kernels unchanged, `simulate_monitor(dt=...)`).", "",
-           "| case | condition number | largest jump (50 us) | median jump (50 us) | "
+           "(the kernels unchanged, `simulate_monitor(dt=...)`). Condition number: of the "
+           f"noise-whitened Jacobian at the truth (version {AFTER}). Every column but the "
+           f"last is version {AFTER}'s; the last is version {BEFORE}'s, before the fix.", "",
+           f"| case | condition number | largest jump (50 us) | median jump (50 us) | "
            "largest jump (25 us) | median (25 us) | axis of the largest | it zoomed 40x: "
-           "largest step 50 us / 25 us | model version 4 (50 us): largest jump, its line, "
-           "zoomed 40x, bisected to 1e-13, first discrete state to differ across it |",
-           "|---|---|---|---|---|---|---|---|---|"]
+           "largest step 50 us / 25 us | it bisected to 1e-13, first discrete state to "
+           f"differ across it | before the fix, model version {BEFORE} (50 us): "
+           "largest jump, median, its line, zoomed 40x, bisected to 1e-13, first discrete "
+           "state to differ across it |",
+           "|---|---|---|---|---|---|---|---|---|---|"]
     for rows in data.values():
         for r in rows:
             axis = _line_name(r, int(np.argmax(r["jump_full"])))
             md.append(f"| {r['case']} | {r['cond']:.0f} | {r['jump_full'].max():.2e} | "
                       f"{np.median(r['jump_full']):.2e} | {r['jump_half'].max():.2e} | "
                       f"{np.median(r['jump_half']):.2e} | {axis} | "
-                      f"{r['zoom'][0]:.2e} / {r['zoom'][1]:.2e} | {_v4_cell(r)} |")
+                      f"{r['zoom'][0]:.2e} / {r['zoom'][1]:.2e} | {r['worst'][2]:.1e}, "
+                      f"{r['worst'][3]} | {_before_cell(r)} |")
     md += ["", "Per tier, the ratio (25 us / 50 us) of each line's jump: median and range "
-           "(a ratio near 1: the jump stays, near 0.5 or below: it shrinks with the step).", "",
-           "| tier | lines | median ratio | 10-90 % | axes whose jump halves or better |",
-           "|---|---|---|---|---|"]
+           "(a ratio near 1: the jump stays, near 0.5 or below: it shrinks with the step), "
+           f"on version {AFTER} and, before the fix, on version {BEFORE}.", "",
+           f"| tier | lines | median ratio (v{AFTER}) | 10-90 % | axes whose jump halves or "
+           f"better | median ratio (v{BEFORE}) | 10-90 % | axes whose jump halves or better |",
+           "|---|---|---|---|---|---|---|---|"]
     for d, rows in data.items():
-        ratio = np.concatenate([r["jump_half"] / r["jump_full"] for r in rows])
-        shrink = sorted({r["names"][i] for r in rows for i in range(len(r["names"]))
-                         if r["jump_half"][i] <= 0.6 * r["jump_full"][i]})
-        md.append(f"| {d} | {ratio.size} | {np.median(ratio):.2f} | "
-                  f"{np.quantile(ratio, 0.1):.2f}-{np.quantile(ratio, 0.9):.2f} | "
-                  f"{', '.join(shrink) or 'none'} |")
+        cells = []
+        for full, half in (("full", "half"), ("before", "before_half")):
+            ratio = np.concatenate([r[f"jump_{half}"] / r[f"jump_{full}"] for r in rows])
+            shrink = sorted({r["names"][i] for r in rows for i in range(len(r["names"]))
+                             if r[f"jump_{half}"][i] <= 0.6 * r[f"jump_{full}"][i]})
+            cells.append(f"{np.median(ratio):.2f} | {np.quantile(ratio, 0.1):.2f}-"
+                         f"{np.quantile(ratio, 0.9):.2f} | {', '.join(shrink) or 'none'}")
+        md.append(f"| {d} | {ratio.size} | " + " | ".join(cells) + " |")
     md += ["", "Discontinuities on every line: each line's largest step zoomed 40x and "
            f"bisected to 1e-13; those of {DISCONTINUITY:g} f* or more, counted by the first "
            "discrete state that flips across them (sector index: a commutation; PI "
            "integrating: the speed loop's anti-windup; none: no tracked state flips at a "
-           "controller sample), with the largest, on model version 3 (50 us) and on "
-           "version 4 (50 us, 25 us).", "",
-           "| case | lines | version 3 | version 4 | version 4, 25 us |", "|---|---|---|---|---|"]
+           f"controller sample), with the largest, on model version {BEFORE} (50 us, before "
+           f"the fix) and on version {AFTER} (50 us, 25 us).", "",
+           f"| case | lines | version {BEFORE} (before) | version {AFTER} | version {AFTER}, "
+           "25 us |", "|---|---|---|---|---|"]
     for rows in data.values():
         for r in rows:
             cells = ["; ".join(f"{state} {len(v)} (<= {max(v):.1e})"
                                for state, v in sorted(r["census"][ver].items())) or "none"
-                     for ver in ("full", "v4", "v4half")]
+                     for ver in ("before", "full", "half")]
             md.append(f"| {r['case']} | {r['jump_full'].size} | " + " | ".join(cells) + " |")
     md += kinds_markdown(kind_rows)
     md += ["", "## Distinct local minima (multi-start local refits)", "",
@@ -472,10 +507,13 @@ def main() -> None:
     ap.add_argument("--points", type=int, default=40)
     ap.add_argument("--starts", type=int, default=6)
     ap.add_argument("--max-evals", type=int, default=300)
+    ap.add_argument("--tiers", default=",".join(map(str, v2.TIERS)),
+                    help="comma-separated tiers (one, to time it)")
     ap.add_argument("--out", default="docs/landscape-atlas.md")
     a = ap.parse_args()
     t0, c0 = time.perf_counter(), time.process_time()
-    data = atlas(a.per_tier, a.directions, a.half_width, a.points, a.starts, a.max_evals)
+    data = atlas(a.per_tier, a.directions, a.half_width, a.points, a.starts, a.max_evals,
+                 tuple(int(t) for t in a.tiers.split(",")))
     kind_rows = kinds(a.directions, a.half_width, a.points)
     out = Path(a.out)
     images = plots(data, out.parent / "landscape-atlas")

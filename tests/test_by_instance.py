@@ -99,3 +99,51 @@ def test_a_solid_claim_holds_and_the_report_says_so(areas_from_records):
     assert rows[0]["a"] == "s0" and rows[0]["b"] == "s4" and rows[0]["instances"] == 6
     assert by_instance.fragile_line(cs, "twin") == (
         "By instance: holds: best vs 5th on tier 7; first vs second on tier 7.")
+
+
+def test_a_tier_that_cannot_separate_best_and_fifth_says_why(areas_from_records):
+    """Eight instances: ``top`` leads ``fifth`` by 0.27 on five and trails it by 0.33 on
+    three (mean +0.045): the instances disagree, the interval over them reaches 0, and the
+    sentence names the three instances the fifth is ahead on, out of eight, and the two
+    sides' mean areas."""
+    n = 8
+    base = np.full(n, 0.3)
+    sign = np.r_[[1.0] * 5, [-1.0] * 3]
+    areas = {"top": base + 0.3 * sign + 0.2, "second": base + 0.26, "third": base + 0.25,
+             "fourth": base + 0.24, "fifth": base + 0.23, "sixth": base}
+    recs = _board(areas)
+    cs = claims(recs, scope_of=lambda names: dict.fromkeys(names, "global"))
+    best5 = next(c for c in cs if c.track == "twin" and c.claim == "best vs 5th")
+    assert best5.b == ("fifth",) and best5.ahead == 5 and best5.diff[1] <= 0
+    # per instance the mean of two conditions (+0 and +0.001)
+    top, fifth = 0.3 + 0.2 + 0.3 * 2 / 8 + 0.0005, 0.53 + 0.0005
+    assert best5.areas == pytest.approx((top, fifth), abs=1e-12)
+    (line,) = by_instance.separation_lines(cs, recs, "twin")
+    a, b = (f"{v:.3f}" for v in best5.areas)     # checked above
+    assert line.startswith(f"Tier 7 cannot separate its best (top, mean area {a}) and "
+                           f"5th (fifth, {b}) solvers by instance: fifth is level "
+                           "with or ahead of top on 3 of the 8 instances")
+    assert "reaches 0." in line and "nearly every target" not in line
+
+
+def test_separation_lines_say_when_a_tier_separates_or_has_too_few_solvers(
+        areas_from_records):
+    """Every solver 0.05 ahead of the next everywhere: separated, best ahead on all six
+    instances; with four solvers the claim is not asked; near the ceiling the sentence says
+    the targets leave little room."""
+    base = np.linspace(0.1, 0.3, 6)
+    recs = _board({f"s{k}": base + 0.05 * (6 - k) for k in range(6)})
+    cs = claims(recs, scope_of=lambda names: dict.fromkeys(names, "global"))
+    (line,) = by_instance.separation_lines(cs, recs, "twin")
+    assert line.startswith("Tier 7: best (s0) and 5th (s4) separated by instance, +0.200 [")
+    assert line.endswith("s0 ahead on 6 of 6 instances.")
+    few = _board({f"s{k}": base + 0.05 * k for k in range(4)})
+    cs = claims(few, scope_of=lambda names: dict.fromkeys(names, "global"))
+    assert by_instance.separation_lines(cs, few, "twin") == [
+        "Tier 7: fewer than 5 solvers ran it; best vs 5th is not asked."]
+    high = _board({"a": np.r_[0.99, 0.95, 0.97, 0.90], "b": np.r_[0.96, 0.95, 0.95, 0.94],
+                   "c": np.full(4, 0.945), "d": np.full(4, 0.94), "e": np.full(4, 0.935)})
+    cs = claims(high, scope_of=lambda names: dict.fromkeys(names, "global"))
+    (line,) = by_instance.separation_lines(cs, high, "twin")
+    assert "cannot separate" in line and "on 1 of the 4 instances" in line
+    assert "nearly every target early (mean areas above 0.9)" in line

@@ -15,7 +15,7 @@ import pytest
 import ema_bench.objective as objective_module
 from ema_bench import suites
 from ema_bench.seeding import run_seed
-from ema_bench.suites import v3
+from ema_bench.suites import v2, v3
 from ema_bench.suites.problem import make_problem
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -112,3 +112,38 @@ def test_the_reference_model_jumps_as_much_near_t12_s06s_optimum(bench):
     assert np.allclose(t, [-2.5e-4, 0.0])
     assert reference[0] > 0.05 and reference[0] > 20 * monitor[0]
     assert monitor[0] < 1e-2 and monitor[1] < 1e-2
+
+
+def test_the_committed_atlas_shows_the_numerical_jump_before_and_after_the_fix(
+        bench, monkeypatch):
+    """docs/landscape-atlas.md is model version 4's (the suite's) with version 3 as "before":
+    on the witness of the dropped commutation transfer (``v3-full@prior``, the atlas's
+    random direction 0 through the shipped x*), the line's jump recomputed here at 50 us on
+    both versions is the table's (two digits), and version 4's is under a tenth of version
+    3's; the table's condition number of ``v3-small@prior`` is version 4's Jacobian's."""
+    import landscape_atlas as la
+    import v3_tolerances
+
+    monkeypatch.setattr(objective_module, "simulate_monitor", objective_module.simulate_monitor)
+    text = (ROOT / "docs" / "landscape-atlas.md").read_text()
+    assert f"on model version {v3.V3_MODEL_VERSION} (the suite's" in text
+    row = next([c.strip() for c in line.strip("|").split("|")]
+               for line in text.splitlines()
+               if line.startswith("| dropped commutation transfer |"))
+    before, _, after, _ = (float(v) for v in row[3].split(" / "))
+    case = "v3-full@prior"
+    inst = suites.instance(case)
+    e = inst.best_known("twin", 0)
+    p = la._problem(case)
+    u_star = p.objective.space.to_unit(np.array([[e["x_star"][n] for n in inst.names]]))[0]
+    d = la._directions(4, v2.instance_names(4).index("full"), inst.dim, 6)[inst.dim:][0]
+    got = {}
+    for version in (la.BEFORE, la.AFTER):
+        la._at("full", p, version)
+        got[version] = la.jumps(la.lines(p, u_star, d[None], 0.002, 30), e["f_star"])[0]
+    assert f"{got[la.BEFORE]:.1e}" == f"{before:.1e}"
+    assert f"{got[la.AFTER]:.1e}" == f"{after:.1e}"
+    assert got[la.AFTER] < 0.1 * got[la.BEFORE]
+    small = next(r for r in _rows(ROOT / "docs" / "landscape-atlas.md")
+                 if r[0] == "v3-small@prior" and len(r) == 10)
+    assert f"{v3_tolerances.condition_number('v3-small@prior'):.0f}" == small[1]

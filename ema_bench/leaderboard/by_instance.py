@@ -18,7 +18,9 @@ instance's cells drawn with replacement.  A **leave-one-solver-out** line asks t
 again without the top solver of its leading side (best vs fifth: without the best, the new
 best against the new fifth; first vs second: the second against the third; global vs local:
 without the leading group's best solver).  A claim is **fragile** when its instance
-interval reaches 0 or the claim without that solver does.
+interval reaches 0 or the claim without that solver does.  Where a tier's best and fifth
+cannot be told apart by instance, :func:`separation_lines` says why in a sentence (how many
+instances the fifth is level with or ahead on, or too few instances or solvers).
 """
 
 from __future__ import annotations
@@ -35,6 +37,15 @@ from .anytime import CONFIDENCE, group_seed, run_area
 from .scaling import FIFTH, groups, registered_scopes
 
 N_RESAMPLES = 2000
+#: What the claims table shows (the report's and the page's note under it).
+CLAIMS_NOTE = (
+    "Each claim re-asked over the board's instances: per instance the mean over its "
+    "(condition, seed) runs of the paired difference in ECDF area (side a - side b), "
+    "the mean over instances, 95 % interval from a two-level bootstrap (instances, "
+    "then each instance's runs, with replacement); best vs fifth and first vs second "
+    "rank the solvers by mean area over the tier's conditions pooled; global vs local "
+    "is without a prior. Left out: the claim asked again without the top solver of "
+    "its leading side. Fragile: either interval reaches 0.")
 
 
 def nested_bootstrap(cells: Sequence[Sequence[float]], seed: int,
@@ -67,7 +78,9 @@ def nested_bootstrap(cells: Sequence[Sequence[float]], seed: int,
 class Claim:
     """One claim of one (track, tier), by instance: side ``a`` minus side ``b`` in mean ECDF
     area (``diff``: estimate, 95 % interval over instances), and the same without the
-    solver ``without`` (``without_diff``; None where too few solvers remain)."""
+    solver ``without`` (``without_diff``; None where too few solvers remain).  ``ahead``:
+    the instances on which side ``a``'s mean area is above side ``b``'s; ``areas``: each
+    side's mean area over instances (the paired cells)."""
 
     track: str
     tier: int
@@ -80,6 +93,8 @@ class Claim:
     without_a: tuple[str, ...] = ()
     without_b: tuple[str, ...] = ()
     without_diff: tuple[float, float, float] | None = None
+    ahead: int = 0
+    areas: tuple[float, float] = (math.nan, math.nan)
 
     @property
     def holds(self) -> bool:
@@ -103,9 +118,10 @@ class Claim:
         return "holds"
 
 
-def _cells(recs: list[dict], a: Sequence[str], b: Sequence[str]) -> list[list[float]]:
-    """Per instance, the paired differences (mean area of ``a`` - of ``b``) of its cells that
-    every solver of both sides ran."""
+def _cells(recs: list[dict], a: Sequence[str], b: Sequence[str]
+           ) -> list[list[tuple[float, float]]]:
+    """Per instance, the paired mean areas (of ``a``, of ``b``) of its cells that every
+    solver of both sides ran."""
     runs: dict[str, dict[tuple[str, int], dict[str, float]]] = defaultdict(
         lambda: defaultdict(dict))
     for r in recs:
@@ -113,11 +129,16 @@ def _cells(recs: list[dict], a: Sequence[str], b: Sequence[str]) -> list[list[fl
         runs[inst.name][(inst.group[1], int(r["seed"]))][r["solver"]] = run_area(r)
     out = []
     for inst in sorted(runs):
-        diffs = [math.fsum(v[s] for s in a) / len(a) - math.fsum(v[s] for s in b) / len(b)
+        pairs = [(math.fsum(v[s] for s in a) / len(a), math.fsum(v[s] for s in b) / len(b))
                  for _, v in sorted(runs[inst].items()) if set(a) | set(b) <= set(v)]
-        if diffs:
-            out.append(diffs)
+        if pairs:
+            out.append(pairs)
     return out
+
+
+def _nth(rank: int) -> str:
+    """``5th``, ``2nd``."""
+    return str(rank) + {1: "st", 2: "nd", 3: "rd"}.get(rank, "th")
 
 
 def _ranked(recs: list[dict]) -> list[str]:
@@ -128,10 +149,35 @@ def _ranked(recs: list[dict]) -> list[str]:
     return sorted(mean, key=lambda s: (-np.nan_to_num(mean[s], nan=-1.0), s))
 
 
-def _diff(track: str, tier: int, what: str, recs: list[dict], a, b):
+@dataclass(frozen=True)
+class _Diff:
+    """Side ``a`` - side ``b`` over instances: the estimate and its interval, and per
+    instance the two sides' mean areas."""
+
+    diff: tuple[float, float, float]
+    means: tuple[tuple[float, float], ...]
+
+    def claim(self, track, tier, what, a, b, without, wa=(), wb=(),
+              wd: _Diff | None = None) -> Claim:
+        n = len(self.means)
+        areas = tuple(math.fsum(m[k] for m in self.means) / n if n else math.nan
+                      for k in (0, 1))
+        return Claim(track, tier, what, a, b, n, self.diff, without, wa, wb,
+                     None if wd is None else wd.diff, sum(x > y for x, y in self.means),
+                     areas)
+
+    def flipped(self) -> _Diff:
+        """Side ``b`` - side ``a``."""
+        return _Diff((-self.diff[0], -self.diff[2], -self.diff[1]),
+                     tuple((y, x) for x, y in self.means))
+
+
+def _diff(track: str, tier: int, what: str, recs: list[dict], a, b) -> _Diff:
     cells = _cells(recs, a, b)
     seed = group_seed(track, "by-instance", tier, what, ",".join(a), ",".join(b))
-    return len(cells), nested_bootstrap(cells, seed)
+    return _Diff(nested_bootstrap([[x - y for x, y in c] for c in cells], seed),
+                 tuple((math.fsum(x for x, _ in c) / len(c), math.fsum(y for _, y in c) / len(c))
+                       for c in cells))
 
 
 def _ranking_claim(track, tier, what, recs, ranked, i, j) -> Claim | None:
@@ -139,13 +185,13 @@ def _ranking_claim(track, tier, what, recs, ranked, i, j) -> Claim | None:
     if len(ranked) <= j:
         return None
     a, b = (ranked[i],), (ranked[j],)
-    n, d = _diff(track, tier, what, recs, a, b)
+    d = _diff(track, tier, what, recs, a, b)
     rest = ranked[:i] + ranked[i + 1:]
     if len(rest) <= j:
-        return Claim(track, tier, what, a, b, n, d, ranked[i])
+        return d.claim(track, tier, what, a, b, ranked[i])
     wa, wb = (rest[i],), (rest[j],)
-    _, wd = _diff(track, tier, what, [r for r in recs if r["solver"] != ranked[i]], wa, wb)
-    return Claim(track, tier, what, a, b, n, d, ranked[i], wa, wb, wd)
+    wd = _diff(track, tier, what, [r for r in recs if r["solver"] != ranked[i]], wa, wb)
+    return d.claim(track, tier, what, a, b, ranked[i], wa, wb, wd)
 
 
 def claims(records: list[dict], rank: int = FIFTH, condition: str = "no-prior",
@@ -163,8 +209,7 @@ def claims(records: list[dict], rank: int = FIFTH, condition: str = "no-prior",
     out: list[Claim] = []
     for (track, tier), recs in by.items():
         ranked = _ranked(recs)
-        nth = {1: "st", 2: "nd", 3: "rd"}.get(rank, "th")
-        for what, i, j in ((f"best vs {rank}{nth}", 0, rank - 1), ("first vs second", 0, 1)):
+        for what, i, j in ((f"best vs {_nth(rank)}", 0, rank - 1), ("first vs second", 0, 1)):
             c = _ranking_claim(track, tier, what, recs, ranked, i, j)
             if c is not None:
                 out.append(c)
@@ -174,20 +219,20 @@ def claims(records: list[dict], rank: int = FIFTH, condition: str = "no-prior",
         if not glob or not loc:
             continue
         what = f"global vs local, {condition}"
-        n, d = _diff(track, tier, what, nop, glob, loc)
-        top = glob[0] if d[0] >= 0 else loc[0]      # the leading group's best solver
+        d = _diff(track, tier, what, nop, glob, loc)
+        top = glob[0] if d.diff[0] >= 0 else loc[0]      # the leading group's best solver
         wa = tuple(s for s in glob if s != top)
         wb = tuple(s for s in loc if s != top)
         wd = None
         if wa and wb:
-            _, wd = _diff(track, tier, what, [r for r in nop if r["solver"] != top], wa, wb)
+            wd = _diff(track, tier, what, [r for r in nop if r["solver"] != top], wa, wb)
         # the claim's side a is the leading group: global if ahead, else local
-        if d[0] >= 0:
-            out.append(Claim(track, tier, what, glob, loc, n, d, top, wa, wb, wd))
+        if d.diff[0] >= 0:
+            out.append(d.claim(track, tier, what, glob, loc, top, wa, wb, wd))
         else:
-            out.append(Claim(track, tier, what.replace("global vs local", "local vs global"),
-                             loc, glob, n, (-d[0], -d[2], -d[1]), top, wb, wa,
-                             None if wd is None else (-wd[0], -wd[2], -wd[1])))
+            out.append(d.flipped().claim(
+                track, tier, what.replace("global vs local", "local vs global"), loc, glob,
+                top, wb, wa, None if wd is None else wd.flipped()))
     return out
 
 
@@ -226,3 +271,45 @@ def fragile_line(cs: list[Claim], track: str, name: Callable[[str], str] = str) 
             for c in mine if c.fragile]
     return ("By instance: " + ("holds: " + "; ".join(held) if held else "no claim holds")
             + (". FRAGILE: " + "; ".join(weak) if weak else "") + ".")
+
+
+#: Both sides' mean areas above this: the tier's targets are nearly all reached by both.
+CEILING = 0.9
+
+
+def separation_lines(cs: list[Claim], records: list[dict], track: str, rank: int = FIFTH,
+                     name: Callable[[str], str] = str) -> list[str]:
+    """Per tier of ``track`` in ``records``: whether its best and ``rank``-th solvers are
+    separated by instance (claims ``cs``, :func:`claims` of ``records``), and where they are
+    not, why, in a sentence (the issue's "or the report says plainly why a tier cannot
+    separate them")."""
+    nth = _nth(rank)
+    tiers = sorted({t for tr, t, _ in groups(records) if tr == track})
+    by = {c.tier: c for c in cs if c.track == track and c.claim == f"best vs {nth}"}
+    out = []
+    for t in tiers:
+        c = by.get(t)
+        if c is None:
+            out.append(f"Tier {t}: fewer than {rank} solvers ran it; best vs {nth} is not "
+                       "asked.")
+            continue
+        a, b = name(c.a[0]), name(c.b[0])
+        if c.holds:
+            out.append(f"Tier {t}: best ({a}) and {nth} ({b}) separated by instance, "
+                       f"{_ci(c.diff)}; {a} ahead on {c.ahead} of {c.instances} instances.")
+            continue
+        why = (f"Tier {t} cannot separate its best ({a}, mean area {c.areas[0]:.3f}) and "
+               f"{nth} ({b}, {c.areas[1]:.3f}) solvers by instance: ")
+        if c.instances < 2:
+            why += (f"the board has {c.instances} instance of it that both ran, and one "
+                    "instance gives no interval over instances.")
+        else:
+            why += (f"{b} is level with or ahead of {a} on {c.instances - c.ahead} of the "
+                    f"{c.instances} instances, so the instances disagree and the interval "
+                    f"over them, {_ci(c.diff)}, reaches 0")
+            if min(c.areas) > CEILING:
+                why += (f"; both reach nearly every target early (mean areas above "
+                        f"{CEILING:g}): the tier's targets leave little room between them")
+            why += "."
+        out.append(why)
+    return out

@@ -1,8 +1,10 @@
 """``leaderboard.html``: the leaderboard as one self-contained page (a CI artifact, and the
 page GitHub Pages publishes): the ranking, sanity and per-instance tables of each track,
 sortable (the first click puts the better end first), and the plots embedded.  An emafdi-v2
-board shows instead, per track, the saturation check, the global-vs-local answer and table,
-the ERT scaling table and one ranking per tier and condition.
+or -v3 board shows instead, per track, the saturation check, the claims by instance (which
+hold, which are fragile, why a tier cannot separate its best and fifth solvers, and their
+table), the global-vs-local answer and table, the ERT scaling table and one ranking per tier
+and condition.
 
 The page is made to be shared: the command line in its header names no local folder (the
 values of ``--out``, ``--check`` and ``--scheduler`` read ``OUT``, ``DIR`` and ``ADDRESS``),
@@ -15,7 +17,7 @@ import re
 from pathlib import Path
 
 from ..suites import board_suite, case_order
-from . import scaling
+from . import by_instance, scaling
 from .anytime import anytime_scores, sanity_scores
 from .html import Section, Table, write_html
 from .report import (
@@ -96,12 +98,17 @@ def v2_sections(records: list[dict]) -> list[Section]:
     gl = scaling.global_vs_local(records)
     prior = scaling.global_vs_local(records, "prior")
     points = scaling.scaling_points(grouped)
+    cs = by_instance.claims(records)
     sections = []
     for track in dict.fromkeys(r["track"] for r in records):
         text = "\n\n".join([_track_note(track), *scaling.saturation_lines(records, grouped,
                                                                          track),
+                             by_instance.fragile_line(cs, track),
+                             *by_instance.separation_lines(cs, records, track),
                              scaling.answer(gl, track)])
-        tables = [_table("Global vs local search without a prior (paired per instance and "
+        tables = [_table("Claims by instance", by_instance.claim_rows(cs, track),
+                         by_instance.CLAIMS_NOTE),
+                  _table("Global vs local search without a prior (paired per instance and "
                          "seed)", global_local_rows(gl, prior, track),
                          "Groups: the scope each solver declares where it is registered "
                          "(ema-bench solvers). Intervals: 95 % bootstrap over (instance, "

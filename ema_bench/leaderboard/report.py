@@ -159,12 +159,22 @@ def group_heading(tier: int, cond: str, records: list[dict]) -> str:
             f"{', '.join(map(str, budgets))}, {n} instance{'s' if n != 1 else ''})")
 
 
+def _power(p: float) -> str:
+    """``1e-1``, ``1e-6``: a precision of the fitness ladder."""
+    return f"{p:.0e}".replace("e-0", "e-")
+
+
 def group_targets(tier: int, records: list[dict]) -> str:
-    """What the targets of a (tier, condition) group are."""
+    """What the targets of a (tier, condition) group are (its suite's ladders)."""
+    suite = board_suite(records)
     with_f = any(hits(r).keys() & set(FITNESS_TARGETS) for r in records)
-    fit = ("fitness within 1e-1 .. 1e-4 of the instance's f*-to-nominal gap and "
+    ladder = suite.fitness_precisions
+    fit = (f"fitness within {len(ladder)} precisions {_power(ladder[0])} .. "
+           f"{_power(ladder[-1])} of the instance's f*-to-nominal gap and "
            if with_f else "no fitness targets (no shipped f* for these instances yet); ")
-    return (f"Targets: {fit}the best-so-far point within 10, 3, 1 % of range of every "
+    scale = ("range" if suite.target_scales is None else
+             "its noise-allowed scale (max(1 % of range, z sigma) / 1 %)")
+    return (f"Targets: {fit}the best-so-far point within 10, 3, 1 % of {scale} of every "
             f"judged parameter (tier {tier}: {tier} parameters).")
 
 
@@ -224,13 +234,9 @@ def v2_markdown(records: list[dict], grouped: list[AnytimeScore], track: str) ->
           *(f"- {line}" for line in scaling.saturation_lines(records, grouped, track,
                                                                name=markdown)), "",
           "## Claims by instance", "", by_instance.fragile_line(cs, track, markdown), "",
-          "Each claim re-asked over the board's instances: per instance the mean over its "
-          "(condition, seed) runs of the paired difference in ECDF area (side a - side b), "
-          "the mean over instances, 95 % interval from a two-level bootstrap (instances, "
-          "then each instance's runs, with replacement); best vs fifth and first vs second "
-          "rank the solvers by mean area over the tier's conditions pooled; global vs local "
-          "is without a prior. Left out: the claim asked again without the top solver of "
-          "its leading side. Fragile: either interval reaches 0.", "",
+          *(f"- {line}" for line in by_instance.separation_lines(cs, records, track,
+                                                                 name=markdown)), "",
+          by_instance.CLAIMS_NOTE, "",
           *markdown_table(by_instance.claim_rows(cs, track)), "",
           "## Global vs local search without a prior", "", scaling.answer(gl, track), "",
           "Groups: the scope each solver declares where it is registered (`ema-bench "

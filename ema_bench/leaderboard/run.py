@@ -22,6 +22,7 @@ from ..sweep.schema import opt, req
 from ..trace_cache import MODEL_VERSION
 from . import by_instance
 from .anytime import anytime_scores
+from .cost import board_cost, cost_line
 from .derive import best_known_of
 from .figures import (
     ECDF_KINDS,
@@ -94,12 +95,14 @@ def overlay_run(finished: list[dict]) -> dict:
 
 #: ``OUT/summary.json`` of a board, by JSON type: checked before it is written, so the
 #: published JSON Schema (``ema-bench schema leaderboard-summary``) and the file agree
-#: (``targets``: boards written before issue 45 lack it).
+#: (``targets``: boards written before issue 45 lack it; ``cost`` and ``best_vs_fifth``:
+#: before issue 44's report).
 SUMMARY_SCHEMA = {"command": req("str"), "runs": req("int"), "suite": req("str"),
                   "model_version": req("str"), "errors": req("list"), "targets": opt("str"),
                   "files": req("list"), "anytime": req("list"), "scores": req("list"),
                   "figure5_valley_rise": opt("dict"), "global_vs_local": opt("list"),
-                  "saturation": opt("dict"), "claims_by_instance": opt("list")}
+                  "saturation": opt("dict"), "claims_by_instance": opt("list"),
+                  "best_vs_fifth": opt("dict"), "cost": opt("dict")}
 
 
 def write_outputs(records: list[dict], out: Path, command: str, plots: bool = True,
@@ -119,8 +122,9 @@ def write_outputs(records: list[dict], out: Path, command: str, plots: bool = Tr
     versions = ", ".join(sorted({model_version(r) for r in records})) or MODEL_VERSION
     legacy = sum(1 for r in records if not is_error(r) and schema(r) < 2)
     off = [r for r in records if not is_suite_case(r["case"])]
+    cost = board_cost(records)
     header = (f"Produced by {code_span(command)}: {len(records)} runs, suite {suites}, model "
-              f"version {versions}. {targets}{partial}{errors}"
+              f"version {versions}. {targets}{partial}{errors} {cost_line(cost)}"
               + (f" LEGACY VIEW: {legacy} schema-1 records (hits bounded, not proven)."
                  if legacy else "")
               + (f" OFF-SUITE: {len(off)} runs of cases outside every suite "
@@ -131,7 +135,8 @@ def write_outputs(records: list[dict], out: Path, command: str, plots: bool = Tr
     scores = score_records(records)
     written = write_leaderboards(records, out, header)
     written.append(write_paper_tables(finished, scores, out, header, load_paper_results()))
-    summary: dict[str, object] = {"errors": failed, "targets": targets}
+    summary: dict[str, object] = {"errors": failed, "targets": targets,
+                                  "cost": {**asdict(cost), "wall_h": cost.wall_h}}
     images: list[Path] = []
 
     def draw(name: str, plot: Callable[..., None], *data: object) -> None:
@@ -169,9 +174,11 @@ def write_outputs(records: list[dict], out: Path, command: str, plots: bool = Tr
         summary["global_vs_local"] = [asdict(r) for r in global_vs_local(records)]
         summary["saturation"] = {t: saturation_lines(records, grouped, t)
                                  for t in dict.fromkeys(r["track"] for r in records)}
+        cs = by_instance.claims(records)
         summary["claims_by_instance"] = [{**asdict(c), "fragile": c.fragile,
-                                          "verdict": c.verdict}
-                                         for c in by_instance.claims(records)]
+                                          "verdict": c.verdict} for c in cs]
+        summary["best_vs_fifth"] = {t: by_instance.separation_lines(cs, records, t)
+                                    for t in dict.fromkeys(r["track"] for r in records)}
     written += images
     written.append(write_page(records, out / "leaderboard.html", header, images))
     summary["files"] = [str(p) for p in written]

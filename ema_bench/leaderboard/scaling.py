@@ -9,6 +9,7 @@ where it is registered (:data:`ema_bench.registry.SCOPES`), never a list kept he
 
 from __future__ import annotations
 
+import functools
 import math
 from collections import defaultdict
 from collections.abc import Callable, Mapping
@@ -106,14 +107,21 @@ def scaling_points(scores: list[AnytimeScore]) -> list[ScalingPoint]:
 def registered_scopes(solvers: list[str]) -> dict[str, str]:
     """Each solver's declared scope (``unclassified`` for one that is not registered here),
     read in a worker process of its own: the plugins' import code never runs where the
-    scores are computed, and what comes back is only a known scope name."""
+    scores are computed, and what comes back is only a known scope name.  Asked once per
+    set of solvers and process (a report asks it for every table and page that groups
+    solvers by scope; each ask starts a process that imports the zoo)."""
+    return dict(_scopes(tuple(solvers)))
+
+
+@functools.lru_cache(maxsize=32)
+def _scopes(solvers: tuple[str, ...]) -> tuple[tuple[str, str], ...]:
     from ..registry import SCOPES
     from ..sweep.executors import Job, execute
     from .replay_worker import scopes_job
 
     (o,) = execute([Job("scopes", "scopes", list(solvers))], scopes_job, "isolated", 1)
     got = o.records[0] if o.failure is None else {}
-    return {s: got.get(s) if got.get(s) in SCOPES else "unclassified" for s in solvers}
+    return tuple((s, got.get(s) if got.get(s) in SCOPES else "unclassified") for s in solvers)
 
 
 @dataclass(frozen=True)
