@@ -109,3 +109,23 @@ def test_the_script_on_a_published_campaign(ceiling, tmp_path):
     assert ceiling.measure(str(tmp_path / "run"), out, None) == lines   # resumed, not redone
     text = ceiling.summary(lines)
     assert text[0].startswith(f"all ({len(failing)} units): flights ")
+
+
+def test_the_committed_bounds_are_the_documented_ones(ceiling):
+    """``docs/prognostics.md`` quotes the committed lines' summary (the same bootstrap)."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    lines = [json.loads(x) for x in (root / "leaderboards" / "campaign" /
+                                     "coil-short-ceiling.jsonl").read_text().splitlines()]
+    assert len(lines) == 170 and sum(x["failing_fault"] == "Na" for x in lines) == 44
+    rows = {x.split(" (")[0]: x for x in ceiling.summary(lines)}
+    docs = (root / "docs" / "prognostics.md").read_text()
+    for group, label in (("all", "all (170)"), ("Fst", "friction (74)"),
+                         ("BLK", "backlash (52)"), ("Na", "coil shorts (44)"),
+                         ("Na, begun", "coil shorts begun by the cut (35)"),
+                         ("Na, not begun", "coil shorts not begun (9)")):
+        (row,) = [x for x in docs.splitlines() if x.startswith(f"| {label} |")]
+        for level in ("flights", "inspections", "prior", "committed"):
+            figure = rows[group].split(f"{level} ")[1].split(";")[0]
+            assert figure in row, (group, level, figure)
