@@ -52,7 +52,7 @@ from pathlib import Path
 
 import numpy as np
 from prognostics_offline import _ratio  # benchmarks/ (the script's folder) is on the path
-from prognostics_subset import judge_points
+from prognostics_subset import judge_points, pending
 
 from ema_bench.faults import FAULT_INDEX
 from ema_bench.prognostics import track_io
@@ -171,11 +171,7 @@ def measure(run: str, out: Path, units: list[str] | None) -> list[dict]:
     truth = load_truth(camp.root, camp)
     order = sorted(truth)
     failing = [u for u in camp.units if truth[u]["eol"] is not None]
-    done = ({json.loads(x)["unit"] for x in out.read_text().splitlines()} if out.exists()
-            else set())
-    for u in units or failing:
-        if u in done:
-            continue
+    for u in pending(out, units or failing):
         t0 = time.process_time()
         t = truth[u]
         flights = [int(f) for f in t["faults"]]

@@ -41,6 +41,13 @@ def judge(camp, truth: dict, unit: str, point: float, committed: float) -> dict:
                                             "oracle": oracle["rul"]})
 
 
+def pending(out: Path, units: list[str]) -> list[str]:
+    """The ``units`` without a line in ``out`` yet (the scripts resume where they stopped)."""
+    done = ({json.loads(x)["unit"] for x in out.read_text().splitlines()} if out.exists()
+            else set())
+    return [u for u in units if u not in done]
+
+
 def judge_points(camp, truth: dict, unit: str, points: dict[str, float]) -> dict[str, float]:
     """Expected hit of each named point (flights) at the unit's cut, on the board's futures
     of the unit (child ``k`` of ``FUTURES_SEED``, ``k`` its place in the sorted truth)."""
@@ -57,10 +64,7 @@ def measure(camp_dir: str, tracker: str, committed: str, units: list[str], out: 
     truth = json.loads((track_io.campaign_path(committed, log.manifest) / "truth.json").read_text())
     truth = truth["units"]
     order = list(camp.units)
-    done = {json.loads(x)["unit"] for x in out.read_text().splitlines()} if out.exists() else set()
-    for u in units:
-        if u in done:
-            continue
+    for u in pending(out, units):
         t0 = time.process_time()
         rows: list[dict] = []
         settings, inspections = track_run.unit_inputs(camp, u)
