@@ -33,7 +33,7 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
-from prognostics_subset import judge  # benchmarks/ (the script's folder) is on the path
+from prognostics_subset import judge, pending  # benchmarks/ (the script's folder) is on the path
 
 import ema_bench_trackers._common as common
 import ema_bench_trackers.fleet_bayes as fb
@@ -100,11 +100,7 @@ def measure(run: str, tracker: str, out: Path, units: list[str] | None,
     listed = {u["unit"]: u["inspections"] for u in manifest["units"]}
     order = list(camp.units)
     failing = [u for u in order if truth[u]["eol"] is not None]
-    done = ({json.loads(x)["unit"] for x in out.read_text().splitlines()} if out.exists()
-            else set())
-    for u in units or failing:
-        if u in done:
-            continue
+    for u in pending(out, units or failing):
         t0 = time.process_time()
         point = cut_rul(tracker, camp.info(), listed[u], log.steps[u], order)
         line = {"unit": u, "failing_fault": truth[u]["failing_fault"],

@@ -35,14 +35,27 @@ def judge(camp, truth: dict, unit: str, point: float, committed: float) -> dict:
     the oracle's, on the board's futures of the unit (unit ``k`` of the sorted truth: child
     ``k`` of ``FUTURES_SEED``; the oracle's own futures: child ``k`` of 0)."""
     k = sorted(truth).index(unit)
-    stop = tuple(camp.cut_rule["stop"])
+    oracle = oracle_unit(truth[unit], camp.laws, camp.thresholds, camp.inspection_every,
+                         tuple(camp.cut_rule["stop"]), np.random.default_rng(child(0, k)))
+    return judge_points(camp, truth, unit, {"tracker": point, "committed": committed,
+                                            "oracle": oracle["rul"]})
+
+
+def pending(out: Path, units: list[str]) -> list[str]:
+    """The ``units`` without a line in ``out`` yet (the scripts resume where they stopped)."""
+    done = ({json.loads(x)["unit"] for x in out.read_text().splitlines()} if out.exists()
+            else set())
+    return [u for u in units if u not in done]
+
+
+def judge_points(camp, truth: dict, unit: str, points: dict[str, float]) -> dict[str, float]:
+    """Expected hit of each named point (flights) at the unit's cut, on the board's futures
+    of the unit (child ``k`` of ``FUTURES_SEED``, ``k`` its place in the sorted truth)."""
+    k = sorted(truth).index(unit)
     rul, w, _ = unit_futures(truth[unit], camp.laws, camp.thresholds, camp.inspection_every,
-                             stop, np.random.default_rng(child(FUTURES_SEED, k)), N_PATHS)
-    oracle = oracle_unit(truth[unit], camp.laws, camp.thresholds, camp.inspection_every, stop,
-                         np.random.default_rng(child(0, k)))["rul"]
-    return {"tracker": hit_probability(point, rul, w),
-            "committed": hit_probability(committed, rul, w),
-            "oracle": hit_probability(oracle, rul, w)}
+                             tuple(camp.cut_rule["stop"]),
+                             np.random.default_rng(child(FUTURES_SEED, k)), N_PATHS)
+    return {name: hit_probability(point, rul, w) for name, point in points.items()}
 
 
 def measure(camp_dir: str, tracker: str, committed: str, units: list[str], out: Path) -> list:
@@ -51,10 +64,7 @@ def measure(camp_dir: str, tracker: str, committed: str, units: list[str], out: 
     truth = json.loads((track_io.campaign_path(committed, log.manifest) / "truth.json").read_text())
     truth = truth["units"]
     order = list(camp.units)
-    done = {json.loads(x)["unit"] for x in out.read_text().splitlines()} if out.exists() else set()
-    for u in units:
-        if u in done:
-            continue
+    for u in pending(out, units):
         t0 = time.process_time()
         rows: list[dict] = []
         settings, inspections = track_run.unit_inputs(camp, u)

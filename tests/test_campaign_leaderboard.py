@@ -154,3 +154,69 @@ def test_the_board_ranks_on_a_large_twin_campaign_and_the_references_score_low()
         camp = load_campaign(ROOT / track / "campaign", traces=False)
         assert read_truth(ROOT / track / "campaign", camp)["seed"] == MADE[track]["seed"]
     assert np.isfinite(ref["rul_horizon"])
+
+
+def _first_step(tmp_path: Path, scheme: int | None) -> tuple[dict, dict]:
+    """``fleet-bayes``'s first step on twin unit u001 (its inspection made again through
+    make_campaign's per-unit path), with the settings of a replay of the given seed scheme,
+    beside the committed run's first line."""
+    from ema_bench.prognostics.campaign import load_campaign
+    from ema_bench.prognostics.track_io import read_track
+    from ema_bench.prognostics.track_run import run_unit, unit_seed
+    from ema_bench.prognostics.tracking import Inspection, get_tracker
+    from ema_bench.traces import load_traces
+
+    manifest = json.loads((ROOT / "twin" / "campaign" / "manifest.json").read_text())
+    spec = get_spec(manifest["name"])
+    entries, _ = _make_unit(tmp_path, "u001", run_seed(manifest["seed"], 1), spec,
+                            manifest["inspection_every"], manifest["split"], "twin", wear=True)
+    e = entries[0]
+    insp = Inspection(unit="u001", index=0, flight=e["flight"],
+                      traces=load_traces(tmp_path / e["file"]), conditions=e["conditions"],
+                      thresholds=manifest["thresholds"],
+                      inspection_every=manifest["inspection_every"])
+    settings = load_campaign(ROOT / "twin" / "campaign", traces=False).info()
+    if scheme is not None:
+        settings["seed_scheme"] = scheme
+    rows, _ = run_unit(get_tracker("fleet-bayes"), settings, "u001", [insp],
+                       unit_seed(0, 1, 1))
+    return rows[0], read_track(ROOT / "twin" / "fleet-bayes").steps["u001"][0]
+
+
+@pytest.mark.slow
+def test_a_committed_scheme_1_run_gives_its_first_fit_again(tmp_path, monkeypatch):
+    """The committed twin ``fleet-bayes`` run (seed scheme 1) replays: its first inspection's
+    CMA-ES fit, seeded by the run's scheme (``campaign_info["seed_scheme"]``, which replay
+    gives a scheme-1 run), is the committed one to the bit; seeded by this version's scheme
+    it is another fit (every committed model-based run failed its replay so).  Two CMA-ES
+    fits of 1,500 evaluations, about 10 CPU-s; the fast test below pins the settings."""
+    from ema_bench.prognostics.replay import _differences
+
+    monkeypatch.delenv("EMA_BENCH_FIT_CACHE", raising=False)
+    got, want = _first_step(tmp_path, 1)
+    got = {k: v for k, v in got.items() if k in want}   # fields added after the run
+    assert _differences(got, want, "u001") == []
+    assert got["estimate"] == want["estimate"]
+    other, _ = _first_step(tmp_path, None)
+    assert other["estimate"]["BLK"] != want["estimate"]["BLK"]
+
+
+def test_a_replay_of_a_scheme_1_run_tells_the_tracker_its_scheme(tmp_path):
+    """``unit_inputs`` adds ``seed_scheme`` to the published settings for a run of another
+    scheme only, and the baselines' fitter seeds its solver by it (and keys its cache by it)."""
+    import sweep_jobs
+
+    from ema_bench.prognostics.campaign import load_campaign
+    from ema_bench.prognostics.track_run import unit_inputs
+    from ema_bench.seeding import SEED_SCHEME
+    from ema_bench_trackers._common import fit_key, unit_setup
+
+    camp = load_campaign(sweep_jobs.campaign(tmp_path / "campaign"))
+    unit = next(iter(camp.units))
+    now, _ = unit_inputs(camp, unit)
+    old, inspections = unit_inputs(camp, unit, 1)
+    assert "seed_scheme" not in now and old == {**now, "seed_scheme": 1} and SEED_SCHEME != 1
+    seed = np.random.SeedSequence(5)
+    a, b = (unit_setup(s, seed, 100, 100).fitter for s in (now, old))
+    assert (a.seed_scheme, b.seed_scheme) == (SEED_SCHEME, 1)
+    assert fit_key(a, inspections[0]) != fit_key(b, inspections[0])

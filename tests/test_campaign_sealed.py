@@ -22,13 +22,16 @@ from ema_bench.prognostics.track_io import read_track
 ROOT = Path(__file__).resolve().parents[1] / "leaderboards" / "campaign"
 #: A standalone integer of 12 digits or more (a 63-bit seed has up to 19), not part of a float.
 LONG_INT = re.compile(rb"(?<![\d.eE+-])\d{12,}(?![\d.eE])")
+#: The seed of a replay's sample of units (fresh entropy, printed to repeat the check): not the
+#: campaign's.
+SAMPLE_SEED = re.compile(rb'(sample seed |"sample_seed": )\d+')
 
 
 @pytest.fixture(scope="module")
 def sealed(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("sealed") / "s"
     assert main(["campaign", "sealed", "--units", "2", "--trackers", "rul-age", "--out",
-                 str(out), "--quiet", "--json"]) == 0
+                 str(out), "--quiet", "--json", "--replay", "1"]) == 0
     return out
 
 
@@ -85,7 +88,7 @@ def test_the_committed_sealed_table_gives_its_digest_and_no_seed():
     assert re.fullmatch(r"[0-9a-f]{64}", doc["truth_sha256"])
     assert doc["truth_sha256"].encode() in md
     for blob in (md, (ROOT / "sealed" / "scores.json").read_bytes()):
-        assert b"secret_seed" not in blob and not LONG_INT.search(blob)
+        assert b"secret_seed" not in blob and not LONG_INT.search(SAMPLE_SEED.sub(b"", blob))
 
 
 def test_no_threshold_is_tuned_on_a_sealed_campaign(sealed, tmp_path, capsys):
@@ -93,3 +96,40 @@ def test_no_threshold_is_tuned_on_a_sealed_campaign(sealed, tmp_path, capsys):
                  str(sealed / "truth.json"), "--tune", str(tmp_path / "t.json")]) == 2
     assert "tracks a sealed campaign" in capsys.readouterr().err
     assert not (tmp_path / "t.json").exists()
+
+
+def test_a_sealed_table_judges_verified_track_files_only(sealed, tmp_path, capsys):
+    """``campaign sealed`` replays every run as ``campaign policy`` does before scoring or
+    costing it: a run folder edited between two invocations (the rerun resumes it) is
+    refused, one line, nothing written; an honest one ends its table with what was
+    replayed."""
+    import shutil
+
+    md = (sealed / "scores.md").read_text().splitlines()
+    said = [x for x in md if x.startswith("Replayed before scoring and costing: ")]
+    doc = json.loads((sealed / "scores.json").read_text())["replay"]["rul-age"]
+    assert doc["tracked"] == 2 and set(doc["units"]) <= {"u000", "u001"}
+    assert len(said) == 1 and f"rul-age, {len(doc['units'])} of 2 units re-tracked (" \
+        in said[0] and f"sample seed {doc['sample_seed']}): every line agrees" in said[0]
+    # an edited copy: the last step of one unit claims its end (RUL 0), which the policy
+    # table would cost as a replacement at the cut
+    copy = tmp_path / "edited"
+    shutil.copytree(sealed, copy)
+    (copy / "scores.md").unlink()
+    track = copy / "runs" / "rul-age" / "track.jsonl"
+    rows = [json.loads(x) for x in track.read_text().splitlines()]
+    unit = rows[-1]["unit"]
+    rows[-1]["rul"] = rows[-1]["rul_low"] = 0.0
+    track.write_text("".join(json.dumps(r) + "\n" for r in rows))
+    thresholds = tmp_path / "t.json"
+    thresholds.write_text(json.dumps({"format": "ema-bench-policy-thresholds", "version": 1,
+                                      "trackers": {"rul-age": {"signal": "rul",
+                                                               "threshold": 0.0}}}))
+    capsys.readouterr()
+    assert main(["campaign", "sealed", "--units", "2", "--trackers", "rul-age", "--out",
+                 str(copy), "--quiet", "--policy", str(thresholds), "--replay-unit",
+                 unit]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and f"{unit} inspection {rows[-1]['index']}.rul" in err[0] \
+        and "not scored or costed" in err[0]
+    assert not (copy / "scores.md").exists()

@@ -41,7 +41,7 @@ import numpy as np
 from ema_bench.faults import FAULT_INDEX, FAULT_NAMES, LOWER, NOMINAL, UPPER
 from ema_bench.prognostics.distributions import LEVELS, level_key
 from ema_bench.prognostics.tracking import Inspection, TrackStep
-from ema_bench.seeding import child
+from ema_bench.seeding import SEED_SCHEME, child
 
 #: Faults that never fail: a drifting gain is retuned, not replaced.
 NEVER_FAILS = frozenset({"Gprop"})
@@ -158,7 +158,7 @@ def fit_key(fitter: Fitter, insp: Inspection) -> str:
     e = fitter.effects(insp)
     last = fitter.last
     parts = (insp.index, float(insp.traces.dt), fitter.track, fitter.first_budget,
-             fitter.global_budget, fitter.solver, repr(fitter.seed.entropy),
+             fitter.global_budget, fitter.solver, fitter.seed_scheme, repr(fitter.seed.entropy),
              tuple(fitter.seed.spawn_key), None if e is None else np.asarray(e).tobytes(),
              None if last is None else (last.x.tobytes(), float(last.misfit)))
     h.update(repr(parts).encode())
@@ -189,17 +189,24 @@ class Fitter:
         (from the last estimate).
     solver : str
         The registered solver of the global fits.
+    seed_scheme : int
+        How a global fit's solver seed derives from the inspection's child of ``seed``
+        (:func:`ema_bench.seeding.solver_seed`): this version's one-way hash, or scheme 1 for
+        the committed runs tracked under it (``campaign_info["seed_scheme"]``), which replay
+        only so.
     """
 
     def __init__(self, track: str, seed: np.random.SeedSequence, first_budget: int = 1500,
                  global_budget: int = 1000, solver: str = "cmaes",
-                 effects: Callable[[Inspection], np.ndarray | None] | None = None) -> None:
+                 effects: Callable[[Inspection], np.ndarray | None] | None = None,
+                 seed_scheme: int = SEED_SCHEME) -> None:
         self.track = track if track in ("twin", "reference") else "measured"
         self.seed = seed
         self.effects = effects or (lambda insp: None)
         self.first_budget = int(first_budget)
         self.global_budget = int(global_budget)
         self.solver = solver
+        self.seed_scheme = int(seed_scheme)
         self.last: Fit | None = None
 
     def __call__(self, insp: Inspection) -> Fit:
@@ -238,7 +245,8 @@ class Fitter:
         from ema_bench.registry import run_solver
 
         problem = insp.problem(start=start, budget=budget, effects=self.effects(insp))
-        res = run_solver(self.solver, problem, seed=child(self.seed, insp.index))
+        res = run_solver(self.solver, problem, seed=child(self.seed, insp.index),
+                         seed_scheme=self.seed_scheme)
         fit = self._intervals(problem, res.x, polish=True)
         fit.evaluations += res.evaluations
         fit.how = how
@@ -316,7 +324,8 @@ def unit_setup(campaign_info: Mapping, seed: np.random.SeedSequence, first_budge
     fit_seed, mc_seed = split_seed(seed)
     effects = condition_effects(campaign_info) if conditions else (lambda insp: None)
     fitter = Fitter(campaign_info.get("track", "measured"), fit_seed, first_budget,
-                    global_budget, effects=effects)
+                    global_budget, effects=effects,
+                    seed_scheme=campaign_info.get("seed_scheme", SEED_SCHEME))
     return UnitSetup(thresholds, float(campaign_info["inspection_every"]), names,
                      damage_thresholds(names, thresholds), fitter, mc_seed, effects)
 

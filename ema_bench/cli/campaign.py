@@ -361,6 +361,8 @@ def _register_sealed(actions: argparse._SubParsersAction) -> None:
     p.add_argument("--policy", metavar="FILE", default=None,
                    help="replacement-policy thresholds tuned on the training split ("
                         "'campaign policy --tune'): adds the policy costs to the table")
+    add_replay(p, 2, "re-track K sampled units of each run (at least 1) before it is scored "
+                     "or costed")
     add_json(p, "the summary")
     add_quiet(p)
 
@@ -370,8 +372,11 @@ def _run_sealed(args: argparse.Namespace) -> int:
     move its truth to DIR/truth.json before any tracker runs (it holds the seed: keep it, never
     publish it), track it with every board tracker in worker processes (DIR/runs/NAME), score
     every run and write DIR/scores.md and DIR/scores.json, which name the campaign as sealed
-    with the SHA-256 of its truth file and never its seed.  Rerunning resumes.  Trackers tune
-    on the published campaign only (leaderboards/campaign/training_split.json)."""
+    with the SHA-256 of its truth file and never its seed.  Rerunning resumes.  Only verified
+    track files are scored and costed: each run's sampled units are first re-tracked as
+    'campaign policy' does (--replay K), and a run whose lines differ is refused (exit 2, one
+    line, nothing written).  Trackers tune on the published campaign only
+    (leaderboards/campaign/training_split.json)."""
     get_spec(args.name)
     check_output(args.out, "--out", folder=True)
     if args.policy is not None:
@@ -379,8 +384,8 @@ def _run_sealed(args: argparse.Namespace) -> int:
         read_thresholds(args.policy)   # a bad file before any work
     r = run_sealed(args.out, args.units, name=args.name, track=args.track,
                    trackers=tuple(args.trackers), workers=args.workers, quiet=args.quiet,
-                   policy=args.policy)
-    summary = {k: r[k] for k in ("label", "truth_sha256", "runs")}
+                   policy=args.policy, replay=args.replay, replay_units=args.replay_unit)
+    summary = {k: r[k] for k in ("label", "truth_sha256", "runs", "replay")}
     return print_result(args, summary, r["lines"] + [
         "", f"written to {args.out}/scores.md and scores.json; keep {args.out}/truth.json "
             "(it holds the secret seed) away from the trackers and out of any commit"])
@@ -414,6 +419,7 @@ def _run_policy(args: argparse.Namespace) -> int:
     'campaign score --replay K' does, and a run whose lines differ is refused (exit 2, one
     line); the output says what was replayed.  Rules: ema_bench/prognostics/policy.py."""
     from ..prognostics.policy import policy_table, read_thresholds, score_policies, tune
+    from ..prognostics.replay import replayed_lines, verified_runs
 
     if args.tune:
         check_output(args.tune, "--tune", folder=False)
@@ -421,20 +427,15 @@ def _run_policy(args: argparse.Namespace) -> int:
         doc = read_thresholds(args.thresholds)
     if args.markdown:
         check_output(args.markdown, "--markdown", folder=False)
-    checked = replays(args)   # before anything is tuned or costed on the lines
-    for r in checked:
-        if not r.ok:
-            raise CLIError(f"replay of {r.summary()}, first {r.findings[0]}: the track file "
-                           "is not what its tracker gives, not costed")
+    # before anything is tuned or costed on the lines (ReplayError: exit 2, one line)
+    checked = verified_runs(args.runs, args.replay, args.replay_unit)
     if args.tune:
         doc = tune(args.runs, args.truth)
         Path(args.tune).write_text(json.dumps(plain(doc), indent=1) + "\n")
     scored = score_policies(args.runs, doc, args.truth)
     for s, r in zip(scored, checked):
-        s["replay"] = {"units": r.units, "tracked": r.tracked, "sample_seed": r.seed,
-                       "escape_chance": r.escape_chance}
-    lines = policy_table(scored) + [""] + [f"Replayed before costing: {r.summary()}."
-                                           for r in checked]
+        s["replay"] = r.record()
+    lines = policy_table(scored) + [""] + replayed_lines(checked, "costing")
     if args.markdown:
         Path(args.markdown).write_text("\n".join(lines) + "\n")
     return print_result(args, scored, lines)

@@ -40,12 +40,16 @@ class OracleError(ValueError):
 
 def unit_futures(truth: dict, laws: dict, thresholds: dict[str, float], every: int,
                  stop: tuple[float, float], rng: np.random.Generator,
-                 n_paths: int = N_PATHS) -> tuple[np.ndarray, np.ndarray, bool]:
+                 n_paths: int = N_PATHS, na_growth: np.ndarray | None = None
+                 ) -> tuple[np.ndarray, np.ndarray, bool]:
     """Futures of one failing unit drawn from its true state at its cut, weighed by the cut
     rule: what the oracle decides on, and what expected hits are judged on
     (:mod:`~ema_bench.prognostics.expected`).
 
-    Parameters are those of :func:`oracle_unit`.
+    Parameters are those of :func:`oracle_unit`, and ``na_growth`` (n_paths,): each path's
+    coil-short growth rate (per unit duty) in place of the unit's true one (default), for
+    bounds that know everything the oracle knows but that rate
+    (``benchmarks/prognostics_ceiling.py``).
 
     Returns
     -------
@@ -64,7 +68,8 @@ def unit_futures(truth: dict, laws: dict, thresholds: dict[str, float], every: i
     cut = int(truth["last_flight"])
     x0 = np.tile(np.array(truth["faults"][str(cut)], dtype=float), (n_paths, 1))
     rates = {"Fst": np.full(n_paths, p["fst_rate"]), "BLK": np.full(n_paths, p["blk_rate"]),
-             "Na": np.full(n_paths, p["na_growth"])}
+             "Na": (np.full(n_paths, p["na_growth"]) if na_growth is None
+                    else np.asarray(na_growth, dtype=float))}
     paths = ForwardPaths(rng, x0, rates, laws, p["mean_duty"],
                          np.full(n_paths, p["na_onset"] <= cut))
     rul = paths.first_failure(thresholds, STEP, HORIZON)

@@ -36,6 +36,10 @@ from .tracking import TrackerError
 REPLAY_RTOL = 1e-6
 
 
+class ReplayError(TrackerError):
+    """A run whose replayed lines differ from its track file (one line: not judged)."""
+
+
 @dataclass
 class TrackReplay:
     """What a replay found: the ``units`` re-tracked and one line per disagreement."""
@@ -56,6 +60,11 @@ class TrackReplay:
         """Chance that a run with one forged unit passes a sample of this size (drawn from
         fresh entropy: nobody knew beforehand which units it would hold)."""
         return escape_chance(self.tracked, len(self.units))
+
+    def record(self) -> dict:
+        """What was replayed, for a JSON output (``replay`` of a costed or scored run)."""
+        return {"units": self.units, "tracked": self.tracked, "sample_seed": self.seed,
+                "escape_chance": self.escape_chance}
 
     def summary(self) -> str:
         """One line: what was re-tracked (units, the sample's seed) and what was found."""
@@ -161,3 +170,49 @@ def replay_track(run: Path | str, k: int = 2, units: list[str] | None = None,
         report.findings += _differences(got["failed"], want["failed"], f"{unit} failure")
     return report
 
+
+
+def verified_runs(runs: list[Path | str], k: int = 2, units: list[str] | None = None,
+                  workers: int = 1, what: str = "costed") -> list[TrackReplay]:
+    """Replay every run (:func:`replay_track`) before anything is judged on its lines, and
+    refuse the first whose lines differ: what ``campaign policy`` and ``campaign sealed`` run
+    before tuning, costing or scoring (one code path).
+
+    Parameters
+    ----------
+    runs : list of path
+        Tracking run folders.
+    k : int
+        Units sampled per run (at least 1).
+    units : list of str, optional
+        Replay these units of every run instead of a sample.
+    workers : int
+        Units re-tracked at once.
+    what : str
+        What the refusal says the run is not (``"costed"``, ``"scored or costed"``).
+
+    Returns
+    -------
+    list of TrackReplay
+        One per run, in order, every one ``ok``.
+
+    Raises
+    ------
+    ReplayError
+        One line naming the run, what was replayed and the first difference.
+    """
+    if units is None and int(k) < 1:
+        raise ReplayError(f"replay at least 1 unit per run, not {k}")
+    checked = []
+    for run in runs:
+        r = replay_track(run, k=k, units=units, workers=workers)
+        if not r.ok:
+            raise ReplayError(f"replay of {r.summary()}, first {r.findings[0]}: the track "
+                              f"file is not what its tracker gives, not {what}")
+        checked.append(r)
+    return checked
+
+
+def replayed_lines(checked: list[TrackReplay], before: str) -> list[str]:
+    """The lines a table ends with: per run what was replayed ``before`` judging it."""
+    return [f"Replayed before {before}: {r.summary()}." for r in checked]

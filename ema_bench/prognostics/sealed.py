@@ -71,10 +71,17 @@ def make_sealed(out: Path, name: str, units: int, track: str, quiet: bool = True
 
 def run_sealed(out: Path | str, units: int, name: str = "fleet-v1", track: str = "twin",
                trackers: tuple[str, ...] = BOARD_TRACKERS, workers: int = 1,
-               quiet: bool = True, policy: Path | str | None = None) -> dict:
+               quiet: bool = True, policy: Path | str | None = None, replay: int = 2,
+               replay_units: list[str] | None = None) -> dict:
     """Make (or resume) a sealed campaign in ``out``, track it with every tracker in worker
-    processes, score every run against the moved truth and write ``out/scores.md`` and
-    ``out/scores.json``.
+    processes, replay ``replay`` sampled units of every run, score every run against the
+    moved truth and write ``out/scores.md`` and ``out/scores.json``.
+
+    Only verified track files are judged: a run resumed from an earlier invocation is the
+    folder's, which anyone with the folder could have edited, and a policy reads every step of
+    a run.  Before anything is scored or costed each run is replayed as ``campaign policy``
+    replays (:func:`~ema_bench.prognostics.replay.verified_runs`, one code path); a run whose
+    lines differ is refused (``ReplayError``, one line) and nothing is written.
 
     Parameters
     ----------
@@ -95,6 +102,11 @@ def run_sealed(out: Path | str, units: int, name: str = "fleet-v1", track: str =
     policy : path, optional
         Replacement-policy thresholds tuned on the training split
         (:mod:`~ema_bench.prognostics.policy`): the table adds the policy costs.
+    replay : int
+        Units of each run re-tracked (sampled from fresh entropy) before it is judged; at
+        least 1 (about a tracker's cost per unit each, in a fresh worker process).
+    replay_units : list of str, optional
+        Replay these units of every run instead of a sample.
 
     Returns
     -------
@@ -102,9 +114,11 @@ def run_sealed(out: Path | str, units: int, name: str = "fleet-v1", track: str =
         ``label`` (the campaign line), ``truth_sha256``, ``runs`` (tracker -> run folder),
         ``results`` (scored runs without per-unit rows), ``policy`` (with ``policy``:
         :func:`~ema_bench.prognostics.policy.score_policies`, else empty), ``lines`` (the
-        Markdown table).
+        Markdown table, ending with what was replayed), ``replay`` (tracker -> what was
+        replayed, :meth:`~ema_bench.prognostics.replay.TrackReplay.record`).
     """
     from ..jsonio import plain
+    from .replay import replayed_lines, verified_runs
     from .scoring import score_tracking
     from .tables import by_group, group_tables, score_table
     from .track_run import track_campaign, tracker_spec
@@ -117,6 +131,8 @@ def run_sealed(out: Path | str, units: int, name: str = "fleet-v1", track: str =
     truth = out / "truth.json"
     runs = {t: track_campaign(camp, t, out / "runs" / t, seed=0, workers=workers, quiet=quiet)
             for t in trackers}
+    checked = dict(zip(runs, verified_runs(list(runs.values()), replay, replay_units,
+                                           workers, what="scored or costed")))
     results = [score_tracking(run, truth=truth) for run in runs.values()]
     for r in results:
         r["groups"] = by_group(r)
@@ -128,17 +144,20 @@ def run_sealed(out: Path | str, units: int, name: str = "fleet-v1", track: str =
         doc = read_thresholds(policy)
         tuned = [p for t, p in runs.items() if t in doc["trackers"]]
         policies = score_policies(tuned, doc, truth)
+        for p in policies:
+            p["replay"] = checked[p["tracker"]].record()
         untuned = [t for t in runs if t not in doc["trackers"]]
         lines += ["", "**Replacement policies** (thresholds tuned on the training split; "
                   "`ema-bench campaign policy`)"
                   + (f"; no threshold tuned for {', '.join(untuned)}" if untuned else ""),
                   ""] + policy_table(policies)
+    lines += [""] + replayed_lines(list(checked.values()), "scoring and costing")
     (out / "scores.md").write_text("\n".join(lines) + "\n")
     kept = [{k: v for k, v in r.items() if k not in ("per_unit", "oracle_per_unit")}
             for r in results]
     doc = {"campaign": label, "truth_sha256": truth_digest(truth), "results": kept,
-           "policy": policies}
+           "policy": policies, "replay": {t: r.record() for t, r in checked.items()}}
     (out / "scores.json").write_text(json.dumps(plain(doc), indent=1) + "\n")
     return {"label": label, "truth_sha256": doc["truth_sha256"],
             "runs": {t: str(p) for t, p in runs.items()}, "results": kept, "policy": policies,
-            "lines": lines}
+            "lines": lines, "replay": doc["replay"]}

@@ -120,10 +120,16 @@ def run_unit(info: TrackerInfo, settings: Mapping, unit: str, inspections: list[
 
 # --- one unit in a worker process of its own (:mod:`.track_worker`) ----------------------------
 
-def unit_inputs(campaign: Campaign, unit: str) -> tuple[dict, list[Inspection]]:
+def unit_inputs(campaign: Campaign, unit: str, scheme: int = SEED_SCHEME
+                ) -> tuple[dict, list[Inspection]]:
     """The published settings and the unit's inspections (traces read): what its worker
-    gets, read in the process that holds the campaign."""
-    return campaign.info(), [
+    gets, read in the process that holds the campaign.  A run of another seed ``scheme`` (the
+    committed scheme-1 runs, replayed) adds ``seed_scheme`` to the settings: the baselines'
+    fits seeded their solver runs by it, and give their lines again only so."""
+    info = campaign.info()
+    if scheme != SEED_SCHEME:
+        info["seed_scheme"] = int(scheme)
+    return info, [
         Inspection(unit=unit, index=rec.index, flight=rec.flight, traces=campaign.traces(rec),
                    conditions=json.loads(json.dumps(rec.conditions)),
                    thresholds=dict(campaign.thresholds),
@@ -138,7 +144,7 @@ def unit_jobs(campaign: Campaign, spec: TrackerSpec, units: list[str], seed: int
     place in the manifest)."""
     order = list(campaign.units)
     return [Job(u, u, UnitSource(spec, u, unit_seed(seed, order.index(u), scheme),
-                                 functools.partial(unit_inputs, campaign, u)))
+                                 functools.partial(unit_inputs, campaign, u, scheme)))
             for u in units]
 
 

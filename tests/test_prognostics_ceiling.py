@@ -1,0 +1,131 @@
+"""The coil-short bounds of ``benchmarks/prognostics_ceiling.py`` (issue 47: is 0.9 of the
+oracle on coil shorts within reach of a tracker?): each level knows what the oracle knows but
+the unit's coil growth rate, which it infers from a noise-free view of the unit's past.
+
+Its growth-rate posteriors must be right for the bound to be one: on shorts drawn from the law
+itself (``laws.coil_path``, independent of the script) their central 80 % intervals hold the
+true rate about 80 % of the time, and the view of every flight is at least as sharp as the
+view of the inspections.  Knowing the true rate, a level is the oracle to the bit."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from ema_bench.cli import main
+from ema_bench.prognostics.campaign import get_spec
+from ema_bench.prognostics.laws import coil_path, flight_duty
+from ema_bench.prognostics.oracle import oracle_predictions, unit_futures
+
+
+@pytest.fixture
+def ceiling(monkeypatch):
+    from pathlib import Path
+
+    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    import prognostics_ceiling
+
+    return prognostics_ceiling
+
+
+def _interval(lg, logpost, level=0.8):
+    p = np.exp(logpost - logpost.max())
+    c = np.cumsum(p) / p.sum()
+    lo, hi = np.interp([(1 - level) / 2, (1 + level) / 2], c, lg)
+    return lo, hi, math.sqrt(np.sum(p * (lg - np.sum(p * lg) / p.sum()) ** 2) / p.sum())
+
+
+def test_the_growth_posteriors_are_calibrated_on_shorts_drawn_from_the_law(ceiling):
+    laws = get_spec("fleet-v1").laws
+    d = laws.to_dict()
+    lg = ceiling.log_grid(d)
+    rng = np.random.default_rng(47)
+    held = {"flights": 0, "inspections": 0}
+    sharper, n = 0, 300
+    for _ in range(n):
+        g = laws.na_growth_median * math.exp(laws.na_growth_sigma * rng.standard_normal())
+        m = math.exp(laws.duty_unit_sigma * rng.standard_normal())
+        flights = int(rng.integers(3, 61))
+        onset = int(rng.integers(0, 10))
+        duty = flight_duty(rng, onset + flights, m, laws.duty_shape)
+        na = coil_path(rng, duty, onset, laws.na_initial_short, g, laws.na_growth_shape)
+        history = type("H", (), {"faults": np.column_stack([na] * 4), "duty": duty})
+        cut = onset + flights
+        seen = list(range(0, cut + 1, 10)) + [cut]
+        sd = {}
+        for level in held:
+            post = ceiling.log_prior(lg, d) + ceiling.growth_evidence(
+                level, history, onset, cut, seen, d, lg)
+            lo, hi, sd[level] = _interval(lg, post)
+            held[level] += lo <= math.log(g) <= hi
+        sharper += sd["flights"] <= sd["inspections"] + 1e-9
+    for level, k in held.items():   # binomial(300, 0.8): sd 0.023
+        assert 0.72 <= k / n <= 0.88, (level, k / n)
+    assert sharper / n >= 0.95
+
+
+def test_the_true_rate_per_path_is_the_oracle_to_the_bit():
+    laws = get_spec("fleet-v1").laws.to_dict()
+    params = {"fst_rate": 1.2e-3, "blk_rate": 5e-5, "na_growth": 0.025, "mean_duty": 1.1,
+              "na_onset": 80}
+    truth = {"unit": "u000", "params": params, "last_flight": 100,
+             "faults": {"100": [0.95, 0.3, 0.01, 1e5]}}
+    a = unit_futures(truth, laws, {"Fst": 0.6756, "BLK": 0.03, "Na": 0.85}, 10, (0.5, 0.95),
+                     np.random.default_rng(3), 500)
+    b = unit_futures(truth, laws, {"Fst": 0.6756, "BLK": 0.03, "Na": 0.85}, 10, (0.5, 0.95),
+                     np.random.default_rng(3), 500, na_growth=np.full(500, 0.025))
+    c = unit_futures(truth, laws, {"Fst": 0.6756, "BLK": 0.03, "Na": 0.85}, 10, (0.5, 0.95),
+                     np.random.default_rng(3), 500, na_growth=np.full(500, 0.05))
+    assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
+    assert np.median(c[0]) < np.median(a[0])   # a faster short: shorter lives
+
+
+@pytest.mark.slow
+def test_the_script_on_a_published_campaign(ceiling, tmp_path):
+    """End to end on a 3-unit published campaign tracked by ``rul-age``: the history
+    regenerated from the seed agrees with the truth, the ``oracle`` level's point is the
+    oracle's (scored independently by ``oracle_predictions``), lines resume.  About 6 CPU-s
+    (two worker processes); the fast tests above cover the likelihoods and the futures'
+    per-path rates."""
+    camp = tmp_path / "campaign"
+    assert main(["campaign", "make", "fleet-v1", "--units", "3", "--every", "20", "--seed",
+                 "11", "--out", str(camp), "--quiet"]) == 0
+    assert main(["campaign", "track", str(camp), "--tracker", "rul-age", "--out",
+                 str(tmp_path / "run"), "--quiet"]) == 0
+    out = tmp_path / "ceiling.jsonl"
+    lines = ceiling.measure(str(tmp_path / "run"), out, None)
+    truth = json.loads((camp / "truth.json").read_text())["units"]
+    failing = sorted(u for u, t in truth.items() if t["eol"] is not None)
+    assert sorted(x["unit"] for x in lines) == failing and failing
+    m = json.loads((camp / "manifest.json").read_text())
+    oracle = oracle_predictions(truth, m["laws"], m["thresholds"], 20, m["cut_rule"])
+    for x in lines:
+        assert x["points"]["oracle"] == oracle[x["unit"]]["rul"]
+        assert x["points"]["committed"] == truth[x["unit"]]["last_flight"]   # RUL = age
+        assert 0.0 <= x["prior"] <= 1.0 and x["oracle"] >= 0.0
+    assert ceiling.measure(str(tmp_path / "run"), out, None) == lines   # resumed, not redone
+    text = ceiling.summary(lines)
+    assert text[0].startswith(f"all ({len(failing)} units): flights ")
+
+
+def test_the_committed_bounds_are_the_documented_ones(ceiling):
+    """``docs/prognostics.md`` quotes the committed lines' summary (the same bootstrap)."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    lines = [json.loads(x) for x in (root / "leaderboards" / "campaign" /
+                                     "coil-short-ceiling.jsonl").read_text().splitlines()]
+    assert len(lines) == 170 and sum(x["failing_fault"] == "Na" for x in lines) == 44
+    rows = {x.split(" (")[0]: x for x in ceiling.summary(lines)}
+    docs = (root / "docs" / "prognostics.md").read_text()
+    for group, label in (("all", "all (170)"), ("Fst", "friction (74)"),
+                         ("BLK", "backlash (52)"), ("Na", "coil shorts (44)"),
+                         ("Na, begun", "coil shorts begun by the cut (35)"),
+                         ("Na, not begun", "coil shorts not begun (9)")):
+        (row,) = [x for x in docs.splitlines() if x.startswith(f"| {label} |")]
+        for level in ("flights", "inspections", "prior", "committed"):
+            figure = rows[group].split(f"{level} ")[1].split(";")[0]
+            assert figure in row, (group, level, figure)

@@ -1,0 +1,96 @@
+"""Issue 47's targets table (``docs/prognostics.md``, "Issue 47's targets: where they
+stand"): every figure it quotes is the committed file's, recomputed here from the file, so the
+table cannot drift from the board it reports."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+BOARD = ROOT / "leaderboards" / "campaign"
+
+
+@pytest.fixture(scope="module")
+def table() -> str:
+    text = (ROOT / "docs" / "prognostics.md").read_text()
+    start = text.index("## Issue 47's targets: where they stand")
+    return text[start:text.index("\n## ", start + 1)]
+
+
+def _row(table: str, target: str) -> str:
+    (row,) = [x for x in table.splitlines() if x.startswith(f"| {target} |")]
+    return row
+
+
+def _results(path: Path) -> dict:
+    doc = json.loads(path.read_text())
+    rows = doc["results"] if isinstance(doc, dict) else doc
+    return {(r["tracker"], r["track"]): r for r in rows}
+
+
+def _ratio(h: dict, digits: int = 3) -> str:
+    lo, hi = h["ratio_ci"]
+    return f"{h['ratio']:.{digits}f} [{lo:.{digits}f}, {hi:.{digits}f}]"
+
+
+def test_the_targets_table_quotes_the_committed_board(table):
+    r = _results(BOARD / "scores.json")
+    twin, ref = r[("fleet-bayes-cut", "twin")], r[("fleet-bayes-cut", "reference")]
+    expect = {
+        "expected ratio to the oracle >= 0.95 overall": [
+            _ratio(twin["headline"]["expected"]), _ratio(ref["headline"]["expected"])],
+        "realised ratio beside it": [_ratio(twin["headline"]["within"]),
+                                     _ratio(ref["headline"]["within"])],
+        "expected ratio >= 0.9 on every failure mode": [
+            _ratio(twin["groups"][g]["headline"]["expected"]) for g in ("Fst", "BLK", "Na")],
+        "CRPS within 1.2 x the oracle's": [_ratio(ref["headline"]["crps"])],
+        "95 % interval score within 1.2 x the oracle's": [_ratio(twin["headline"]["is95"]),
+                                                         _ratio(ref["headline"]["is95"])],
+    }
+    for target, figures in expect.items():
+        row = _row(table, target)
+        for f in figures:
+            assert f in row, (target, f)
+    assert twin["headline"]["crps"]["value"] is None   # "twin not measurable"
+    cov = twin["headline"]["coverage"]
+    assert (f"{100 * cov['value']:.1f} % [{100 * cov['ci'][0]:.1f} %, {100 * cov['ci'][1]:.1f}"
+            " %]") in _row(table, "95 % coverage 90-98 %")
+
+
+def test_the_targets_table_quotes_the_committed_policy_and_sealed_tables(table):
+    policy = {(p["tracker"], p["track"]): p for p in
+              json.loads((BOARD / "policy.json").read_text())}
+    row = _row(table, "policy cost within 1.2 x the oracle policy's")
+    for key in (("fleet-bayes-cut", "twin"), ("fleet-bayes-cut", "reference"),
+                ("fleet-bayes", "twin"), ("fleet-bayes", "reference")):
+        h = policy[key]["ratio"]
+        assert f"{h['value']:.2f} [{h['ci'][0]:.2f}, {h['ci'][1]:.2f}]" in row, key
+    sealed = json.loads((BOARD / "sealed" / "scores.json").read_text())
+    s = {r["tracker"]: r for r in sealed["results"]}["fleet-bayes-cut"]["headline"]
+    assert f"sealed {_ratio(s['expected'], 2)}" in _row(
+        table, "expected ratio to the oracle >= 0.95 overall")
+    assert f"sealed {_ratio(s['crps'], 2)}" in _row(table, "CRPS within 1.2 x the oracle's")
+    sp = {p["tracker"]: p for p in sealed["policy"]}["fleet-bayes-cut"]["ratio"]
+    assert f"sealed {sp['value']:.2f} [{sp['ci'][0]:.2f}, {sp['ci'][1]:.2f}]" in row
+
+
+def test_the_targets_table_quotes_the_committed_onset_measurement(table):
+    """``fleet-bayes-onset``'s figures are ``benchmarks/prognostics_offline.py``'s summary of
+    its committed lines (the same bootstrap)."""
+    lines = [json.loads(x) for x in
+             (BOARD / "fleet-bayes-onset-offline.jsonl").read_text().splitlines()]
+
+    def ratio(sel):
+        e, o = (np.array([x[k] for x in sel]) for k in ("tracker", "oracle"))
+        idx = np.random.default_rng(0).integers(0, len(sel), (4000, len(sel)))
+        b = e[idx].sum(1) / o[idx].sum(1)
+        return (f"{e.sum() / o.sum():.3f} [{np.quantile(b, .025):.3f}, "
+                f"{np.quantile(b, .975):.3f}]")
+
+    assert f"twin {ratio(lines)}" in _row(table, "expected ratio to the oracle >= 0.95 overall")
+    na = [x for x in lines if x["failing_fault"] == "Na"]
+    assert ratio(na) in _row(table, "expected ratio >= 0.9 on every failure mode")
