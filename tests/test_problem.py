@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import re
 from collections.abc import Mapping
 
 import numpy as np
@@ -23,7 +24,7 @@ from ema_bench.physics.sensors import SENSORS
 from ema_bench.problem import BudgetExhausted, Problem, ProblemError
 from ema_bench.scoring import Score
 from ema_bench.suites.problem import make_problem
-from ema_bench.traces import Traces
+from ema_bench.traces import SIGNALS, Traces
 
 DAMAGED = ("small", "full", "random")
 
@@ -565,6 +566,9 @@ def test_a_problem_without_prior_has_bounds_only_and_takes_no_start():
         np.testing.assert_array_equal(best[0], 0.5 * (LOWER + UPPER))
         assert best[1] == float("inf")
     assert v.measured is m and v.normalise is False and p.view().normalise is True
+    assert q.units == p.units == FAULT_UNITS
+    aug = Problem(m, 3, prior=False, augment=("aero_spring",))
+    assert aug.augment == aug.view().augment == ("aero_spring",) and aug.nominal is None
     with pytest.raises(ProblemError, match=r"^a problem without prior takes no start$"):
         Problem(m, 3, prior=False, start=NOMINAL)
     blind = p.without_truth()
@@ -583,6 +587,9 @@ def test_a_truth_of_every_searched_parameter_is_judged_on_their_ranges():
     assert Problem(m, 3, augment=("aero_spring",), _truth=faults).truth_size() == 4
     p.evaluate(np.r_[faults, 800.0 + 0.02 * 2400.0])
     assert p.parameter_hits((0.025, 0.01)) == [1, None]
+    # the effect left out of the judged parameters, or judged on a range twice as wide
+    assert p.parameter_hits((0.025, 0.01), judged=np.array([True] * 4 + [False])) == [1, 1]
+    assert p.parameter_hits((0.015,), scales=np.r_[UPPER - LOWER, 4800.0]) == [1]
     with pytest.raises(ProblemError,
                        match=r"^the truth must have 4 or 5 values, got shape \(3,\)$"):
         Problem(m, 3, augment=("aero_spring",), _truth=np.ones(3))
@@ -613,3 +620,7 @@ def test_a_problem_on_fewer_signals_weighs_only_those():
     want = sum(np.mean((outputs[t][0, :, k] - m.data[t][:, k]) ** 2) / scales[t][k] ** 2
                for t in m.tests)
     assert p.evaluate(x[0]) == pytest.approx(want, rel=1e-12)
+    for bad in (("theta_m", "torque"), (), ("theta_m", "theta_m")):
+        with pytest.raises(ProblemError, match=re.escape(
+                f"signals takes distinct outputs of {list(SIGNALS)}, got {list(bad)}")):
+            Problem(m, 2, signals=bad)
