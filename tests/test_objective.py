@@ -335,3 +335,22 @@ def test_parameter_hits_on_given_ranges_and_a_judged_mask():
     judged = np.array([True] * 5 + [False])
     assert parameter_hits(X6, f6, true6, [0.03, 0.01], ranges, judged) == [1, 1]
     assert parameter_hits(X6, f6, true6, [0.03], ranges, np.zeros(6, bool)) == [None]
+
+
+def test_the_objective_simulates_on_its_own_model_version():
+    """``Objective(params=...)`` reaches the monitor: on version 2's parameters (libm's sine
+    and cosine in eccentricity) its outputs are version 2's monitor outputs, bit for bit,
+    and not this installation's default version's."""
+    from ema_bench.params import model_params
+
+    m = make_problem("small", track="twin", seed=0, budget=1).measured
+    space = SearchSpace.of(("eccentricity",))
+    X = np.array([np.r_[NOMINAL, 0.1]])
+    E = space.effects_for(X)
+    obj = Objective(m, space, params=model_params("2"))
+    v2, _ = obj.outputs(X)
+    want, _ = simulate_monitor(X[:, :4], E, tests=obj.tests, params=model_params("2"))
+    now, _ = simulate_monitor(X[:, :4], E, tests=obj.tests)
+    for t in m.tests:
+        np.testing.assert_array_equal(v2[t], want[t])
+    assert any(not np.array_equal(v2[t], now[t]) for t in m.tests)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import re
 from collections.abc import Mapping
 
 import numpy as np
@@ -23,7 +24,7 @@ from ema_bench.physics.sensors import SENSORS
 from ema_bench.problem import BudgetExhausted, Problem, ProblemError
 from ema_bench.scoring import Score
 from ema_bench.suites.problem import make_problem
-from ema_bench.traces import Traces
+from ema_bench.traces import SIGNALS, Traces
 
 DAMAGED = ("small", "full", "random")
 
@@ -540,3 +541,86 @@ def test_a_replaced_objective_is_what_the_solver_view_evaluates():
     assert p.view().evaluate(x) == expected and p.evaluate(x) == expected
     with pytest.raises(ProblemError, match="before its first evaluation"):
         p.objective = raw
+
+
+# ---- the problem's own checks, built directly (issue 48: the model shard's survivors) ------
+
+
+def _measured() -> Traces:
+    return make_problem("small", track="twin", seed=0, budget=1).measured
+
+
+def test_a_problem_without_prior_has_bounds_only_and_takes_no_start():
+    """``prior`` is on by default; without it the problem and its solver view hold no
+    nominal and no start, the best before any evaluation is the box's centre, and a start is
+    refused by its own line.  The view carries the problem's data and fitness kind."""
+    m = _measured()
+    p = Problem(m, 3, _meta={"instance": "small"})
+    assert p.prior and np.array_equal(p.nominal, NOMINAL) and np.array_equal(p.start, NOMINAL)
+    q = Problem(m, 3, prior=False, normalise=False)
+    v = q.view()
+    assert q.nominal is None and q.start is None and v.nominal is None and v.start is None
+    np.testing.assert_array_equal(q.lower, LOWER)
+    np.testing.assert_array_equal(q.upper, UPPER)
+    for best in (q.best, v.best):
+        np.testing.assert_array_equal(best[0], 0.5 * (LOWER + UPPER))
+        assert best[1] == float("inf")
+    assert v.measured is m and v.normalise is False and p.view().normalise is True
+    assert q.units == p.units == FAULT_UNITS
+    aug = Problem(m, 3, prior=False, augment=("aero_spring",))
+    assert aug.augment == aug.view().augment == ("aero_spring",) and aug.nominal is None
+    with pytest.raises(ProblemError, match=r"^a problem without prior takes no start$"):
+        Problem(m, 3, prior=False, start=NOMINAL)
+    blind = p.without_truth()
+    assert blind.meta == {"instance": "small"} and blind.meta is not p.meta
+
+
+def test_a_truth_of_every_searched_parameter_is_judged_on_their_ranges():
+    """An augmented problem's truth may hold every searched parameter (suite ``emafdi-v2``):
+    it is judged on the searched ranges, here an effect 2 % of its range (2400 N m/rad) off;
+    any other number of values is refused by its own line."""
+    m = _measured()
+    faults = 0.5 * (LOWER + UPPER)
+    truth = np.r_[faults, 800.0]
+    p = Problem(m, 3, augment=("aero_spring",), _truth=truth)
+    assert p.truth_size() == 5 and Problem(m, 3).truth_size() == 0
+    assert Problem(m, 3, augment=("aero_spring",), _truth=faults).truth_size() == 4
+    p.evaluate(np.r_[faults, 800.0 + 0.02 * 2400.0])
+    assert p.parameter_hits((0.025, 0.01)) == [1, None]
+    # the effect left out of the judged parameters, or judged on a range twice as wide
+    assert p.parameter_hits((0.025, 0.01), judged=np.array([True] * 4 + [False])) == [1, 1]
+    assert p.parameter_hits((0.015,), scales=np.r_[UPPER - LOWER, 4800.0]) == [1]
+    with pytest.raises(ProblemError,
+                       match=r"^the truth must have 4 or 5 values, got shape \(3,\)$"):
+        Problem(m, 3, augment=("aero_spring",), _truth=np.ones(3))
+
+
+def test_residuals_of_a_batch_are_the_rows_of_single_calls():
+    """``residuals`` of a batch: one row per candidate, the same bits as one call each, one
+    evaluation per row."""
+    p = make_problem("small", track="twin", seed=0, budget=6)
+    X = candidates(3, seed=1)
+    R = p.residuals(X)
+    assert R.shape == (3, p.n_residuals) and p.evaluations == 3
+    for i in range(3):
+        np.testing.assert_array_equal(R[i], p.residuals(X[i]))
+    np.testing.assert_allclose(np.sum(R**2, axis=1), p.history()["fitness"][:3], rtol=1e-12)
+
+
+def test_a_problem_on_fewer_signals_weighs_only_those():
+    """``signals`` reaches the fitness: on ``theta_m`` alone it is that output's normalised
+    mean squared error summed over the tests, computed here from the monitor's outputs."""
+    m = _measured()
+    p = Problem(m, 2, signals=("theta_m",))
+    x = candidates(1, seed=2)
+    outputs, ok = p.simulate(x)
+    assert ok.all()
+    k = 1   # theta_m, the second of SIGNALS
+    scales = signal_scales(m)
+    want = sum(np.mean((outputs[t][0, :, k] - m.data[t][:, k]) ** 2) / scales[t][k] ** 2
+               for t in m.tests)
+    assert p.evaluate(x[0]) == pytest.approx(want, rel=1e-12)
+    for bad in (("theta_m", "torque"), (), ("theta_m", "theta_m")):
+        with pytest.raises(ProblemError, match=re.escape(
+                f"signals takes distinct outputs of {list(SIGNALS)}, got {list(bad)}")):
+            Problem(m, 2, signals=bad)

@@ -640,6 +640,19 @@ def test_a_record_of_an_earlier_model_version_is_judged_on_its_own_entry():
     assert not any(m.startswith("targets.f_star") for m in check_record(r, reevaluate=False))
 
 
+def test_a_suite_on_another_model_version_accepts_only_its_own():
+    """Suite emafdi-v3 runs on model version 4 (``Suite.model_version``): its committed
+    records validate, and a relabel to any other version is refused by the exact line, with
+    no compatible version offered (those are earlier versions of the default suite's)."""
+    with (ROOT / "leaderboards" / "v3" / "runs.jsonl").open() as f:
+        r = json.loads(f.readline())
+    assert (r["suite"], r["model_version"]) == ("emafdi-v3", "4")
+    assert check_record(r, reevaluate=False) == []
+    for label in ("3", "2"):
+        assert check_record(_with(r, model_version=label), reevaluate=False) == [
+            f"model version '{label}', expected '4'"]
+
+
 def test_the_best_known_tolerance_at_its_edge():
     """Exactly 1e-4 of the f*-to-nominal gap below f*: within the tolerance; f* - 1e-4 of
     f_nominal (a little further, by 1e-4 of f*): beyond it, with both values named."""
