@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from ema_bench.diagnosis.blind import TESTS
-from ema_bench.diagnosis.discovery import describe, sensitivities, stlsq
+from ema_bench.diagnosis.discovery import describe, rest_needed, sensitivities, stlsq
 from ema_bench.diagnosis.features import whiten
-from ema_bench.diagnosis.results import Fit, Settings
+from ema_bench.diagnosis.results import Fit, Settings, Trial
 from ema_bench.diagnosis.stiction import stick_weights
 from ema_bench.diagnosis.workflow import diagnose
 from ema_bench.effects import EFFECT_INDEX, EFFECTS, N_EFFECTS
@@ -99,6 +99,29 @@ def test_the_verdict_phrase_names_equation_form_and_interval():
         "N m s^2/rad^2")
     assert term("motor_i_abs").equation == "motor"
 
+
+
+def _trial(name: str, accepted: bool, still_detected: bool) -> Trial:
+    return Trial((name,), (name,), "base", {name: 1.0}, {}, "held-out", 0.8, 0.8,
+                 (1.0, 0.2), (1.0, 0.5), (0.0, 0.0), still_detected, 60.0, accepted)
+
+
+def test_the_rest_of_the_dictionary_is_searched_only_where_it_can_name_something_new():
+    """The rule of :func:`rest_needed` at each edge: with no library set and nothing selected
+    accepted (a torque saturation), and with every accepted term partial (hinge friction
+    named ``w_u |w_u|`` at 84 %), the rest is fitted; with a term closing it all, or with a
+    library set named and no selected term accepted (a whole-chain case, 14 fits for no
+    change), it is not."""
+    library = _trial("current_gain", True, True)
+    rejected = [_trial("surface_wu", False, True), _trial("motor_i", False, False)]
+    partial, whole = _trial("surface_wu_abs", True, True), _trial("surface_sign", True, False)
+    assert rest_needed(rejected, None)
+    assert rest_needed([], None)
+    assert not rest_needed(rejected, library)
+    assert rest_needed(rejected + [partial], None)
+    assert rest_needed(rejected + [partial], library)
+    assert not rest_needed([partial, whole], None)
+    assert not rest_needed([whole], library)
 
 # slow: a full diagnosis (about 80 CPU-s): the workflow fits the library first, finds no set
 # that closes the gap, and names the term; at this noise seed the linearised selection
