@@ -151,6 +151,30 @@ def test_a_null_case_discovers_nothing(seed):
 
 
 
+def _outside_search(index: int, effect: str):
+    """Case ``index`` of root seed 4646's ``blind --outside 5`` (its hidden ``effect``):
+    the effect's size, the case's traces, and a search at its base fit and assessment (20
+    bootstrap replicates)."""
+    from ema_bench.diagnosis import blind
+    from ema_bench.diagnosis.fitting import assess, fit
+    from ema_bench.diagnosis.workflow import _Search
+    from ema_bench.objective import signal_weights
+    from ema_bench.seeding import stream
+
+    case = next(c for c in blind.draw_cases(0, 4646, outside=5) if c.index == index)
+    (size,) = case.effects.values()
+    assert effect in case.effects
+    tr = blind.measured_traces(case, 4646)
+    s = Settings(n_boot=20)
+    sw = stick_weights(tr)
+    weights = {t: w[None, :] * sw[t] for t, w in signal_weights(tr).items()}
+    base = fit(tr, (), s, stream(1, "fit", 0, 0))
+    status, _ = assess(tr, base, weights, s, stream(1, "bootstrap", 0))
+    assert status.detected
+    return size, tr, _Search(tr, weights, s, 1, base, status, lambda m: None,
+                             fits={"base": base}, status={"base": status})
+
+
 # slow (about 100 CPU-s): a base fit, its assessment and the 14 terms the selection left out
 # fitted alone, then the two best judged
 @pytest.mark.slow
@@ -160,26 +184,12 @@ def test_a_term_the_selection_misses_is_found_among_the_rest():
     ``i |i|`` among the selected five; fitted alone with the rest of the dictionary it is
     the best, and judged it is accepted with the coefficient the saturation makes,
     ``-a Kt`` (Kt the torque constant per ampere of ``i``)."""
-    from ema_bench.diagnosis import blind
     from ema_bench.diagnosis.discovery import _rest
-    from ema_bench.diagnosis.fitting import assess, fit
-    from ema_bench.diagnosis.workflow import _Search
-    from ema_bench.objective import signal_weights
     from ema_bench.params import DEFAULT_PARAMS
-    from ema_bench.seeding import stream
 
-    case = next(c for c in blind.draw_cases(0, 4646, outside=5) if c.index == 11)
-    (a,) = case.effects.values()
-    assert "torque_saturation" in case.effects
-    tr = blind.measured_traces(case, 4646)
-    s = Settings(n_boot=20)
-    sw = stick_weights(tr)
-    weights = {t: w[None, :] * sw[t] for t, w in signal_weights(tr).items()}
-    base = fit(tr, (), s, stream(1, "fit", 0, 0))
-    status, _ = assess(tr, base, weights, s, stream(1, "bootstrap", 0))
-    search = _Search(tr, weights, s, 1, base, status, lambda m: None,
-                     fits={"base": base}, status={"base": status})
-    selected = stlsq(*sensitivities(tr, base), TERM_NAMES, s.term_threshold,
+    a, tr, search = _outside_search(11, "torque_saturation")
+    s = search.settings
+    selected = stlsq(*sensitivities(tr, search.base), TERM_NAMES, s.term_threshold,
                      s.term_top_k).names
     assert "motor_i_abs" not in selected
     trials = _rest(search, selected)
@@ -198,25 +208,9 @@ def test_a_partial_term_does_not_stop_the_search_for_the_right_one():
     and not ``tanh(w_u / 0.01)``.  The rest of the dictionary is searched all the same, and
     the smoothed sign of the surface speed, the hinge friction's form, is named: it leaves no
     discrepancy and closes the gap, with the coefficient the friction makes (``-F``)."""
-    from ema_bench.diagnosis import blind
     from ema_bench.diagnosis.discovery import discover
-    from ema_bench.diagnosis.fitting import assess, fit
-    from ema_bench.diagnosis.workflow import _Search
-    from ema_bench.objective import signal_weights
-    from ema_bench.seeding import stream
 
-    case = next(c for c in blind.draw_cases(0, 4646, outside=5) if c.index == 2)
-    (friction,) = case.effects.values()
-    assert "hinge_friction" in case.effects
-    tr = blind.measured_traces(case, 4646)
-    s = Settings(n_boot=20)
-    sw = stick_weights(tr)
-    weights = {t: w[None, :] * sw[t] for t, w in signal_weights(tr).items()}
-    base = fit(tr, (), s, stream(1, "fit", 0, 0))
-    status, _ = assess(tr, base, weights, s, stream(1, "bootstrap", 0))
-    assert status.detected
-    search = _Search(tr, weights, s, 1, base, status, lambda m: None,
-                     fits={"base": base}, status={"base": status})
+    friction, _, search = _outside_search(2, "hinge_friction")
     best = discover(search, None)
     partial = [t for t in search.trials if t.accepted and t.still_detected]
     assert partial, "the selection's terms leave a discrepancy (what made the rest searched)"
