@@ -218,10 +218,13 @@ def discover(search, against: Trial | None) -> Trial | None:
     # a kinematic twin of an accepted term (the same speed term across the gear) is fitted
     # too, from the accepted fit's faults and the coefficient the gear maps it to: only
     # the training fit (the transmission's twist) tells the two balances apart
+    tried = {n for t in trials for n in t.effects}
     for t in [t for t in trials if t.accepted]:
         (n,) = t.effects
         twin = TWINS.get(n)
-        if twin and twin not in sel.names:
+        # (the rest may have fitted the twin already: a second fit of one term would pair
+        # the term with itself below)
+        if twin and twin not in tried:
             start = search.start((twin,), {twin: _across(n, t.values[n])},
                                  search.fits[t.name].x[:N_FAULTS])
             trials.append(search.run((twin,), start, None, t.score))
