@@ -75,10 +75,11 @@ def test_the_report_of_a_v3_board_has_the_issues_answers(v3_slice, tmp_path):
     assert f"{hours / 2:.2f} h of wall time on 2 cores" in header
     # every claim, by instance, with its leave-one-out line; the verdict per claim
     claims = [c for c in doc["claims_by_instance"] if c["track"] == "reference"]
-    assert [c["claim"] for c in claims][:2] == ["best vs 5th", "first vs second"]
+    assert [c["claim"] for c in claims][:3] == ["best vs 5th", "first vs second",
+                                                "best vs 5th, parameter targets"]
     assert all(c["instances"] == len(INSTANCES) and c["without_diff"] is not None
-               for c in claims[:2])
-    assert claims[2]["claim"] in ("global vs local, no-prior", "local vs global, no-prior")
+               for c in claims[:3])
+    assert claims[3]["claim"] in ("global vs local, no-prior", "local vs global, no-prior")
     for c in claims:
         lo = c["diff"][1]
         assert c["fragile"] == (not lo > 0 or not c["without_diff"][1] > 0)

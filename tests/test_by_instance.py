@@ -51,7 +51,10 @@ def _board(areas: dict[str, list[float]], conds=("prior", "no-prior"), tier=7) -
 
 @pytest.fixture
 def areas_from_records(monkeypatch):
-    monkeypatch.setattr(by_instance, "run_area", lambda r: r["area"])
+    # the fitness-and-parameter area is the record's "area"; parameter targets only where a
+    # record says ("parea"), else none (nan, as run_area gives a run without them)
+    monkeypatch.setattr(by_instance, "run_area", lambda r, kinds="fp": (
+        r["area"] if kinds == "fp" else r.get("parea", float("nan"))))
 
 
 def test_claims_on_a_board_whose_answers_are_known(areas_from_records):
@@ -147,3 +150,29 @@ def test_separation_lines_say_when_a_tier_separates_or_has_too_few_solvers(
     (line,) = by_instance.separation_lines(cs, high, "twin")
     assert "cannot separate" in line and "on 1 of the 4 instances" in line
     assert "nearly every target early (mean areas above 0.9)" in line
+
+
+def test_the_parameter_targets_get_a_claim_of_their_own(areas_from_records):
+    """Fitness and parameter targets rank the solvers in opposite orders: the parameter
+    claim ranks by the parameter area alone (``s5`` first, ``s1`` fifth) and is asked on it,
+    while best vs 5th keeps the fitness-and-parameter ranking; on runs without parameter
+    targets the claim is not asked."""
+    base = np.linspace(0.1, 0.3, 6)
+    recs = _board({f"s{k}": base + 0.05 * (6 - k) for k in range(6)})
+    for r in recs:                          # s5 best on parameters, s0 worst: reversed
+        r["parea"] = 0.2 + 0.1 * int(r["solver"][1]) + 0.01 * int(r["case"][4:6])
+    cs = claims(recs, scope_of=lambda names: dict.fromkeys(names, "global"))
+    by = {c.claim: c for c in cs if c.track == "twin"}
+    assert list(by) == ["best vs 5th", "first vs second", "best vs 5th, parameter targets"]
+    assert (by["best vs 5th"].a, by["best vs 5th"].b) == (("s0",), ("s4",))
+    p = by["best vs 5th, parameter targets"]
+    assert (p.a, p.b, p.without, p.without_a, p.without_b) == (
+        ("s5",), ("s1",), "s5", ("s4",), ("s0",))
+    assert p.diff[0] == pytest.approx(0.4, abs=1e-9) and p.diff[1] > 0 and not p.fragile
+    # the best-vs-fifth sentence stays the fitness-and-parameter claim's
+    assert [line.startswith("Tier 7: best (s0)") for line in
+            by_instance.separation_lines(cs, recs, "twin")] == [True]
+    for r in recs:
+        del r["parea"]
+    assert "best vs 5th, parameter targets" not in {c.claim for c in claims(
+        recs, scope_of=lambda names: dict.fromkeys(names, "global"))}
