@@ -37,6 +37,7 @@ from ema_bench.prognostics.track_worker import TrackerSpec, UnitInput, UnitSourc
 from ema_bench.prognostics.tracking import Inspection, TrackerError, TrackStep, register_tracker
 from ema_bench.sweep import executors
 
+COMMITTED = Path(__file__).resolve().parents[1] / "leaderboards" / "campaign" / "twin"
 UNITS = ("u000", "u001", "u002", "u003", "u004", "u005")
 DIED = ("WorkerDied: the worker process running this task died (killed, out of memory or "
         "os._exit)")
@@ -67,6 +68,12 @@ def drawn_age(campaign_info, seed, *, scale):
     return step
 
 
+# the same tracker registered without a configuration (the factory's default scale)
+@register_tracker("drawn-age-default", description="test tracker: drawn-age at scale 100")
+def drawn_age_default(campaign_info, seed):
+    return drawn_age(campaign_info, seed, scale=100.0)
+
+
 @functools.cache
 def _made() -> Path:
     """The campaign (sweep_jobs' 4 units, and u004, u005 on u000's and u001's first two
@@ -81,6 +88,26 @@ def _made() -> Path:
         m["units"].append({"unit": new, "inspections": m["units"][old]["inspections"][:2]})
     (camp / "manifest.json").write_text(json.dumps(m))
     track_campaign(camp, "drawn-age", root / "run", seed=5)
+    return root
+
+
+@functools.cache
+def _committed() -> Path:
+    """The committed twin ``life-table`` run (seed scheme 1, grandfathered) beside the committed
+    campaign's manifest, each of whose inspection files is a stand-in (one of ``_made``'s
+    traces: ``life-table`` reads no trace, and the committed campaign keeps none), made once
+    per process."""
+    root = Path(tempfile.mkdtemp(prefix="ema-track-replay-committed-"))
+    owner = os.getpid()
+    atexit.register(lambda: os.getpid() == owner and shutil.rmtree(root, ignore_errors=True))
+    stand_in = _made() / "campaign" / "u000" / "i000.npz"
+    shutil.copytree(COMMITTED / "life-table", root / "life-table")
+    (root / "campaign").mkdir()
+    shutil.copy(COMMITTED / "campaign" / "manifest.json", root / "campaign")
+    for u in json.loads((root / "campaign" / "manifest.json").read_text())["units"]:
+        (root / "campaign" / u["unit"]).mkdir()
+        for insp in u["inspections"]:
+            (root / "campaign" / insp["file"]).symlink_to(stand_in)
     return root
 
 
@@ -215,6 +242,16 @@ def test_each_edited_field_is_named_exactly_and_every_unit_is_compared(tmp_path,
     assert not r.ok and r.summary().endswith("): 8 difference(s)")
 
 
+def test_a_difference_is_named_by_the_recorded_inspection_index(tmp_path, sent):
+    def edit(rows):
+        r = line(rows, "u002/003")
+        r["index"], r["key"] = 7, "u002/007"
+        return rows
+    r = rp.replay_track(copy(tmp_path, edit=edit), units=["u002"])
+    assert r.findings == ["u002 inspection 7.index: recorded 7, replayed 3",
+                          "u002 inspection 7.key: recorded 'u002/007', replayed 'u002/003'"]
+
+
 def test_a_number_agrees_to_a_millionth_relative_and_later_fields_may_be_absent(tmp_path,
                                                                                sent):
     rul = line(lines(_made() / "run"), "u002/003")["rul"]
@@ -293,6 +330,48 @@ def test_another_tracker_config_is_refused_without_a_replay(tmp_path, sent):
                           "'drawn-age''s {'scale': 100.0}"]
 
 
+def test_a_run_without_a_config_is_judged_against_an_empty_one(tmp_path, sent):
+    """A manifest without ``config`` (a tracker registered without one) is the empty
+    configuration: the run replays; any configuration there is compared."""
+    run = copy(tmp_path, manifest={"tracker": "drawn-age-default"})
+    m = json.loads((run / "manifest.json").read_text())
+    del m["config"]
+    (run / "manifest.json").write_text(json.dumps(m))
+    r = rp.replay_track(run, units=list(UNITS))
+    assert (r.tracker, r.findings) == ("drawn-age-default", [])
+    r = rp.replay_track(copy(tmp_path, "configured", manifest={
+        "tracker": "drawn-age-default"}), units=["u000"])
+    assert r.findings == ["the run's tracker config {'scale': 100.0} is not the registered "
+                          "'drawn-age-default''s {}"]
+
+
+def test_a_committed_scheme_1_run_is_replayed_under_scheme_1(sent, monkeypatch):
+    """The committed twin ``life-table`` run (its manifest has no ``seed_scheme``: scheme 1,
+    accepted as a committed run) is re-tracked with scheme-1 seeds and told its scheme, and
+    gives its committed lines again; relabelled scheme 2 it would not be accepted."""
+    import ema_bench_trackers.references  # noqa: F401  (registers life-table here)
+
+    root = _committed()
+    run = root / "life-table"
+    assert "seed_scheme" not in json.loads((run / "manifest.json").read_text())
+    jobs = []
+    real = rp.execute
+
+    def keep(js, *a, **kw):
+        js = list(js)
+        jobs.extend(pickle.loads(pickle.dumps(j)).data for j in js)
+        return real(js, *a, **kw)
+    monkeypatch.setattr(rp, "execute", keep)
+    r = rp.replay_track(run, units=["u007"])
+    assert r.ok and (r.tracker, r.tracked) == ("life-table", 200)
+    order = [u["unit"] for u in json.loads(
+        (COMMITTED / "campaign" / "manifest.json").read_text())["units"]]
+    (inp,) = jobs
+    want = unit_seed(0, order.index("u007"), 1)
+    assert (inp.seed.entropy, inp.seed.spawn_key) == (want.entropy, want.spawn_key)
+    assert inp.settings["seed_scheme"] == 1 and len(inp.inspections) == 10
+
+
 def test_a_unit_the_run_did_not_track_is_refused_by_name(tmp_path, sent):
     run = copy(tmp_path)
     with pytest.raises(TrackerError) as e:
@@ -335,6 +414,8 @@ def test_verified_runs_replays_each_run_and_refuses_the_first_that_differs(tmp_p
     bad = copy(tmp_path, "bad", edit=edit)
     (r,) = rp.verified_runs([honest], k=1)
     assert r.ok and len(r.units) == 1 and r.seed is not None
+    (r,) = rp.verified_runs([honest])   # two units, one worker by default
+    assert len(r.units) == 2 and sent[-1] == ("isolated", 1, r.units)
     assert len(rp.verified_runs([honest], k=3)[0].units) == 3
     checked = rp.verified_runs([honest, honest], units=["u000", "u004"], k=0, workers=2)
     assert [c.units for c in checked] == [["u000", "u004"]] * 2
