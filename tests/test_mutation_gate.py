@@ -179,12 +179,15 @@ def test_every_shard_is_gated_strict_or_on_the_committed_ratchet():
 
 
 def test_the_campaign_judge_is_its_own_shard_and_the_prognostics_scores_are_out():
-    """The campaign's judge (replay of tracking runs, the tracker worker's inputs) is in its
-    own strict shard; the prognostics scores are not in the scope yet."""
+    """The campaign's judge (replay of tracking runs, the tracker worker's inputs, the
+    expected hits) is in its own strict shard; the other prognostics scores are not in the
+    scope yet."""
     assert [m for m in _only_mutate() if m.startswith("ema_bench/prognostics/")] == [
-        "ema_bench/prognostics/replay.py", "ema_bench/prognostics/track_worker.py"]
+        "ema_bench/prognostics/replay.py", "ema_bench/prognostics/track_worker.py",
+        "ema_bench/prognostics/expected.py"]
     shards = {s["shard"]: s["mutants"].split() for s in _shards()}
     assert shards["campaign-judge"] == ["ema_bench.prognostics.replay.*",
-                                        "ema_bench.prognostics.track_worker.*"]
+                                        "ema_bench.prognostics.track_worker.*",
+                                        "ema_bench.prognostics.expected.*"]
     doc = DOC.read_text(encoding="utf-8")
     assert "### The prognostics scores: out of the gated scope" in doc
