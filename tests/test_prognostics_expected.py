@@ -179,8 +179,9 @@ TWIN = Path(__file__).resolve().parents[1] / "leaderboards" / "campaign" / "twin
 def test_campaign_futures_draw_unit_k_of_the_sorted_truth_from_child_k_of_the_seed():
     """The committed twin campaign's truth of u008..u012 (u009 and u012 never fail): each
     failing unit's futures are ``unit_futures`` from its true state with child ``k`` of the
-    seed (``k``: its place in the sorted truth), the cut rule's ``stop`` (0.5, 0.95 when it
-    names none) and the paths asked for; by default seed 1 and 4,000 paths."""
+    seed (``k``: its place in the sorted truth), the thresholds given, the cut rule's ``stop``
+    (0.5, 0.95 when it names none) and the paths asked for; by default seed 1 and 4,000
+    paths."""
     from ema_bench.prognostics.expected import campaign_futures
     from ema_bench.prognostics.oracle import unit_futures
     from ema_bench.seeding import child
@@ -199,10 +200,17 @@ def test_campaign_futures_draw_unit_k_of_the_sorted_truth_from_child_k_of_the_se
         assert list(got) == ["u008", "u010"]
         for k, unit in ((0, "u008"), (2, "u010")):
             rul, w, _ = direct(unit, k, stop, 7, 64)
-            assert rul.shape == (64,) and np.array_equal(got[unit][0], rul)
-            assert np.array_equal(got[unit][1], w)
+            assert len(got[unit]) == 2 and rul.shape == (64,)
+            assert np.array_equal(got[unit][0], rul) and np.array_equal(got[unit][1], w)
     assert not np.array_equal(campaign_futures(truth, *law, {}, n_paths=64, seed=7)["u008"][1],
                               direct("u008", 0, (0.3, 0.6), 7, 64)[1])
+    # the thresholds reach the futures (the campaign's are the default ones)
+    lower = {k: 0.9 * v for k, v in m["thresholds"].items()}
+    got = campaign_futures(truth, m["laws"], lower, m["inspection_every"], {}, 64, 7)["u008"]
+    rul, _, _ = unit_futures(truth["u008"], m["laws"], lower, m["inspection_every"],
+                             (0.5, 0.95), np.random.default_rng(child(7, 0)), 64)
+    assert np.array_equal(got[0], rul)
+    assert not np.array_equal(rul, direct("u008", 0, (0.5, 0.95), 7, 64)[0])
     one = {"u008": truth["u008"]}
     got = campaign_futures(one, *law, m["cut_rule"])["u008"]
     rul, w, _ = direct("u008", 0, tuple(m["cut_rule"]["stop"]), 1, 4000)
