@@ -171,14 +171,23 @@ def test_every_shard_is_gated_strict_or_on_the_committed_ratchet():
     """No shard only records (``--record`` passes whatever survives): each is strict or
     gates on the committed ratchet, and the document says which."""
     gates = {s["shard"]: s.get("gate", "") for s in _shards()}
-    assert gates == {"judge": "", "validate": "",
+    assert gates == {"judge": "", "validate": "", "campaign-judge": "",
                      "solvers": "--untriaged .github/mutation_untriaged.json",
                      "model": "--untriaged .github/mutation_untriaged.json"}
     doc = DOC.read_text(encoding="utf-8")
     assert "### `problem.py` and `objective.py`: gated as a ratchet" in doc
 
 
-def test_the_prognostics_modules_are_out_of_the_gated_scope_and_the_document_says_why():
-    assert not [m for m in _only_mutate() if m.startswith("ema_bench/prognostics/")]
+def test_the_campaign_judge_is_its_own_shard_and_the_prognostics_scores_are_out():
+    """The campaign's judge (replay of tracking runs, the tracker worker's inputs, the
+    expected hits) is in its own strict shard; the other prognostics scores are not in the
+    scope yet."""
+    assert [m for m in _only_mutate() if m.startswith("ema_bench/prognostics/")] == [
+        "ema_bench/prognostics/replay.py", "ema_bench/prognostics/track_worker.py",
+        "ema_bench/prognostics/expected.py"]
+    shards = {s["shard"]: s["mutants"].split() for s in _shards()}
+    assert shards["campaign-judge"] == ["ema_bench.prognostics.replay.*",
+                                        "ema_bench.prognostics.track_worker.*",
+                                        "ema_bench.prognostics.expected.*"]
     doc = DOC.read_text(encoding="utf-8")
     assert "### The prognostics scores: out of the gated scope" in doc

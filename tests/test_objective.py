@@ -150,6 +150,17 @@ def test_objective_layout_arrays_are_read_only_and_in_signal_order(measured):
             a[0] = 1
 
 
+def test_the_objective_names_the_signals_it_sees_and_its_mask_is_read_only(measured):
+    """``signals`` in ``SIGNALS`` order whatever order they were asked in, all four by
+    default; the mask the weights were made with cannot be changed afterwards."""
+    assert Objective(measured).signals == ("theta_u", "theta_m", "omega_m", "i_eq")
+    obj = Objective(measured, signals=("i_eq", "theta_u"))
+    assert obj.signals == ("theta_u", "i_eq")
+    np.testing.assert_array_equal(obj.mask, [1.0, 0.0, 0.0, 1.0])
+    with pytest.raises(ValueError, match="read-only"):
+        obj.mask[1] = 1.0
+
+
 def test_objective_monitor_effects_and_a_subset_of_tests(measured):
     E = np.zeros(N_EFFECTS)
     E[EFFECT_NAMES.index("cogging")] = 0.05

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -122,6 +123,98 @@ def test_quantiles_are_checked_and_recorded_with_inf_as_null(tmp_path):
     assert rec["profile_rul"] is None
     assert regroup([rec])[0]["u000"][0]["profile_rul"] == INF
     assert check_quantiles({0.25: 1, 0.75: 2}) == {"0.25": 1.0, "0.75": 2.0}
+
+
+def test_hit_probability_bounds_of_the_point_and_its_refusals():
+    """Both ends of ``[(1 - alpha) R, (1 + alpha) R]`` included, another ``alpha``, a point that
+    is not finite, and each refusal by its message (found by mutation testing)."""
+    one, w1 = np.array([100.0]), np.array([1.0])
+    for point, hit in ((80.0, 1.0), (79.99999, 0.0), (120.0, 1.0), (120.00001, 0.0)):
+        assert hit_probability(point, one, w1) == hit, point
+    assert hit_probability(150.0, one, w1, alpha=0.5) == 1.0
+    assert hit_probability(150.00001, one, w1, alpha=0.5) == 0.0
+    assert hit_probability(50.0, one, w1, alpha=0.5) == 1.0
+    # point 100 at alpha 0.5: R in [66.7, 200] of [50, 100, 110, 200, inf], weights 1 2 1 1 5
+    rul = [50, 100, 110, 200, INF]
+    assert hit_probability(100, rul, [1, 2, 1, 1, 5], alpha=0.5) == 4 / 10
+    assert hit_probability(math.nan, one, w1) == 0.0 and hit_probability(-INF, one, w1) == 0.0
+    for alpha in (0.0, 1.0, -0.1, 1.5):
+        with pytest.raises(ValueError) as e:
+            hit_probability(100.0, one, w1, alpha=alpha)
+        assert str(e.value) == f"alpha must lie in (0, 1), got {alpha!r}"
+    futures = "futures and weights must be non-empty, of one length, weights > 0"
+    for r, w in ((one, np.ones(2)), ([], []), (one, [0.0]), ([100.0, 90.0], [1.0, -1.0]),
+                 ([100.0, 90.0], [1.0, -2.0])):
+        with pytest.raises(ValueError) as e:
+            hit_probability(100.0, r, w)
+        assert str(e.value) == futures
+
+
+def test_at_most_edges():
+    p = [0.5, 0.2, 0.9]
+    assert at_most(p, 1.0) == at_most(np.array(p), 1) == pytest.approx(
+        0.5 * 0.8 * 0.1 + 0.5 * 0.2 * 0.1 + 0.5 * 0.8 * 0.9 + 0.5 * 0.8 * 0.1)
+    assert at_most(p, -1) == 0.0 and at_most(p, 7) == pytest.approx(1.0)
+    assert at_most([], 0) == 1.0 and at_most([1.0, 1.0], 1) == 0.0
+    assert at_most([0.0, 0.0], 0) == 1.0
+
+
+def test_expected_hits_are_each_rows_hit_probability_under_its_units_futures():
+    from ema_bench.prognostics.expected import expected_hits
+
+    futures = {"a": (np.array([100.0, 200.0]), np.array([3.0, 1.0])),
+               "b": (np.array([10.0]), np.array([1.0]))}
+    rows = [{"unit": "b", "rul": 11}, {"unit": "a", "rul": 100.0}, {"unit": "a", "rul": INF},
+            {"unit": "a", "rul": 170.0}]
+    got = expected_hits(rows, futures)
+    assert got.dtype == float and got.tolist() == [1.0, 0.75, 0.0, 0.25]
+    # alpha reaches each row: at 0.5, 170 lies within [50, 150] of neither; 100 of both
+    assert expected_hits(rows, futures, alpha=0.5).tolist() == [1.0, 1.0, 0.0, 0.25]
+    assert expected_hits([], futures).shape == (0,)
+
+
+TWIN = Path(__file__).resolve().parents[1] / "leaderboards" / "campaign" / "twin" / "campaign"
+
+
+def test_campaign_futures_draw_unit_k_of_the_sorted_truth_from_child_k_of_the_seed():
+    """The committed twin campaign's truth of u008..u012 (u009 and u012 never fail): each
+    failing unit's futures are ``unit_futures`` from its true state with child ``k`` of the
+    seed (``k``: its place in the sorted truth), the thresholds given, the cut rule's ``stop``
+    (0.5, 0.95 when it names none) and the paths asked for; by default seed 1 and 4,000
+    paths."""
+    from ema_bench.prognostics.expected import campaign_futures
+    from ema_bench.prognostics.oracle import unit_futures
+    from ema_bench.seeding import child
+
+    m = json.loads((TWIN / "manifest.json").read_text())
+    every = json.loads((TWIN / "truth.json").read_text())["units"]
+    truth = {u: every[u] for u in ("u012", "u010", "u009", "u008")}
+    assert [u for u in sorted(truth) if truth[u]["eol"] is None] == ["u009", "u012"]
+    law = (m["laws"], m["thresholds"], m["inspection_every"])
+
+    def direct(unit, k, stop, seed, n):
+        return unit_futures(truth[unit], *law, stop, np.random.default_rng(child(seed, k)), n)
+
+    for rule, stop in (({"stop": [0.3, 0.6]}, (0.3, 0.6)), ({}, (0.5, 0.95))):
+        got = campaign_futures(truth, *law, rule, n_paths=64, seed=7)
+        assert list(got) == ["u008", "u010"]
+        for k, unit in ((0, "u008"), (2, "u010")):
+            rul, w, _ = direct(unit, k, stop, 7, 64)
+            assert len(got[unit]) == 2 and rul.shape == (64,)
+            assert np.array_equal(got[unit][0], rul) and np.array_equal(got[unit][1], w)
+    assert not np.array_equal(campaign_futures(truth, *law, {}, n_paths=64, seed=7)["u008"][1],
+                              direct("u008", 0, (0.3, 0.6), 7, 64)[1])
+    # the thresholds reach the futures (the campaign's are the default ones)
+    lower = {k: 0.9 * v for k, v in m["thresholds"].items()}
+    got = campaign_futures(truth, m["laws"], lower, m["inspection_every"], {}, 64, 7)["u008"]
+    rul, _, _ = unit_futures(truth["u008"], m["laws"], lower, m["inspection_every"],
+                             (0.5, 0.95), np.random.default_rng(child(7, 0)), 64)
+    assert np.array_equal(got[0], rul)
+    assert not np.array_equal(rul, direct("u008", 0, (0.5, 0.95), 7, 64)[0])
+    one = {"u008": truth["u008"]}
+    got = campaign_futures(one, *law, m["cut_rule"])["u008"]
+    rul, w, _ = direct("u008", 0, tuple(m["cut_rule"]["stop"]), 1, 4000)
+    assert np.array_equal(got[0], rul) and np.array_equal(got[1], w)
 
 
 @pytest.mark.slow
