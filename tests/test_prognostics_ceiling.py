@@ -129,3 +129,101 @@ def test_the_committed_bounds_are_the_documented_ones(ceiling):
         for level in ("flights", "inspections", "prior", "committed"):
             figure = rows[group].split(f"{level} ")[1].split(";")[0]
             assert figure in row, (group, level, figure)
+
+
+def _view(history, cut: int, every: int = 10) -> dict:
+    """What a unit's inspections show without noise, built from a simulated history
+    independently of the script: flights, the duty logged per interval (rounded as the
+    manifest does), the true faults and the log shorted share."""
+    f = np.array(sorted({*range(0, cut + 1, every), cut}))
+    x = history.faults[f]
+    duty = np.array([0.0] + [round(float(history.duty[a:b].sum()), 3)
+                             for a, b in zip(f[:-1], f[1:])])
+    with np.errstate(divide="ignore"):
+        log_s = np.log(1.0 - x[:, 0])
+    return {"flights": f.astype(float), "duty": duty, "faults": x, "log_share": log_s}
+
+
+def _held(lg, logpost, truth_value, level=0.8):
+    lo, hi, _ = _interval(lg, logpost, level)
+    return lo <= math.log(truth_value) <= hi
+
+
+def test_the_data_only_posteriors_are_calibrated_on_units_drawn_from_the_laws(ceiling):
+    """The ``duty``, ``rates`` and ``onset`` levels' posteriors (mean duty, friction rate,
+    wear rate from the logged duty and the inspections; the growth rate from the logged duty
+    per interval, the onset flight known or only its interval) hold the true value in about
+    80 % of their central 80 % intervals on units drawn by ``laws.unit_history`` (the
+    generator's own code, not the script's)."""
+    from ema_bench.prognostics.laws import unit_history
+    from ema_bench.seeding import child
+
+    laws = get_spec("fleet-v1").laws
+    d = laws.to_dict()
+    lg = ceiling.log_grid(d)
+    held = {"mean_duty": 0, "fst_rate": 0, "logged": 0, "onset": 0}
+    wear_error = []
+    n, shorts = 0, 0
+    for i in range(260):
+        h = unit_history(child(4747, i), laws)
+        p = h.params
+        if h.eol is None or h.eol < 60:
+            continue
+        cut = int(h.eol * 0.8)
+        view = _view(h, cut)
+        n += 1
+        post = ceiling.rate_evidence(view, d)
+        for key in ("mean_duty", "fst_rate"):
+            held[key] += _held(*post[key], getattr(p, key))
+        lw, pw = post["blk_rate"]   # a jump-free interval shows the wear rate exactly
+        wear_error.append(abs(lw[np.argmax(pw)] - math.log(p.blk_rate)))
+        if p.na_onset <= cut - 20 and shorts < 150:
+            shorts += 1
+            prior = ceiling.log_prior(lg, d)
+            held["logged"] += _held(lg, prior + ceiling.logged_evidence(lg, p.na_onset, view, d),
+                                    p.na_growth)
+            held["onset"] += _held(lg, prior + ceiling.onset_unknown_evidence(lg, view, d),
+                                   p.na_growth)
+    assert n >= 240 and shorts >= 60, (n, shorts)
+    assert np.quantile(wear_error, 0.95) < 0.01   # within the 1 % the calm rise is known to
+    shares = {key: k / (shorts if key in ("logged", "onset") else n)
+              for key, k in held.items()}
+    for key, share in shares.items():
+        assert 0.7 <= share <= 0.9, (key, share)
+
+
+def test_the_logged_duty_moments_are_those_of_the_flights(ceiling):
+    """``span_moments``: a span's rise ``sum duty_f eps_f`` over the last ``n'`` of ``n``
+    flights, given only the interval's summed duty, has the mean and variance of a Monte
+    Carlo of the law's gamma duties and growth noise (conditioned on the sum by scaling:
+    gamma duties' shares are independent of their sum)."""
+    rng = np.random.default_rng(5)
+    k_d, k_e, n = 4.0, 4.0, 10
+    duty = rng.gamma(k_d, 1.0 / k_d, size=(200_000, n))
+    share = duty / duty.sum(axis=1, keepdims=True)
+    eps = rng.gamma(k_e, 1.0 / k_e, size=duty.shape)
+    for n_part in (1, 4, 10):
+        s = 7.3 * (share[:, n - n_part:] * eps[:, n - n_part:]).sum(axis=1)
+        d1, d2 = ceiling.span_moments(n_part, n, 7.3, k_d, k_e)
+        assert abs(s.mean() - d1) < 0.01 * d1
+        assert abs(s.var() - d2 / k_e) < 0.03 * s.var()
+
+
+def test_the_oracles_own_knowledge_given_per_path_is_the_oracle_to_the_bit():
+    laws = get_spec("fleet-v1").laws.to_dict()
+    params = {"fst_rate": 1.2e-3, "blk_rate": 5e-5, "na_growth": 0.025, "mean_duty": 1.1,
+              "na_onset": 80}
+    x = [0.95, 0.3, 0.01, 1e5]
+    truth = {"unit": "u000", "params": params, "last_flight": 100, "faults": {"100": x}}
+    thr = {"Fst": 0.6756, "BLK": 0.03, "Na": 0.85}
+    a = unit_futures(truth, laws, thr, 10, (0.5, 0.95), np.random.default_rng(3), 500)
+    known = {"x0": np.tile(x, (500, 1)), "mean_duty": np.full(500, 1.1),
+             "begun": np.ones(500, bool), "fst_rate": np.full(500, 1.2e-3),
+             "blk_rate": np.full(500, 5e-5), "na_growth": np.full(500, 0.025)}
+    b = unit_futures(truth, laws, thr, 10, (0.5, 0.95), np.random.default_rng(3), 500,
+                     known=known)
+    assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
+    known["begun"] = np.zeros(500, bool)   # not begun: an onset yet to come lives longer
+    c = unit_futures(truth, laws, thr, 10, (0.5, 0.95), np.random.default_rng(3), 500,
+                     known=known)
+    assert np.median(c[0]) > np.median(a[0])
