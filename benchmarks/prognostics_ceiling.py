@@ -76,17 +76,24 @@ import json
 import math
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 from prognostics_offline import _ratio  # benchmarks/ (the script's folder) is on the path
 from prognostics_subset import judge_points, pending
 from scipy.special import gammaln
 
-from ema_bench.faults import FAULT_INDEX
+from ema_bench.faults import FAULT_INDEX, LOWER, UPPER
 from ema_bench.prognostics import track_io
 from ema_bench.prognostics.bayes import best_point
-from ema_bench.prognostics.campaign import get_spec, load_campaign, load_truth
-from ema_bench.prognostics.laws import unit_history
+from ema_bench.prognostics.campaign import (
+    _conditions,
+    _inspection_flights,
+    get_spec,
+    load_campaign,
+    load_truth,
+)
+from ema_bench.prognostics.laws import THRESHOLDS, unit_history
 from ema_bench.prognostics.oracle import N_PATHS, unit_futures
 from ema_bench.prognostics.tables import GROUPS
 from ema_bench.seeding import child, run_seed, stream
@@ -299,17 +306,21 @@ def unit_view(t: dict, records: list) -> dict:
             "faults": x, "log_share": log_s}
 
 
-def fit_noise(log, truth: dict) -> dict[str, float]:
+def fit_noise(log, truth: dict) -> dict[str, float] | None:
     """The run's measured fit errors (robust standard deviation, 1.4826 x the median absolute
     deviation of fit - truth over its inspections): ``Na`` where a short is present (a
-    healthy coil's fit sits on its bound), ``Fst`` and ``BLK`` everywhere."""
+    healthy coil's fit sits on its bound), ``Fst`` and ``BLK`` everywhere; None for a run
+    without fits (a no-sensing reference: no ``fits`` level)."""
     err: dict[str, list] = {"Na": [], "Fst": [], "BLK": []}
     for u, steps in log.steps.items():
         for r in steps:
             x = truth[u]["faults"][str(r["flight"])]
             for name, j in (("Na", F_NA), ("Fst", F_FST), ("BLK", F_BLK)):
-                if name != "Na" or x[F_NA] < 1.0:
-                    err[name].append(r["estimate"][name] - x[j])
+                e = (r.get("estimate") or {}).get(name)
+                if e is not None and math.isfinite(e) and (name != "Na" or x[F_NA] < 1.0):
+                    err[name].append(e - x[j])
+    if not all(err.values()):
+        return None
     return {k: float(1.4826 * np.median(np.abs(np.array(v) - np.median(v))))
             for k, v in err.items()}
 
@@ -366,6 +377,26 @@ def history_of(camp, truth: dict, unit: str):
     return h
 
 
+def unit_line(camp, truth: dict, u: str, history, noise: dict,
+              committed: float | None = None) -> dict:
+    """One unit's points and expected hits (on the board's futures), every level's."""
+    t0 = time.process_time()
+    t = truth[u]
+    points = unit_points(camp, truth, u, sorted(truth).index(u), history,
+                         [int(f) for f in t["faults"]], noise)
+    if committed is not None:
+        points["committed"] = committed
+    return {"unit": u, "failing_fault": t["failing_fault"], "life_fraction": t["life_fraction"],
+            "begun": int(t["params"]["na_onset"]) <= int(t["last_flight"]), "points": points,
+            **judge_points(camp, truth, u, points), "fit_sd": noise,
+            "cpu_s": time.process_time() - t0}
+
+
+def _append(out: Path, line: dict) -> None:
+    with out.open("a") as fh:
+        fh.write(json.dumps(line) + "\n")
+
+
 def measure(run: str, out: Path, units: list[str] | None) -> list[dict]:
     log = track_io.read_track(run)
     camp = load_campaign(track_io.campaign_path(run, log.manifest), traces=False)
@@ -373,23 +404,54 @@ def measure(run: str, out: Path, units: list[str] | None) -> list[dict]:
         raise SystemExit(f"{run}: a sealed campaign; the bounds are measured on the "
                          "published training split only")
     truth = load_truth(camp.root, camp)
-    order = sorted(truth)
     failing = [u for u in camp.units if truth[u]["eol"] is not None]
     noise = fit_noise(log, truth)
     for u in pending(out, units or failing):
-        t0 = time.process_time()
-        t = truth[u]
-        flights = [int(f) for f in t["faults"]]
-        points = unit_points(camp, truth, u, order.index(u), history_of(camp, truth, u),
-                             flights, noise)
-        points["committed"] = float(log.steps[u][-1]["rul"])
-        hits = judge_points(camp, truth, u, points)
-        line = {"unit": u, "failing_fault": t["failing_fault"],
-                "life_fraction": t["life_fraction"],
-                "begun": int(t["params"]["na_onset"]) <= int(t["last_flight"]),
-                "points": points, **hits, "fit_sd": noise, "cpu_s": time.process_time() - t0}
-        with out.open("a") as fh:
-            fh.write(json.dumps(line) + "\n")
+        _append(out, unit_line(camp, truth, u, history_of(camp, truth, u), noise,
+                               float(log.steps[u][-1]["rul"])))
+    return [json.loads(x) for x in out.read_text().splitlines()]
+
+
+def simulated_fleet(name: str, n: int, seed: int, fault: str | None = "Na",
+                    every: int | None = None):
+    """``n`` units drawn from the published laws of campaign ``name`` by the generator's own
+    code (run ``i`` of ``seed``: its laws and its cut as ``campaign make`` draws a test
+    unit's, an inspection every ``every`` flights, default the campaign's), without their
+    traces: (a campaign-like object, truth, histories) of those that fail by ``fault`` (every
+    failing unit for None)."""
+    spec = get_spec(name)
+    every, stop = every or spec.inspection_every, spec.test_stop
+    truth, records, histories = {}, {}, {}
+    for i in range(n):
+        node = run_seed(seed, i)
+        h = unit_history(stream(node, "instance"), spec.laws, wear=True)
+        if h.eol is None or fault not in (None, h.failing_fault):
+            continue
+        flights = _inspection_flights(h, every, "test", stop,
+                                      np.random.default_rng(stream(node, "plan")))
+        u = f"s{i:05d}"
+        truth[u] = {"unit": u, "eol": h.eol, "failing_fault": h.failing_fault,
+                    "last_flight": flights[-1], "life_fraction": flights[-1] / h.eol,
+                    "faults": {str(f): [float(v) for v in np.clip(h.faults[f], LOWER, UPPER)]
+                               for f in flights}, "params": h.params.to_dict()}
+        records[u] = [SimpleNamespace(flight=f, conditions=_conditions(
+            h, f, flights[j - 1] if j else None)) for j, f in enumerate(flights)]
+        histories[u] = h
+    camp = SimpleNamespace(laws=spec.laws.to_dict(), thresholds=dict(THRESHOLDS),
+                           inspection_every=every, cut_rule={"stop": list(stop)},
+                           units=records)
+    return camp, truth, histories
+
+
+def measure_simulated(run: str, out: Path, n: int, seed: int) -> list[dict]:
+    """The bounds on the coil shorts among ``n`` units drawn from the laws (``--simulate``),
+    the fits' errors measured on ``run``."""
+    log = track_io.read_track(run)
+    camp = load_campaign(track_io.campaign_path(run, log.manifest), traces=False)
+    noise = fit_noise(log, load_truth(camp.root, camp))
+    sim, truth, histories = simulated_fleet(camp.name, n, seed)
+    for u in pending(out, list(truth)):
+        _append(out, unit_line(sim, truth, u, histories[u], noise))
     return [json.loads(x) for x in out.read_text().splitlines()]
 
 
@@ -421,8 +483,15 @@ def main() -> None:
                                "beside its manifest): its point at the cut is judged beside")
     p.add_argument("--out", type=Path, required=True, help="JSON lines, appended")
     p.add_argument("--units", help="comma-separated units (default: every failing unit)")
+    p.add_argument("--simulate", type=int, metavar="N",
+                   help="instead of the campaign's units, the coil shorts among N units drawn "
+                        "from its published laws (traces not made; the fits' errors still "
+                        "measured on RUN)")
+    p.add_argument("--seed", type=int, default=47, help="root seed of --simulate")
     a = p.parse_args()
-    print("\n".join(summary(measure(a.run, a.out, a.units.split(",") if a.units else None))))
+    lines = (measure_simulated(a.run, a.out, a.simulate, a.seed) if a.simulate
+             else measure(a.run, a.out, a.units.split(",") if a.units else None))
+    print("\n".join(summary(lines)))
 
 
 if __name__ == "__main__":

@@ -109,6 +109,16 @@ def test_the_script_on_a_published_campaign(ceiling, tmp_path):
     assert ceiling.measure(str(tmp_path / "run"), out, None) == lines   # resumed, not redone
     text = ceiling.summary(lines)
     assert text[0].startswith(f"all ({len(failing)} units): flights ")
+    # --simulate draws its units by the generator's own code: the same seed gives the
+    # campaign's units (no gain-drift-only unit among 3), their cuts, faults and laws
+    sim, sim_truth, _ = ceiling.simulated_fleet("fleet-v1", 3, 11, fault=None, every=20)
+    assert sorted(sim_truth) == [f"s{int(u[1:]):05d}" for u in failing]
+    for u in failing:
+        a, b = sim_truth[f"s{int(u[1:]):05d}"], truth[u]
+        assert (a["last_flight"], a["params"], a["faults"]) == (
+            b["last_flight"], b["params"], b["faults"])
+        assert [r.conditions for r in sim.units[f"s{int(u[1:]):05d}"]] == [
+            i["conditions"] for i in next(x for x in m["units"] if x["unit"] == u)["inspections"]]
 
 
 def test_the_committed_bounds_are_the_documented_ones(ceiling):
