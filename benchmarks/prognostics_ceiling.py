@@ -65,8 +65,15 @@ position and for ``begun``::
     python benchmarks/prognostics_ceiling.py leaderboards/campaign/twin/fleet-bayes-cut \\
         --out ceiling.jsonl [--units u002,u013]
 
-On the training split only (the published twin campaign); lines already in ``--out`` are
-kept (resumable).  About 1.2 CPU-s a unit (nine sets of 4,000 futures).
+``--simulate N`` measures the bounds on the coil shorts among ``N`` units drawn from the
+campaign's published laws instead (the generator's own code, no traces; the fits' errors
+still measured on the run)::
+
+    python benchmarks/prognostics_ceiling.py leaderboards/campaign/twin/fleet-bayes-cut \\
+        --simulate 800 --seed 47 --out simulated.jsonl
+
+On the training split only (the published twin campaign and its laws); lines already in
+``--out`` are kept (resumable).  About 1 CPU-s a unit (nine sets of 4,000 futures).
 """
 
 from __future__ import annotations
@@ -103,6 +110,11 @@ from ema_bench_trackers.coil_onset import onset_paths, onset_posterior
 DATA_LEVELS = ("duty", "rates", "onset", "fits")
 
 LEVELS = ("oracle", "flights", "inspections", "prior", *DATA_LEVELS)
+#: The ladder's items: (what is taken away, the level that knew it, the level that does not).
+LADDER = (("growth rate", "oracle", "inspections"),
+          ("mean and per-flight duty", "inspections", "duty"), ("rates", "duty", "rates"),
+          ("onset flight", "rates", "onset"),
+          ("noise-free faults", "onset", "fits"))
 F_NA, F_FST, F_BLK = FAULT_INDEX["Na"], FAULT_INDEX["Fst"], FAULT_INDEX["BLK"]
 #: The log-growth grid of the posterior: the prior's median +- 6 log-sds, this many points.
 GRID = 4001
@@ -468,11 +480,17 @@ def summary(lines: list[dict]) -> list[str]:
         if not sel:
             continue
         idx = np.random.default_rng(0).integers(0, len(sel), (4000, len(sel)))
-        cells = []
+        cells, ratios = [], {"oracle": (1.0, np.ones(len(idx)))}
         for key in (k for k in (*LEVELS[1:], "committed") if k in sel[0]):
-            r, rb = _ratio(sel, key, idx)
+            r, rb = ratios[key] = _ratio(sel, key, idx)
             cells.append(f"{key} {r:.3f} [{q(rb, .025):.3f}, {q(rb, .975):.3f}]")
         text.append(f"{name} ({len(sel)} units): " + "; ".join(cells))
+        steps = [(item, a, b) for item, a, b in LADDER if a in ratios and b in ratios]
+        if steps:   # what each item of the ladder costs (paired: the same bootstrap units)
+            text.append(f"  {name}, cost of: " + "; ".join(
+                f"{item} {ratios[a][0] - ratios[b][0]:+.3f} "
+                f"[{q(ratios[a][1] - ratios[b][1], .025):+.3f}, "
+                f"{q(ratios[a][1] - ratios[b][1], .975):+.3f}]" for item, a, b in steps))
     text.append(f"{sum(x['cpu_s'] for x in lines):.0f} CPU-s")
     return text
 

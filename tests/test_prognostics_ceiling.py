@@ -122,23 +122,38 @@ def test_the_script_on_a_published_campaign(ceiling, tmp_path):
 
 
 def test_the_committed_bounds_are_the_documented_ones(ceiling):
-    """``docs/prognostics.md`` quotes the committed lines' summary (the same bootstrap)."""
+    """``docs/prognostics.md`` quotes the committed lines' summaries (the same bootstrap): the
+    campaign's failing units and the coil shorts drawn from the laws, every level, and the
+    cost of each item of the data-only ladder."""
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[1]
-    lines = [json.loads(x) for x in (root / "leaderboards" / "campaign" /
-                                     "coil-short-ceiling.jsonl").read_text().splitlines()]
+    board = root / "leaderboards" / "campaign"
+    lines = [json.loads(x) for x in (board / "coil-short-ceiling.jsonl").read_text().splitlines()]
     assert len(lines) == 170 and sum(x["failing_fault"] == "Na" for x in lines) == 44
-    rows = {x.split(" (")[0]: x for x in ceiling.summary(lines)}
-    docs = (root / "docs" / "prognostics.md").read_text()
-    for group, label in (("all", "all (170)"), ("Fst", "friction (74)"),
-                         ("BLK", "backlash (52)"), ("Na", "coil shorts (44)"),
-                         ("Na, begun", "coil shorts begun by the cut (35)"),
-                         ("Na, not begun", "coil shorts not begun (9)")):
-        (row,) = [x for x in docs.splitlines() if x.startswith(f"| {label} |")]
-        for level in ("flights", "inspections", "prior", "committed"):
-            figure = rows[group].split(f"{level} ")[1].split(";")[0]
-            assert figure in row, (group, level, figure)
+    drawn = [json.loads(x) for x in
+             (board / "coil-short-ceiling-simulated.jsonl").read_text().splitlines()]
+    assert len(drawn) == 257 and {x["failing_fault"] for x in drawn} == {"Na"}
+    docs = (root / "docs" / "prognostics.md").read_text().splitlines()
+    ladder = ("inspections", "duty", "rates", "onset", "fits")
+    for rows, levels, pairs in ((ceiling.summary(lines), ("flights", "prior", *ladder,
+                                                          "committed"), (
+            ("all", "all (170)"), ("Fst", "friction (74)"), ("BLK", "backlash (52)"),
+            ("Na", "coil shorts (44)"), ("Na, begun", "coil shorts begun by the cut (35)"),
+            ("Na, not begun", "coil shorts not begun (9)"))),
+            (ceiling.summary(drawn), ladder, (("Na", "coil shorts drawn from the laws (257)"),))):
+        by = {x.split(" (")[0]: x for x in rows if not x.startswith("  ")}
+        costs = {x.split(", cost of")[0].strip(): x for x in rows if ", cost of" in x}
+        for group, label in pairs:
+            quoted = " ".join(x for x in docs if x.startswith(f"| {label} |"))
+            assert quoted, label
+            for level in levels:
+                if f"; {level} " in by[group] or f": {level} " in by[group]:
+                    figure = by[group].split(f"{level} ")[1].split(";")[0]
+                    assert figure in quoted, (group, level, figure)
+            for cost in costs[group].split(": ", 1)[1].split("; "):
+                assert any(cost in x and x.startswith(f"| {label} |") for x in docs) or any(
+                    cost in x for x in docs if x.startswith(f"- {label}:")), (group, cost)
 
 
 def _view(history, cut: int, every: int = 10) -> dict:
