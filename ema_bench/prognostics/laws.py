@@ -422,7 +422,7 @@ class ForwardPaths:
     """
 
     def __init__(self, rng: np.random.Generator, x0: np.ndarray, rates: dict[str, np.ndarray],
-                 laws: dict, mean_duty: float, coil_present: np.ndarray) -> None:
+                 laws: dict, mean_duty: float | np.ndarray, coil_present: np.ndarray) -> None:
         self.rng, self.laws, self.m = rng, laws, np.asarray(mean_duty, dtype=float)
         self.x = np.array(x0, dtype=float)
         self.n = self.x.shape[0]
