@@ -37,6 +37,13 @@ Replacement
     (:func:`~ema_bench.prognostics.bayes.best_point`) and the weighted 95 % interval.  The
     replacement decision keeps the unweighted paths: an inspection that is not the cut must not
     be decided as if it were.
+``fleet-bayes-whole``
+    ``fleet-bayes-onset`` whose cut-conditioned RUL (point, interval, quantiles) is in whole
+    flights: a true RUL is ``EOL - flight``, EOL the first flight at which a fault is past its
+    threshold, so each future's first passage (interpolated within its 2-flight block) is
+    rounded up before the Bayes point is chosen.  The point then lies at ``0.8 R`` of a whole
+    ``R`` and counts that life in its +-20 % window, which a point a hair below (the
+    interpolated futures' choice) misses.
 """
 
 from __future__ import annotations
@@ -104,6 +111,10 @@ def _cut_summary(summary, t: np.ndarray, flight: float, every: int,
                                quantiles={level_key(q): float(v) for q, v in zip(LEVELS, qs)})
 
 
+@register_tracker("fleet-bayes-whole", description="fleet-bayes-onset whose cut-conditioned "
+                  "RUL is in whole flights (each future's first passage rounded up, as a true "
+                  "RUL is): the Bayes point over whole-flight lives", cut_rule=True,
+                  coil="changepoint", whole_flights=True)
 @register_tracker("fleet-bayes-onset", description="fleet-bayes-cut with the coil short's "
                   "onset as a change point of the Na fits (joint posterior of the onset "
                   "interval and the growth rate, trackers/coil_onset.py)", cut_rule=True,
@@ -117,7 +128,7 @@ def _cut_summary(summary, t: np.ndarray, flight: float, every: int,
 def factory(campaign_info: dict, seed: np.random.SeedSequence, *, n_paths: int = N_PATHS,
             first_budget: int = 1500, global_budget: int = 1000,
             replace_prob: float = REPLACE_PROB, cut_rule: bool = False,
-            coil: str = "threshold"):
+            coil: str = "threshold", whole_flights: bool = False):
     if coil not in ("threshold", "changepoint"):
         raise ValueError(f"coil must be 'threshold' or 'changepoint', got {coil!r}")
     u = unit_setup(campaign_info, seed, first_budget, global_budget)
@@ -206,7 +217,9 @@ def factory(campaign_info: dict, seed: np.random.SeedSequence, *, n_paths: int =
         profile = None
         if cut_rule:   # the unconditioned median stays the profile's (scoring's diagnostics)
             profile = summary.rul
-            summary = _cut_summary(summary, cross.min(axis=1), insp.flight, every, stop)
+            life = cross.min(axis=1)   # a true RUL is whole flights: EOL is a flight
+            summary = _cut_summary(summary, np.ceil(life) if whole_flights else life,
+                                   insp.flight, every, stop)
         return make_step(insp, fit.x, fit.low, fit.high, summary, replace, fit.evaluations,
                          profile, fit=fit.how, mean_duty=m, coil_present=short is not None)
     return step

@@ -408,8 +408,8 @@ class ForwardPaths:
         short growth per unit duty); a fault without a rate stays where it is.
     laws : dict
         :meth:`FleetLaws.to_dict` (shapes, jump rate and size, onset mean, initial short).
-    mean_duty : float
-        The unit's mean duty per flight.
+    mean_duty : float or ndarray (n,)
+        The unit's mean duty per flight (or each path's).
     coil_present : ndarray (n,) of bool
         Whether a coil short has begun on each path (else it begins at the law's memoryless
         hazard, at the law's initial share).
@@ -422,8 +422,8 @@ class ForwardPaths:
     """
 
     def __init__(self, rng: np.random.Generator, x0: np.ndarray, rates: dict[str, np.ndarray],
-                 laws: dict, mean_duty: float, coil_present: np.ndarray) -> None:
-        self.rng, self.laws, self.m = rng, laws, float(mean_duty)
+                 laws: dict, mean_duty: float | np.ndarray, coil_present: np.ndarray) -> None:
+        self.rng, self.laws, self.m = rng, laws, np.asarray(mean_duty, dtype=float)
         self.x = np.array(x0, dtype=float)
         self.n = self.x.shape[0]
         self.rate = rates

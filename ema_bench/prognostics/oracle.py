@@ -40,7 +40,8 @@ class OracleError(ValueError):
 
 def unit_futures(truth: dict, laws: dict, thresholds: dict[str, float], every: int,
                  stop: tuple[float, float], rng: np.random.Generator,
-                 n_paths: int = N_PATHS, na_growth: np.ndarray | None = None
+                 n_paths: int = N_PATHS, na_growth: np.ndarray | None = None,
+                 known: dict[str, np.ndarray] | None = None
                  ) -> tuple[np.ndarray, np.ndarray, bool]:
     """Futures of one failing unit drawn from its true state at its cut, weighed by the cut
     rule: what the oracle decides on, and what expected hits are judged on
@@ -49,7 +50,11 @@ def unit_futures(truth: dict, laws: dict, thresholds: dict[str, float], every: i
     Parameters are those of :func:`oracle_unit`, and ``na_growth`` (n_paths,): each path's
     coil-short growth rate (per unit duty) in place of the unit's true one (default), for
     bounds that know everything the oracle knows but that rate
-    (``benchmarks/prognostics_ceiling.py``).
+    (``benchmarks/prognostics_ceiling.py``); ``known`` replaces more of what the oracle knows
+    by per-path values drawn from what a view of the unit's past leaves of it, for the
+    data-only bounds: ``x0`` (n_paths, 4, the faults now), ``fst_rate``, ``blk_rate``,
+    ``na_growth``, ``mean_duty`` (n_paths,) and ``begun`` (n_paths, bool: the short has
+    begun); each key given replaces the truth's value.
 
     Returns
     -------
@@ -66,12 +71,14 @@ def unit_futures(truth: dict, laws: dict, thresholds: dict[str, float], every: i
     if not p:
         raise OracleError(f"truth of unit {truth.get('unit')} has no law parameters")
     cut = int(truth["last_flight"])
-    x0 = np.tile(np.array(truth["faults"][str(cut)], dtype=float), (n_paths, 1))
-    rates = {"Fst": np.full(n_paths, p["fst_rate"]), "BLK": np.full(n_paths, p["blk_rate"]),
-             "Na": (np.full(n_paths, p["na_growth"]) if na_growth is None
-                    else np.asarray(na_growth, dtype=float))}
-    paths = ForwardPaths(rng, x0, rates, laws, p["mean_duty"],
-                         np.full(n_paths, p["na_onset"] <= cut))
+    k = {"x0": np.tile(np.array(truth["faults"][str(cut)], dtype=float), (n_paths, 1)),
+         "mean_duty": p["mean_duty"], "begun": np.full(n_paths, p["na_onset"] <= cut),
+         **{r: np.full(n_paths, p[r]) for r in ("fst_rate", "blk_rate", "na_growth")}}
+    if na_growth is not None:
+        k["na_growth"] = np.asarray(na_growth, dtype=float)
+    k.update(known or {})
+    rates = {"Fst": k["fst_rate"], "BLK": k["blk_rate"], "Na": k["na_growth"]}
+    paths = ForwardPaths(rng, k["x0"], rates, laws, k["mean_duty"], k["begun"])
     rul = paths.first_failure(thresholds, STEP, HORIZON)
     w = cut_likelihood(cut, cut + rul, every, stop)
     weighted = bool(w.sum() > 0)
