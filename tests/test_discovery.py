@@ -176,7 +176,7 @@ def _outside_search(index: int, effect: str):
 
 
 # slow (about 100 CPU-s): a base fit, its assessment and the 14 terms the selection left out
-# fitted alone, then the two best judged
+# fitted alone, then the best judged
 @pytest.mark.slow
 def test_a_term_the_selection_misses_is_found_among_the_rest():
     """A torque constant 22 % down at 15 A (root seed 4646, case 11 of ``blind --outside
@@ -192,7 +192,11 @@ def test_a_term_the_selection_misses_is_found_among_the_rest():
     selected = stlsq(*sensitivities(tr, search.base), TERM_NAMES, s.term_threshold,
                      s.term_top_k).names
     assert "motor_i_abs" not in selected
-    trials = _rest(search, selected)
+    # only the best fit is judged (keep=1, the workflow's default judges two): ``_rest``
+    # sorts the fits by training fitness and judges them in that order, each judgement on
+    # its own stream (``search.n_trials``), so the first trial is the same with either
+    # ``keep``; the second judgement (a fit and an assessment, about 8 CPU-s) is not asserted
+    trials = _rest(search, selected, keep=1)
     best = trials[0]
     assert best.name == "motor_i_abs" and best.accepted
     kt = 2 * DEFAULT_PARAMS.Ke

@@ -70,16 +70,34 @@ def test_blind_traces_replay_with_simulate(case_file):
     assert load_traces(path).allclose(measured_traces(case, 4), rtol=1e-12, atol=0.0)
 
 
-# slow: three diagnoses of a blind case (about 25 CPU-s); the fast loop checks the blind
+# slow: two diagnoses of a blind case (about 27 CPU-s); the fast loop checks the blind
 # case's stream through simulate above and runs diagnose --json on the monitor's own data
 @pytest.mark.slow
-def test_diagnose_seed_is_the_diagnosis_stream_of_the_run(case_file, capsys):
+def test_diagnose_seed_is_the_diagnosis_stream_of_the_run(case_file, capsys, monkeypatch):
+    """``diagnose --root-seed 4 --seed 2`` runs the workflow on the file with the run's
+    diagnosis stream and prints what it returned; another run's stream gives other fits.
+    The command's own call is recorded on its way (its data, settings and seed checked)
+    rather than made a second time through the API with the same arguments."""
+    from ema_bench.diagnosis import workflow
+
     _, path = case_file
+    calls = []
+
+    def through(measured, settings=None, seed=0, on_stage=None):
+        # the seed's identity as it arrives (a spawn before the call would move its children)
+        given = (seed.entropy, seed.spawn_key, seed.pool_size, seed.n_children_spawned)
+        calls.append((measured, settings, given, diagnose(measured, settings, seed, on_stage)))
+        return calls[-1][-1]
+
+    monkeypatch.setattr(workflow, "diagnose", through)
     assert main(["diagnose", str(path), "--root-seed", "4", "--seed", "2", "--budget", "100",
                  "--bootstrap", "10", "--json", "--quiet"]) == 0
     cli = json.loads(capsys.readouterr().out)
-    api = diagnose(load_traces(path), Settings(budget=100, n_boot=10),
-                   seed=stream(run_seed(4, 2), "diagnosis"))
+    ((measured, settings, seed, api),) = calls
+    assert load_traces(path).allclose(measured, rtol=0.0, atol=0.0)
+    assert settings == Settings(budget=100, n_boot=10)
+    want = stream(run_seed(4, 2), "diagnosis")
+    assert seed == (want.entropy, want.spawn_key, want.pool_size, want.n_children_spawned)
     assert cli["faults"] == api.faults and cli["verdict"] == api.verdict
     other = diagnose(load_traces(path), Settings(budget=100, n_boot=10),
                      seed=stream(run_seed(4, 3), "diagnosis"))
