@@ -5,9 +5,10 @@ Each dictionary term is ``c * phi(state)``, a torque (N m) added to one equation
 diagram: the **motor** torque balance (rotor side, states ``th_m``, ``w_m`` and the drive's
 torque current ``i``, signed: its torque over the nominal torque constant ``2 Ke``) or the
 **surface** torque balance (load side, ``th_u``, ``w_u``).  The terms are state polynomials
-to degree 2, odd powers with ``|x|``, a smoothed sign and harmonics of the mechanical and
-electrical angles; the linear terms the library already holds (motor viscous friction
-``w_m``, the aero spring ``th_u``) are left out.  Each coefficient is one slot of the effects
+to degree 2, odd powers with ``|x|``, a smoothed sign, a Stribeck curve (a smoothed sign
+fading with speed) and harmonics of the mechanical and electrical angles; the linear terms
+the library already holds (motor viscous friction ``w_m``, the aero spring ``th_u``) are
+left out.  Each coefficient is one slot of the effects
 vector (:mod:`ema_bench.effects`, after the library and the decoys), so the reference and
 the monitor evaluate the same term in the same compiled function
 (:func:`ema_bench.physics.extra_terms.extra_torques`) and the workflow fits it by name like
@@ -72,6 +73,11 @@ TERMS: tuple[Term, ...] = (
     Term("surface_thu_abs", "surface", "th_u |th_u|", "N m/rad^2", 0.04),
     Term("surface_wu_abs", "surface", "w_u |w_u|", "N m s^2/rad^2", 1.0),
     Term("surface_sign", "surface", f"tanh(w_u / {SIGN_SPEED_SURFACE:g})", "N m", 1.0),
+    # the Stribeck form (appended: the slots before it keep their places): a smoothed sign
+    # whose level decays with speed, the peak of dry friction at low speed that neither the
+    # Fst fault's constant dynamic level nor tanh(w_m / 3) has
+    Term("motor_stribeck", "motor",
+         f"exp(-(w_m / {STRIBECK_SPEED:g})^2) tanh(w_m / {SIGN_SPEED_MOTOR:g})", "N m", 1.0),
 )
 TERM_NAMES: tuple[str, ...] = tuple(t.name for t in TERMS)
 #: Kinematic twins: a speed term at the motor and the same term at the surface (``w_m = w_u

@@ -31,7 +31,8 @@ def _basis(th_m, w_m, th_u, w_u, i, pp):
             "motor_cos_2e": np.cos(2 * pp * th_m), "surface_wu": w_u,
             "surface_thu2": th_u ** 2, "surface_thu_wu": th_u * w_u, "surface_wu2": w_u ** 2,
             "surface_thu_abs": th_u * abs(th_u), "surface_wu_abs": w_u * abs(w_u),
-            "surface_sign": np.tanh(w_u / 0.01)}
+            "surface_sign": np.tanh(w_u / 0.01),
+            "motor_stribeck": np.exp(-(w_m / 30.0) ** 2) * np.tanh(w_m / 3.0)}
 
 
 def test_each_term_enters_its_equation_with_its_form():

@@ -30,8 +30,9 @@ enum {
 #define MAX_DELAY_SAMPLES 64
 #define HINGE_FRICTION_SPEED 0.01
 /* ema_bench.terms: the dictionary's size and its sign terms' smoothing speeds */
-#define N_TERMS 19
+#define N_TERMS 20
 #define SIGN_SPEED_MOTOR 3.0
+#define STRIBECK_SPEED 30.0
 #define SIGN_SPEED_SURFACE 0.01
 
 static const double SIXTH = M_PI / 6.0;
@@ -548,7 +549,9 @@ static inline void extra_torques(double th_m, double w_m, double th_u, double w_
     poly_sincos(2.0 * pp * th_m, &s2, &c2);
     *motor = c[0] * (w_m * w_m) + c[1] * (w_m * fabs(w_m)) + c[2] * tanh(w_m / SIGN_SPEED_MOTOR)
              + c[3] * i + c[4] * (i * i) + c[5] * (i * fabs(i)) + c[6] * s1 + c[7] * c1
-             + c[8] * se + c[9] * ce + c[10] * s2 + c[11] * c2;
+             + c[8] * se + c[9] * ce + c[10] * s2 + c[11] * c2
+             + c[19] * (exp(-((w_m / STRIBECK_SPEED) * (w_m / STRIBECK_SPEED)))
+                        * tanh(w_m / SIGN_SPEED_MOTOR));
     *surface = c[12] * w_u + c[13] * (th_u * th_u) + c[14] * (th_u * w_u) + c[15] * (w_u * w_u)
                + c[16] * (th_u * fabs(th_u)) + c[17] * (w_u * fabs(w_u))
                + c[18] * tanh(w_u / SIGN_SPEED_SURFACE);

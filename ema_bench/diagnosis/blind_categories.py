@@ -57,7 +57,7 @@ OUTSIDE_PHYSICS: tuple[str, ...] = ("quadratic_damping", "hinge_friction",
 #: transmission, a torque in neither balance): right when no term is named.
 EXPECTED_TERMS: dict[str, str | None] = {
     "quadratic_damping": "surface_wu_abs", "hinge_friction": "surface_sign",
-    "stribeck_friction": "motor_sign", "stiffness_position": None,
+    "stribeck_friction": "motor_stribeck", "stiffness_position": None,
     "torque_saturation": "motor_i_abs"}
 KINDS.update({"outside_library": "outside", "outside_null": "null",
               "outside_monitor_null": "null"})

@@ -164,7 +164,7 @@ def rest_needed(selected: list[Trial], against: Trial | None) -> bool:
     - every accepted selected term leaves a discrepancy: a partial term may stand in for one
       the selection missed (``w_u |w_u|`` closing 84 % of hinge friction's gap, case 2);
     - not when a library set was named and no selected term is accepted: the library set
-      stands in, and its model is not the base fit the rest is fitted from (14 fits, 36 %
+      stands in, and its model is not the base fit the rest is fitted from (14 fits then, 36 %
       of a whole-chain case's evaluations, root seed 4189 case 0, for no change)."""
     ok = [t for t in selected if t.accepted]
     if not ok:
@@ -181,7 +181,7 @@ def _rest(search, selected: tuple[str, ...], keep: int = 2) -> list[Trial]:
     (a torque constant 22 % down at 15 A, root seed 4646 case 11: base training fitness
     4.4e-2; ``i |i|`` fitted from zero reaches 5.7e-5, and ranked 9th or worse by any
     linear score there).  As the library's rest is fitted when no screened effect is
-    accepted; 14 fits more."""
+    accepted; 15 fits more (the dictionary less the five selected)."""
     from ..seeding import stream
     from .fitting import fit
 

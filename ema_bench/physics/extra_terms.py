@@ -48,14 +48,16 @@ def extra_torques(th_m, w_m, th_u, w_u, i, pp, c):
     ``i``: the drive's torque current (A, signed: its step-mean torque over the nominal
     torque constant); ``pp``: pole pairs (the electrical angle is
     ``pp th_m``); ``c``: the coefficients (:data:`~ema_bench.terms.TERMS` order: each term's
-    basis function times its coefficient, summed per equation)."""
+    basis function times its coefficient, summed per equation; the Stribeck form, slot 19,
+    is added last so that the other terms' sums keep their rounding)."""
     s1, c1 = poly_sincos(th_m)
     se, ce = poly_sincos(pp * th_m)
     s2, c2 = poly_sincos(2.0 * pp * th_m)
     motor = (c[0] * (w_m * w_m) + c[1] * (w_m * abs(w_m))
              + c[2] * math.tanh(w_m / SIGN_SPEED_MOTOR) + c[3] * i + c[4] * (i * i)
              + c[5] * (i * abs(i)) + c[6] * s1 + c[7] * c1 + c[8] * se + c[9] * ce
-             + c[10] * s2 + c[11] * c2)
+             + c[10] * s2 + c[11] * c2
+             + c[19] * (stribeck_decay(w_m) * math.tanh(w_m / SIGN_SPEED_MOTOR)))
     surface = (c[12] * w_u + c[13] * (th_u * th_u) + c[14] * (th_u * w_u) + c[15] * (w_u * w_u)
                + c[16] * (th_u * abs(th_u)) + c[17] * (w_u * abs(w_u))
                + c[18] * math.tanh(w_u / SIGN_SPEED_SURFACE))
@@ -71,11 +73,17 @@ def outside_consts(e):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def stribeck_decay(w_m):
+    """The Stribeck curve's decay with the motor speed ``w_m`` (rad/s): ``exp(-(w_m/w_s)^2)``."""
+    v = w_m / STRIBECK_SPEED
+    return math.exp(-(v * v))
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def stribeck(f_s, w_m):
     """The Stribeck peak of the motor's dry friction at speed ``w_m`` (rad/s), N m, opposing
     the motion: ``F_s exp(-(w_m/w_s)^2) tanh(w_m/w_0)``."""
-    v = w_m / STRIBECK_SPEED
-    return f_s * math.exp(-(v * v)) * math.tanh(w_m / SIGN_SPEED_MOTOR)
+    return f_s * stribeck_decay(w_m) * math.tanh(w_m / SIGN_SPEED_MOTOR)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
