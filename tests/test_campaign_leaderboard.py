@@ -120,9 +120,6 @@ NOT_ON_THE_BOARD = {
                          "campaign's 170 failing units, difference +0.018 [-0.001, +0.041]; "
                          "coil shorts 0.871 against 0.818 (leaderboards/campaign/"
                          "fleet-bayes-onset-offline.jsonl); a full track costs ~40 CPU-min",
-    "fleet-bayes-whole": "issue 47: measured offline on fleet-bayes-cut's committed fits "
-                         "(leaderboards/campaign/fleet-bayes-whole-offline.jsonl); its board "
-                         "run (a full track, ~40 CPU-min of fits) was not made in time",
 }
 
 
