@@ -68,7 +68,8 @@ def test_the_targets_table_quotes_the_committed_policy_and_sealed_tables(table):
     policy = {(p["tracker"], p["track"]): p for p in
               json.loads((BOARD / "policy.json").read_text())}
     row = _row(table, "policy cost within 1.2 x the oracle policy's")
-    for key in (("fleet-bayes-cut", "twin"), ("fleet-bayes-cut", "reference"),
+    for key in (("fleet-bayes-whole", "twin"), ("fleet-bayes-whole", "reference"),
+                ("fleet-bayes-cut", "twin"), ("fleet-bayes-cut", "reference"),
                 ("fleet-bayes", "twin"), ("fleet-bayes", "reference")):
         h = policy[key]["ratio"]
         assert f"{h['value']:.2f} [{h['ci'][0]:.2f}, {h['ci'][1]:.2f}]" in row, key
