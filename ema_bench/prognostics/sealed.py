@@ -28,7 +28,7 @@ from .campaign import CampaignError, load_campaign, make_campaign, prepare_folde
 
 #: The trackers of the campaign board, in board order (the no-sensing references first).
 BOARD_TRACKERS = ("rul-age", "life-table", "kalman", "refit-trend", "particle", "fleet-bayes",
-                  "fleet-bayes-cut")
+                  "fleet-bayes-cut", "fleet-bayes-whole")
 
 
 def truth_digest(path: Path | str) -> str:
