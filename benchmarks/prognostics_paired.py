@@ -16,6 +16,7 @@ import argparse
 import json
 
 import numpy as np
+from prognostics_offline import _ratio  # benchmarks/ (the script's folder) is on the path
 
 
 def _hits(rows: list[dict]) -> dict[str, float]:
@@ -41,13 +42,12 @@ def main() -> None:
             sel = [u for u in units if g is None or fault[u] == g]
             if not sel:
                 continue
-            a, b, o = (np.array([d[u] for u in sel]) for d in (ea, eb, oracle))
+            lines = [{"a": ea[u], "b": eb[u], "oracle": oracle[u]} for u in sel]
             idx = np.random.default_rng(0).integers(0, len(sel), (4000, len(sel)))
-            da = a[idx].sum(1) / o[idx].sum(1) - b[idx].sum(1) / o[idx].sum(1)
-            lo, hi = np.quantile(da, [0.025, 0.975])
-            print(f"{track} {g or 'all'} ({len(sel)} failing): {args.a} {a.sum() / o.sum():.3f}"
-                  f", {args.b} {b.sum() / o.sum():.3f}, difference "
-                  f"{(a.sum() - b.sum()) / o.sum():+.3f} [{lo:+.3f}, {hi:+.3f}]")
+            (ra, ba), (rb, bb) = _ratio(lines, "a", idx), _ratio(lines, "b", idx)
+            lo, hi = np.quantile(ba - bb, [0.025, 0.975])
+            print(f"{track} {g or 'all'} ({len(sel)} failing): {args.a} {ra:.3f}, {args.b} "
+                  f"{rb:.3f}, difference {ra - rb:+.3f} [{lo:+.3f}, {hi:+.3f}]")
 
 
 if __name__ == "__main__":

@@ -103,3 +103,36 @@ def test_the_targets_table_quotes_the_committed_offline_measurements(table, trac
         sel = [x for x in lines if x["failing_fault"] == fault]
         assert ratio(sel)[:5] in row, (fault, ratio(sel))
     assert ratio([x for x in lines if x["failing_fault"] == "Na"]) in row
+
+
+def test_the_paired_difference_script_reads_both_trackers_against_one_oracle(tmp_path):
+    """``benchmarks/prognostics_paired.py`` (the +0.028 of the targets table) on a made
+    ``campaign score --json``: tracker a hits what the oracle hits, b half of it on friction
+    and all of it on backlash, so a/oracle = 1 and b/oracle = 0.5 on friction in every
+    resample; the coil-short unit b did not score is left out of every line."""
+    import subprocess
+    import sys
+
+    oracle = {"u0": 0.8, "u1": 0.6, "u2": 0.4, "u3": 1.0, "u4": 0.5, "u5": 0.9}
+    fault = {"u0": "Fst", "u1": "Fst", "u2": "Fst", "u3": "BLK", "u4": "BLK", "u5": "Na"}
+
+    def run(name, share):
+        return {"tracker": name, "track": "twin",
+                "per_unit": [{"unit": u, "failing_fault": fault[u],
+                              "expected_hit": None if (name == "b" and u == "u5")
+                              else share[fault[u]] * oracle[u]} for u in oracle],
+                "oracle_per_unit": [{"unit": u, "expected_hit": h} for u, h in oracle.items()]}
+
+    path = tmp_path / "full.json"
+    path.write_text(json.dumps([run("a", {"Fst": 1.0, "BLK": 1.0, "Na": 1.0}),
+                                run("b", {"Fst": 0.5, "BLK": 1.0, "Na": 1.0})]))
+    out = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "prognostics_paired.py"),
+                          str(path), "a", "b"], capture_output=True, text=True, check=True,
+                         cwd=ROOT).stdout.splitlines()
+    total = sum(oracle[u] for u in oracle if u != "u5")             # 3.3
+    b_all = (0.5 * (0.8 + 0.6 + 0.4) + 1.0 + 0.5) / total
+    assert out[0].startswith(f"twin all (5 failing): a 1.000, b {b_all:.3f}, difference "
+                             f"{1 - b_all:+.3f} [")
+    assert out[1] == "twin Fst (3 failing): a 1.000, b 0.500, difference +0.500 [+0.500, +0.500]"
+    assert out[2] == "twin BLK (2 failing): a 1.000, b 1.000, difference +0.000 [+0.000, +0.000]"
+    assert len(out) == 3                      # Na: its one unit not scored by b
