@@ -15,11 +15,12 @@ and system CPU of the command and every worker process it waited for (the accoun
 
 Each tracker's CPU per inspection, scaled to the board's campaigns (4,796 twin and 685
 reference inspections), and the reference track's cost of making a campaign per inspection
-give the board's cost; half of it is the wall time on two idle cores (the tracking runs keep
-both workers busy).  Scoring and the policy table are scaled by inspections as well (an upper
-bound: the policy's replay of two units per run does not grow with the campaign).  The
+give the board's cost (:func:`scaled`); the wall time on two idle cores counts the tracking
+runs' CPU halved (both workers busy) and the rest whole (one process).  Scoring and the
+policy table are scaled by inspections as well (an upper bound: the policy's replay of two
+units per run does not grow with the campaign).  The
 machine's load average is recorded before and after every command.  Results are written after
-every command to ``--json``::
+every command to ``--json`` (``--rescale`` recomputes the board's figures of a written one)::
 
     nice -n 10 python benchmarks/board_regeneration.py --out /tmp/regen \\
         --json leaderboards/campaign/regeneration.json
@@ -68,6 +69,32 @@ def inspections(folder: Path) -> int:
     return sum(len(u["inspections"]) for u in doc["units"])
 
 
+def scaled(doc: dict) -> dict:
+    """Add the board's figures to a measurement: each step's CPU per inspection of its sample
+    times the board's inspections (tracking, scoring and the policy table: both campaigns;
+    making: each track's own), and the wall on two idle cores: the tracking runs keep both
+    workers busy (CPU / 2), making, scoring and the policy table run on one core (CPU)."""
+    n, board = doc["sample_inspections"], sum(BOARD.values())
+    cpu = {k: r["user_s"] + r["sys_s"] for k, r in doc["steps"].items()}
+    per = {k.removeprefix("track "): v / n for k, v in cpu.items() if k.startswith("track ")}
+    out = {f"track {t}": v * board for t, v in per.items()}
+    out["make twin"] = cpu["make twin"] / n * BOARD["twin"]
+    if "make reference" in cpu:
+        out["make reference"] = (cpu["make reference"] / doc["reference_sample_inspections"]
+                                 * BOARD["reference"])
+    for k in ("score", "policy"):
+        out[k] = cpu[k] / n * board
+    parallel = sum(v for k, v in out.items() if k.startswith("track "))
+    doc["board_inspections"] = BOARD
+    doc["cpu_s_per_inspection"] = {t: round(v, 4) for t, v in per.items()}
+    doc["board_cpu_min"] = {k: round(v / 60, 2) for k, v in out.items()}
+    doc["board_twin_tracking_cpu_min"] = round(sum(per.values()) * BOARD["twin"] / 60, 1)
+    doc["board_total_cpu_min"] = round(sum(out.values()) / 60, 1)
+    doc["board_wall_min_on_2_cores"] = round(
+        (parallel / 2 + sum(out.values()) - parallel) / 60, 1)
+    return doc
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--out", type=Path, required=True, help="work folder (must not exist)")
@@ -78,7 +105,15 @@ def main() -> None:
     p.add_argument("--seed", type=int, default=4273, help="the twin board's seed")
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--trackers", default=",".join(BOARD_TRACKERS))
+    p.add_argument("--rescale", action="store_true",
+                   help="only recompute the board's figures of an existing --json")
     a = p.parse_args()
+    if a.rescale:   # the samples stay in --out
+        doc = json.loads(a.json.read_text())
+        if "make reference" in doc["steps"]:
+            doc["reference_sample_inspections"] = inspections(a.out / "reference")
+        a.json.write_text(json.dumps(scaled(doc), indent=1) + "\n")
+        return
     if a.out.exists():
         sys.exit(f"{a.out}: exists; the measurement needs a fresh folder (a cold fit cache)")
     eb = str(Path(sys.executable).with_name("ema-bench"))
@@ -117,27 +152,12 @@ def main() -> None:
                     str(ROOT / "leaderboards" / "campaign" / "policy_thresholds.json"),
                     "--replay", "2", "--markdown", str(out / "policy.md"), "--json"])
 
-    n = inspections(camp)
-    cpu = {k: r["user_s"] + r["sys_s"] for k, r in doc["steps"].items()}
-    board = sum(BOARD.values())
-    per = {t: cpu[f"track {t}"] / n for t in trackers}
-    scaled = {f"track {t}": per[t] * board for t in trackers}
-    scaled["make twin"] = cpu["make twin"] / n * BOARD["twin"]
-    if a.reference_units:
-        scaled["make reference"] = (cpu["make reference"] / inspections(out / "reference")
-                                    * BOARD["reference"])
-    for k in ("score", "policy"):
-        scaled[k] = cpu[k] / n * board
-    total = sum(scaled.values())
-    doc["sample_inspections"] = n
-    doc["board_inspections"] = BOARD
-    doc["cpu_s_per_inspection"] = {t: round(v, 4) for t, v in per.items()}
-    doc["board_cpu_min"] = {k: round(v / 60, 2) for k, v in scaled.items()}
-    doc["board_twin_tracking_cpu_min"] = round(sum(per.values()) * BOARD["twin"] / 60, 1)
-    doc["board_total_cpu_min"] = round(total / 60, 1)
-    doc["board_wall_min_on_2_cores"] = round(total / 120, 1)
-    a.json.write_text(json.dumps(doc, indent=1) + "\n")
-    print(f"board: {total / 60:.1f} CPU-min, {total / 120:.1f} min on 2 idle cores")
+    doc["sample_inspections"] = inspections(camp)
+    doc["reference_sample_inspections"] = (inspections(out / "reference")
+                                           if a.reference_units else None)
+    a.json.write_text(json.dumps(scaled(doc), indent=1) + "\n")
+    print(f"board: {doc['board_total_cpu_min']:.1f} CPU-min, "
+          f"{doc['board_wall_min_on_2_cores']:.1f} min on 2 idle cores")
 
 
 if __name__ == "__main__":

@@ -24,8 +24,8 @@ RUL
     :func:`first_passage` runs Monte Carlo damage paths forward until each crosses a
     threshold (its life: the first crossing); :func:`summarise` turns the crossing times
     into the median and 95 % interval of the RUL, the failing fault and the probability of
-    failing within the replacement
-    horizon; :func:`replace_now` is the replacement rule every baseline uses.
+    failing within the replacement horizon; :func:`replace_now` is the replacement rule every
+    baseline uses.
 """
 
 from __future__ import annotations
