@@ -98,6 +98,31 @@ def test_the_targets_table_quotes_the_measured_regeneration(table):
         assert f"| {name} | {cpu:.0f} s | {doc['board_cpu_min'][step]:.1f} |" in readme, step
 
 
+def test_the_regeneration_scaling_by_hand(monkeypatch):
+    """``board_regeneration.scaled`` on a made measurement (100 twin and 50 reference sample
+    inspections; the board's 4,796 + 685): per inspection to both campaigns, making per
+    track, the tracking's CPU halved on two cores and the rest whole."""
+    import sys
+    monkeypatch.syspath_prepend(str(ROOT / "benchmarks"))
+    sys.modules.pop("board_regeneration", None)
+    from board_regeneration import scaled
+
+    def cpu(s):
+        return {"user_s": s - 1, "sys_s": 1}
+
+    doc = scaled({"sample_inspections": 100, "reference_sample_inspections": 50,
+                  "steps": {"make twin": cpu(10), "make reference": cpu(5), "track a": cpu(20),
+                            "track b": cpu(10), "score": cpu(2), "policy": cpu(4)}})
+    track = (20 + 10) / 100 * 5481                 # 1644.3 CPU-s, on two cores
+    rest = 10 / 100 * 4796 + 5 / 50 * 685 + (2 + 4) / 100 * 5481
+    assert doc["board_cpu_min"] == pytest.approx(
+        {"track a": 18.27, "track b": 9.135, "make twin": 7.99, "make reference": 1.14,
+         "score": 1.83, "policy": 3.65}, abs=0.006)
+    assert doc["board_total_cpu_min"] == round((track + rest) / 60, 1) == 42.0
+    assert doc["board_wall_min_on_2_cores"] == round((track / 2 + rest) / 60, 1) == 28.3
+    assert doc["board_twin_tracking_cpu_min"] == 24.0   # 0.3 CPU-s x 4,796
+
+
 @pytest.mark.parametrize("tracker", ["fleet-bayes-onset"])
 def test_the_targets_table_quotes_the_committed_offline_measurements(table, tracker):
     """``fleet-bayes-onset``'s figures are ``benchmarks/prognostics_offline.py``'s summary of
