@@ -123,6 +123,31 @@ def test_the_regeneration_scaling_by_hand(monkeypatch):
     assert doc["board_twin_tracking_cpu_min"] == 24.0   # 0.3 CPU-s x 4,796
 
 
+def test_the_evidence_for_the_lead_quotes_the_gap_script():
+    """The coil-short rows of "Evidence for the lead" are ``benchmarks/prognostics_gap.py``'s
+    output on the committed lines (run as documented)."""
+    import subprocess
+    import sys
+
+    text = (ROOT / "docs" / "prognostics.md").read_text()
+    start = text.index("### Evidence for the lead")
+    section = text[start:text.index("\n### ", start + 1)].splitlines()
+    out = subprocess.run(
+        [sys.executable, str(ROOT / "benchmarks" / "prognostics_gap.py"),
+         str(BOARD / "fleet-bayes-whole-offline.jsonl"), str(BOARD / "coil-short-ceiling.jsonl"),
+         "--level", "fits", "--fault", "Na"], capture_output=True, text=True, check=True,
+        cwd=ROOT).stdout.splitlines()
+    labels = {"all": "coil shorts (44)", "early": "coil shorts, early cuts (15)",
+              "mid": "coil shorts, mid cuts (16)", "late": "coil shorts, late cuts (13)"}
+    for group, label in labels.items():
+        (line,) = [x for x in out if x.startswith(f"Na {group} (")]
+        tracker, rest = line.split(": tracker ")[1].split(", fits ")
+        bound, diff = rest.split("; difference ")
+        (row,) = [x for x in section if x.startswith(f"| {label} |")]
+        for figure in (tracker, bound, diff.split(",  ")[0].split("], ")[0] + "]"):
+            assert figure in row, (group, figure)
+
+
 @pytest.mark.parametrize("tracker", ["fleet-bayes-onset"])
 def test_the_targets_table_quotes_the_committed_offline_measurements(table, tracker):
     """``fleet-bayes-onset``'s figures are ``benchmarks/prognostics_offline.py``'s summary of
