@@ -18,9 +18,9 @@ reference inspections), and the reference track's cost of making a campaign per 
 give the board's cost (:func:`scaled`); the wall time on two idle cores counts the tracking
 runs' CPU halved (both workers busy) and the rest whole (one process).  Scoring and the
 policy table are scaled by inspections as well (an upper bound: the policy's replay of two
-units per run does not grow with the campaign).  The
-machine's load average is recorded before and after every command.  Results are written after
-every command to ``--json`` (``--rescale`` recomputes the board's figures of a written one)::
+units per run does not grow with the campaign).  The machine's load average is recorded
+before and after every command.  Results are written after every command to ``--json``
+(``--rescale`` recomputes the board's figures of a written one)::
 
     nice -n 10 python benchmarks/board_regeneration.py --out /tmp/regen \\
         --json leaderboards/campaign/regeneration.json
@@ -38,12 +38,10 @@ import sys
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-from ema_bench.prognostics.sealed import BOARD_TRACKERS  # noqa: E402
+from ema_bench.prognostics.sealed import BOARD_TRACKERS
 
-#: Inspections of the board's campaigns (their manifests).
-BOARD = {"twin": 4796, "reference": 685}
+ROOT = Path(__file__).resolve().parents[1]
+
 
 
 def _load() -> list[float]:
@@ -67,6 +65,11 @@ def timed(cmd: list[str], env: dict, log: Path) -> dict:
 def inspections(folder: Path) -> int:
     doc = json.loads((folder / "manifest.json").read_text())
     return sum(len(u["inspections"]) for u in doc["units"])
+
+
+#: Inspections of the board's campaigns (their committed manifests: 4,796 and 685).
+BOARD = {t: inspections(ROOT / "leaderboards" / "campaign" / t / "campaign")
+         for t in ("twin", "reference")}
 
 
 def scaled(doc: dict) -> dict:
