@@ -21,6 +21,13 @@ overall, by failing fault and by cut position, with bootstrap intervals::
 what is left to the oracle is what it knows of the unit's law parameters).  Lines already in
 ``--out`` are not computed again (resumable).  About 0.6 CPU-s a unit
 (futures and oracle included): the 170 failing units of the twin campaign in about 2 CPU-min.
+``--set KEY=VALUE`` sets a factory keyword over the registered configuration (a variant
+without registering it: ``n_paths=8000``, ``step_flights=1``), and ``--against LINES`` pairs
+the difference with another variant's lines of this script instead of the committed run::
+
+    python benchmarks/prognostics_offline.py leaderboards/campaign/twin/fleet-bayes-cut \
+        fleet-bayes-whole --set step_flights=1 --out step1.jsonl \
+        --against leaderboards/campaign/fleet-bayes-whole-offline.jsonl
 """
 
 from __future__ import annotations
@@ -70,6 +77,10 @@ def _served_setup(info, seed, *args, **kwargs):
     return dataclasses.replace(u, fitter=fitter)
 
 
+#: Factory keywords set on the command line (``--set n_paths=8000``), over the registered ones.
+_SET: dict[str, float] = {}
+
+
 def cut_rul(tracker: str, info: dict, manifest_units: list[dict], steps: list[dict],
             order: list[str]) -> float:
     """The variant's RUL at the unit's cut, from the committed steps' fits."""
@@ -80,7 +91,8 @@ def cut_rul(tracker: str, info: dict, manifest_units: list[dict], steps: list[di
     _SERVED.clear()
     _SERVED.update({r["index"]: r for r in steps})
     conditions = {i["index"]: i["conditions"] for i in manifest_units}
-    step = fb.factory(info, track_run.unit_seed(0, order.index(unit), 1), **spec.config)
+    step = fb.factory(info, track_run.unit_seed(0, order.index(unit), 1),
+                      **{**spec.config, **_SET})
     for k, r in enumerate(steps):
         _AT_CUT["now"] = k == len(steps) - 1
         out = step(SimpleNamespace(unit=unit, index=r["index"], flight=r["flight"],
@@ -117,7 +129,14 @@ def _ratio(sel: list[dict], key: str, idx: np.ndarray) -> tuple[float, np.ndarra
     return e.sum() / o.sum(), e[idx].sum(1) / o[idx].sum(1)
 
 
-def summary(lines: list[dict]) -> None:
+def summary(lines: list[dict], against: Path | None = None) -> None:
+    """Ratios to the oracle and the paired difference to the committed run, overall, by
+    failing fault and by cut position; with ``against`` (another ``--out`` of this script, the
+    same units) the difference is to that variant's lines instead."""
+    if against is not None:
+        other = {d["unit"]: d["tracker"] for d in map(json.loads,
+                                                        against.read_text().splitlines())}
+        lines = [{**x, "committed": other[x["unit"]]} for x in lines]
     groups = {"all": lines, **{g: [x for x in lines if rule(x)] for g, rule in GROUPS.items()}}
     for name, sel in groups.items():
         if not sel:
@@ -141,9 +160,18 @@ def main() -> None:
     p.add_argument("--truth-fits", action="store_true",
                    help="serve each inspection's true faults as its fit (standard deviation "
                         "1e-5 of the range): the variant's ceiling with perfect sensing")
+    p.add_argument("--against", type=Path, help="pair with this --out of another variant "
+                   "(e.g. leaderboards/campaign/fleet-bayes-whole-offline.jsonl) instead of "
+                   "the committed run")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="a factory keyword over the registered configuration (a number), e.g. "
+                        "n_paths=8000 or step_flights=1 (repeatable)")
     a = p.parse_args()
+    for kv in a.set:
+        k, v = kv.split("=", 1)
+        _SET[k] = int(v) if v.isdigit() else float(v)
     summary(measure(a.run, a.tracker, a.out, a.units.split(",") if a.units else None,
-                    a.truth_fits))
+                    a.truth_fits), a.against)
 
 
 if __name__ == "__main__":

@@ -82,6 +82,72 @@ def test_the_targets_table_quotes_the_committed_policy_and_sealed_tables(table):
     assert f"sealed {sp['value']:.2f} [{sp['ci'][0]:.2f}, {sp['ci'][1]:.2f}]" in row
 
 
+def test_the_targets_table_quotes_the_measured_regeneration(table):
+    """The board's regeneration time is the measured one (``benchmarks/board_regeneration.py``:
+    the documented commands on a 12-unit sample, cold shared fit cache), and the per-tracker
+    figures of the README's "Tracking time" are its own."""
+    doc = json.loads((BOARD / "regeneration.json").read_text())
+    row = _row(table, "board regenerated within 90 min on 2 cores")
+    assert f"**{doc['board_wall_min_on_2_cores']:.1f} min**" in row
+    assert f"{doc['board_total_cpu_min']:.1f} CPU-min" in row
+    assert ("**yes**" in row) == (doc["board_wall_min_on_2_cores"] <= 90)
+    readme = (BOARD / "README.md").read_text()
+    for step, r in doc["steps"].items():
+        name = step.removeprefix("track ")
+        cpu = r["user_s"] + r["sys_s"]
+        assert f"| {name} | {cpu:.0f} s | {doc['board_cpu_min'][step]:.1f} |" in readme, step
+
+
+def test_the_regeneration_scaling_by_hand(monkeypatch):
+    """``board_regeneration.scaled`` on a made measurement (100 twin and 50 reference sample
+    inspections; the board's 4,796 + 685): per inspection to both campaigns, making per
+    track, the tracking's CPU halved on two cores and the rest whole."""
+    import sys
+    monkeypatch.syspath_prepend(str(ROOT / "benchmarks"))
+    sys.modules.pop("board_regeneration", None)
+    from board_regeneration import scaled
+
+    def cpu(s):
+        return {"user_s": s - 1, "sys_s": 1}
+
+    doc = scaled({"sample_inspections": 100, "reference_sample_inspections": 50,
+                  "steps": {"make twin": cpu(10), "make reference": cpu(5), "track a": cpu(20),
+                            "track b": cpu(10), "score": cpu(2), "policy": cpu(4)}})
+    track = (20 + 10) / 100 * 5481                 # 1644.3 CPU-s, on two cores
+    rest = 10 / 100 * 4796 + 5 / 50 * 685 + (2 + 4) / 100 * 5481
+    assert doc["board_cpu_min"] == pytest.approx(
+        {"track a": 18.27, "track b": 9.135, "make twin": 7.99, "make reference": 1.14,
+         "score": 1.83, "policy": 3.65}, abs=0.006)
+    assert doc["board_total_cpu_min"] == round((track + rest) / 60, 1) == 42.0
+    assert doc["board_wall_min_on_2_cores"] == round((track / 2 + rest) / 60, 1) == 28.3
+    assert doc["board_twin_tracking_cpu_min"] == 24.0   # 0.3 CPU-s x 4,796
+
+
+def test_the_evidence_for_the_lead_quotes_the_gap_script():
+    """The coil-short rows of "Evidence for the lead" are ``benchmarks/prognostics_gap.py``'s
+    output on the committed lines (run as documented)."""
+    import subprocess
+    import sys
+
+    text = (ROOT / "docs" / "prognostics.md").read_text()
+    start = text.index("### Evidence for the lead")
+    section = text[start:text.index("\n### ", start + 1)].splitlines()
+    out = subprocess.run(
+        [sys.executable, str(ROOT / "benchmarks" / "prognostics_gap.py"),
+         str(BOARD / "fleet-bayes-whole-offline.jsonl"), str(BOARD / "coil-short-ceiling.jsonl"),
+         "--level", "fits", "--fault", "Na"], capture_output=True, text=True, check=True,
+        cwd=ROOT).stdout.splitlines()
+    labels = {"all": "coil shorts (44)", "early": "coil shorts, early cuts (15)",
+              "mid": "coil shorts, mid cuts (16)", "late": "coil shorts, late cuts (13)"}
+    for group, label in labels.items():
+        (line,) = [x for x in out if x.startswith(f"Na {group} (")]
+        tracker, rest = line.split(": tracker ")[1].split(", fits ")
+        bound, diff = rest.split("; difference ")
+        (row,) = [x for x in section if x.startswith(f"| {label} |")]
+        for figure in (tracker, bound, diff.split(",  ")[0].split("], ")[0] + "]"):
+            assert figure in row, (group, figure)
+
+
 @pytest.mark.parametrize("tracker", ["fleet-bayes-onset"])
 def test_the_targets_table_quotes_the_committed_offline_measurements(table, tracker):
     """``fleet-bayes-onset``'s figures are ``benchmarks/prognostics_offline.py``'s summary of

@@ -424,3 +424,47 @@ def test_a_point_chosen_on_whole_flight_lives_hits_whole_flight_truths_more_ofte
                     - hit_probability(best_point(seen), truth, ones))
     gain = np.array(gain)
     assert gain.mean() > 0.005 and np.mean(gain < -0.02) < 0.05, (gain.mean(), gain.min())
+
+
+def test_first_passage_stops_at_every_paths_first_crossing():
+    """``first_passage`` runs the paths until each has a life (its first crossing), not until
+    every fault of every path has crossed: each path's life and failing fault are those of the
+    run to the horizon (here written out by hand: every step, every fault), on paths of the
+    published laws (one fault racing the others, a short not yet begun on most paths), and
+    it calls ``advance`` fewer times."""
+    from ema_bench.prognostics.laws import FleetLaws, ForwardPaths
+    from ema_bench_trackers._common import damage_thresholds, first_passage, to_damage
+
+    names = ["Fst", "BLK", "Na"]
+    d_thr = damage_thresholds(names, THRESHOLDS)
+    laws = FleetLaws().to_dict()
+    for begun, x in ((False, [1.0, 0.3, 0.01, 1e5]), (True, [0.99, 0.25, 0.004, 1e5])):
+        runs = []
+        for to_horizon in (True, False):
+            rng = np.random.default_rng(11)
+            rates = {"Fst": rng.lognormal(np.log(1.2e-3), 0.45, 500),
+                     "BLK": rng.lognormal(np.log(5e-5), 0.45, 500), "Na": np.full(500, 0.02)}
+            paths = ForwardPaths(rng, np.tile(x, (500, 1)), rates, laws, 1.0,
+                                 np.full(500, begun))
+            calls = []
+
+            def advance(dt, paths=paths, calls=calls):
+                calls.append(dt)
+                return to_damage(paths.advance(dt), names, THRESHOLDS)
+
+            d0 = to_damage(paths.x, names, THRESHOLDS)
+            if to_horizon:
+                prev, t, now = d0, np.full(d0.shape, np.inf), 0.0
+                while now < 1500:
+                    cur = advance(2.0)
+                    hit = np.isinf(t) & (cur >= d_thr)
+                    with np.errstate(divide="ignore", invalid="ignore"):
+                        t[hit] = (now + 2.0 * ((d_thr - prev) / (cur - prev)))[hit]
+                    prev, now = cur, now + 2.0
+            else:
+                t = first_passage(d0, advance, d_thr, 2.0)
+            runs.append((t, len(calls)))
+        (full, n_full), (cut, n_cut) = runs
+        assert np.array_equal(cut.min(axis=1), full.min(axis=1))
+        assert np.array_equal(np.argmin(cut, axis=1), np.argmin(full, axis=1))
+        assert np.isfinite(cut.min(axis=1)).all() and n_cut < n_full / 2

@@ -21,10 +21,11 @@ Fit cache
     instead of being recomputed; the answers are bit for bit those without the cache (a test
     checks it).  Off by default.
 RUL
-    :func:`first_passage` runs Monte Carlo damage paths forward until each crosses its
-    threshold; :func:`summarise` turns the crossing times into the median and 95 % interval
-    of the RUL, the failing fault and the probability of failing within the replacement
-    horizon; :func:`replace_now` is the replacement rule every baseline uses.
+    :func:`first_passage` runs Monte Carlo damage paths forward until each crosses a
+    threshold (its life: the first crossing); :func:`summarise` turns the crossing times
+    into the median and 95 % interval of the RUL, the failing fault and the probability of
+    failing within the replacement horizon; :func:`replace_now` is the replacement rule every
+    baseline uses.
 """
 
 from __future__ import annotations
@@ -354,12 +355,19 @@ def first_passage(d0: np.ndarray, advance: Advance, d_thr: np.ndarray, step: flo
     -------
     array (n, m)
         Crossing time of each path and fault, flights (linear between steps; 0 for a path
-        already past its threshold; ``inf`` when not crossed within ``horizon``).
+        already past its threshold; ``inf`` when not crossed within ``horizon``), up to the
+        step in which every path has crossed some threshold: a path's life is its first
+        crossing, so the paths are not run on until their other faults cross too (a fault
+        crossing after the last path's first one stays ``inf``).  Each row's minimum and
+        its argmin are those of running every fault to its crossing: the steps before the
+        stop are the same, and a fault first crossing in a later step crosses later.
     """
     prev = np.asarray(d0, dtype=float)
     t = np.where(prev >= d_thr, 0.0, np.inf)
     now = 0.0
-    while now < horizon and np.isinf(t).any():
+    # until every path has a life (its first crossing), not every fault of every path:
+    # a short not yet begun on most paths would otherwise run them all to the horizon
+    while now < horizon and t.shape[1] and np.isinf(t).all(axis=1).any():
         cur = advance(step)
         hit = np.isinf(t) & (cur >= d_thr)
         if hit.any():

@@ -22,10 +22,12 @@ confounders switched on, Laplace intervals); then, on a grid per parameter:
     hazard.  Short present: the log-share's rises over duty give the growth rate ``g``
     (``N(g D, g^2 D m (1 + 1/k_d) / k_e + s_y^2)``), prior the fleet's log-normal.
 Forward
-    2,000 paths from the current estimates (drawn within their intervals), parameters drawn
-    from their posteriors, duty around the unit's logged mean ``m``: the laws run forward by
-    :class:`~ema_bench.prognostics.laws.ForwardPaths` in 2-flight blocks until a fault crosses
-    its threshold (up to 1,500 flights).  Median and 2.5-97.5 % of the first crossing.
+    2,000 paths (``n_paths``) from the current estimates (drawn within their intervals),
+    parameters drawn from their posteriors, duty around the unit's logged mean ``m``: the laws
+    run forward by :class:`~ema_bench.prognostics.laws.ForwardPaths` in 2-flight blocks
+    (``step_flights``; 1 or 8,000 paths change no board figure beyond noise:
+    ``leaderboards/campaign/README.md``) until a fault crosses its threshold (up to 1,500
+    flights).  Median and 2.5-97.5 % of the first crossing.
 Replacement
     :func:`~._common.replace_now`, as every baseline.
 
@@ -128,7 +130,7 @@ def _cut_summary(summary, t: np.ndarray, flight: float, every: int,
 def factory(campaign_info: dict, seed: np.random.SeedSequence, *, n_paths: int = N_PATHS,
             first_budget: int = 1500, global_budget: int = 1000,
             replace_prob: float = REPLACE_PROB, cut_rule: bool = False,
-            coil: str = "threshold", whole_flights: bool = False):
+            coil: str = "threshold", whole_flights: bool = False, step_flights: float = STEP):
     if coil not in ("threshold", "changepoint"):
         raise ValueError(f"coil must be 'threshold' or 'changepoint', got {coil!r}")
     u = unit_setup(campaign_info, seed, first_budget, global_budget)
@@ -211,7 +213,7 @@ def factory(campaign_info: dict, seed: np.random.SeedSequence, *, n_paths: int =
         paths = ForwardPaths(rng, x0, rates, laws, m, begun)
         cross = first_passage(to_damage(paths.x, names, thresholds),
                               lambda dt: to_damage(paths.advance(dt), names, thresholds),
-                              d_thr, STEP, HORIZON_FLIGHTS)
+                              d_thr, step_flights, HORIZON_FLIGHTS)
         summary = summarise(cross, names, REPLACE_HORIZON * every)
         replace = replace_now(summary, fit.low, fit.high, names, thresholds, replace_prob)
         profile = None
