@@ -99,12 +99,15 @@ EFFECTS: tuple[Effect, ...] = (
     # outside the library in the current loop and a sensor (appended after the dictionary:
     # every earlier slot keeps its place)
     Effect("dead_time", "V", 0.0, 10.0,
-           "inverter dead time and switch drops: each conducting leg's voltage "
-           "-V tanh(i_x / 0.5)", library=False, kind="outside", trivial=0.2, detect=2.0,
-           signature="slower current rise against the current's sign at step onsets"),
-    Effect("resolver_harmonic", "rad", 0.0, 0.01,
+           "inverter dead time and switch drops: each switching leg's voltage "
+           "-V tanh(i_x / 0.5)", library=False, kind="outside", trivial=0.5,
+           detect=math.inf,
+           signature="none while the hysteresis current loop has voltage headroom: 8 V per "
+                     "leg moves the recorded current by 3.6 noise sigma at most"),
+    Effect("resolver_harmonic", "rad", 0.0, 0.005,
            "resolver second-harmonic error: measured motor angle th_m + a sin(2 th_m), its "
-           "rate the speed feedback", library=False, kind="outside", trivial=1e-4, detect=1e-3,
+           "rate the speed feedback", library=False, kind="outside", trivial=2e-5,
+           detect=2e-4,
            signature="twice-per-revolution ripple of the measured speed and the current"),
 )
 EFFECT_NAMES: tuple[str, ...] = tuple(e.name for e in EFFECTS)
