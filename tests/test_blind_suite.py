@@ -805,9 +805,17 @@ def test_outside_cases_leave_the_suite_drawn_before_and_cycle_every_physics():
     before = draw_cases(64, 0, extra=2, fourth=2)
     drawn = draw_cases(64, 0, extra=2, fourth=2, outside=5)
     assert drawn[:len(before)] == before
-    new = drawn[len(before):]
+    new, loop = drawn[len(before):len(before) + 15], drawn[len(before) + 15:]
     assert [c.index for c in new] == list(range(72, 87))
     assert Counter(c.category for c in new) == {c: 5 for c in blind.OUTSIDE_CATEGORIES}
+    # the current loop's and the sensor's categories follow, from a plan stream of their
+    # own: the dead time at its bound (no size of it is visible), the resolver at 1-4x
+    assert [c.index for c in loop] == list(range(87, 97))
+    assert Counter(c.category for c in loop) == {c: 5 for c in blind.LOOP_CATEGORIES}
+    for c in loop:
+        (n, v), = c.effects.items()
+        assert c.kind == "outside" and n == blind.LOOP_CATEGORIES[c.category]
+        assert v == 10.0 if n == "dead_time" else 1.0 - 1e-9 <= detects(n, v) <= 4.0 + 1e-9
     phys = [c for c in new if c.category == "outside_library"]
     assert sorted(next(iter(c.effects)) for c in phys) == sorted(blind.OUTSIDE_PHYSICS)
     for c in phys:

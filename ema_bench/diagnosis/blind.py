@@ -180,12 +180,15 @@ def category_counts(n: int) -> dict[str, int]:
 
 def _magnitude(rng: np.random.Generator, name: str, lo: float, hi: float) -> float:
     """A value of effect ``name`` log-uniform in ``[lo, hi]`` times its ``detect``, capped
-    at its upper bound; negative half the time when the effect is two-sided and the
+    at its upper bound (an effect no size of which is detected, ``detect`` infinite: at its
+    bound); negative half the time when the effect is two-sided and the
     negative value is within bounds."""
     spec = EFFECTS[EFFECT_INDEX[name]]
     top = min(hi * spec.detect, spec.upper)
     bottom = min(lo * spec.detect, top)
-    value = float(math.exp(rng.uniform(math.log(bottom), math.log(top))))
+    # (capped at the bound again: exp(log(upper)) may round above it; no draw that was
+    # within the bounds changes)
+    value = min(float(math.exp(rng.uniform(math.log(bottom), math.log(top)))), spec.upper)
     if spec.lower < 0.0 and rng.random() < 0.5 and -value >= spec.lower:
         value = -value
     return value
