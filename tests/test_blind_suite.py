@@ -869,6 +869,15 @@ def test_summary_of_the_outside_categories_by_hand():
     assert block["right_by_physics"] == {"quadratic_damping": "1/1", "torque_saturation": "0/1"}
     assert _BLOCKS["outside_null"](recs[2:3])["discoveries"] == 0
     assert _BLOCKS["outside_monitor_null"](recs[3:])["discoveries"] == 1
+    # the current loop's and the sensor's categories are summed and written alike
+    sensor = [{**recs[0], "category": "outside_sensor",
+               "effects": {"resolver_harmonic": 3e-4}, "wall_s": 1.0}]
+    from ema_bench.cli.blind import _category_line
+
+    b = summarise(sensor)["per_category"]["outside_sensor"]
+    assert b["right_by_physics"] == {"resolver_harmonic": "1/1"}
+    assert _category_line("outside_sensor", b).startswith(
+        "right term (equation and form) 1/1 (100%)")
 
 
 def test_cli_runs_an_outside_null_case_and_prints_its_discoveries(tmp_path, capsys):

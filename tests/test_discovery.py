@@ -237,3 +237,15 @@ def test_a_partial_term_does_not_stop_the_search_for_the_right_one():
     assert best is not None and best.name == "surface_sign" and not best.still_detected
     assert best.closed_total >= 0.9
     assert best.values["surface_sign"] == pytest.approx(-friction, rel=0.15)
+
+
+def test_terms_invisible_at_their_bounds_leave_the_selection():
+    """A column whose output change at the term's bound is under ``VISIBLE_NORM`` noise
+    units is dropped, one over it kept, whatever its norm per unit coefficient."""
+    from ema_bench.diagnosis.discovery import VISIBLE_NORM, visible
+
+    names = ("current_sign", "sensor_thm_sin2", "motor_i_abs")
+    S = np.zeros((50, 3))
+    for k, (n, f) in enumerate(zip(names, (0.9, 1.1, 50.0))):
+        S[k, k] = f * VISIBLE_NORM / term(n).bound
+    assert visible(S, names) == ("sensor_thm_sin2", "motor_i_abs")
