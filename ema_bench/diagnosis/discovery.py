@@ -204,10 +204,12 @@ def _rest(search, selected: tuple[str, ...], pool: tuple[str, ...] = TERM_NAMES,
 
     s, base = search.settings, search.base
     fits = []
-    # (``pool``: the visible terms, :func:`visible`; the hidden ones are the last slots, so
-    # every other term keeps its fit's seed)
-    for k, n in enumerate(n for n in pool if n not in selected):
-        f = fit(search.measured, (n,), s, stream(search.seed, "fit", 2, k),
+    # (``pool``: the visible terms, :func:`visible`.)  Each term's fit draws from a stream
+    # of its own slot, whatever else the selection kept: numbered by the place in the rest,
+    # a sensor term entering the selected five shifted every later term's seed, and the
+    # smoothed sign's fit from zero of hinge friction (root seed 4646 case 2) then stalled
+    for n in (n for n in pool if n not in selected):
+        f = fit(search.measured, (n,), s, stream(search.seed, "fit", 2, TERM_NAMES.index(n)),
                 search.start((n,), {}, base.x[:N_FAULTS]))
         search.evaluations += f.evaluations
         fits.append((f.fitness, n, f.x))
