@@ -7,7 +7,8 @@ per unit coefficient) times the term's bound, in noise units, the number
 :func:`~ema_bench.diagnosis.discovery.visible` compares with ``VISIBLE_NORM``; then the
 reference with an inverter dead time and with a resolver second harmonic against the
 reference without, each channel's largest change in noise sigmas and the summed ``z^2`` over
-the step and sine tests.  About 130 CPU-s.
+the step and sine tests.  About 130 CPU-s (1 where the trace cache already holds the
+reference's runs, as for the committed figures).
 
     python benchmarks/term_visibility.py --json benchmarks/results/term_visibility.json
 """
