@@ -205,14 +205,18 @@ def test_a_term_the_selection_misses_is_found_among_the_rest():
 
     a, tr, search = _outside_search(11, "torque_saturation")
     s = search.settings
-    selected = stlsq(*sensitivities(tr, search.base), TERM_NAMES, s.term_threshold,
+    from ema_bench.diagnosis.discovery import visible
+
+    r, J, S = sensitivities(tr, search.base)
+    pool = visible(S)   # as the workflow: the current loop's terms are not (4 fits fewer)
+    selected = stlsq(r, J, S[:, [TERM_NAMES.index(n) for n in pool]], pool, s.term_threshold,
                      s.term_top_k).names
     assert "motor_i_abs" not in selected
     # only the best fit is judged (keep=1, the workflow's default judges two): ``_rest``
     # sorts the fits by training fitness and judges them in that order, each judgement on
     # its own stream (``search.n_trials``), so the first trial is the same with either
     # ``keep``; the second judgement (a fit and an assessment, about 8 CPU-s) is not asserted
-    trials = _rest(search, selected, keep=1)
+    trials = _rest(search, selected, pool, keep=1)
     best = trials[0]
     assert best.name == "motor_i_abs" and best.accepted
     kt = 2 * DEFAULT_PARAMS.Ke
