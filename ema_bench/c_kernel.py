@@ -41,7 +41,8 @@ _PARAM_ORDER = ("V_dc", "R", "L", "Ke", "pole_pairs", "hyst_band", "J_m", "J_u",
                 "dt_ctrl", "kt_factor", "locate_commutation", "libm_trig")
 _EFFECT_ORDER = ("eccentricity", "sensor_offset", "viscous_friction", "aero_spring", "delay",
                  "current_gain", "resistance_rise", "cogging", "voltage_sag", "gear_stiffness",
-                 "quadratic_damping", "hinge_friction", TERM_NAMES[0])
+                 "quadratic_damping", "hinge_friction", TERM_NAMES[0],
+                 "resolver_harmonic")
 
 
 class CKernelUnavailable(RuntimeError):

@@ -95,7 +95,21 @@ EFFECTS: tuple[Effect, ...] = (
 ) + tuple(Effect(t.name, t.unit, -t.bound, t.bound,
                  f"dictionary term of the {EQUATIONS[t.equation]}: c {t.form}",
                  library=False, kind="term", trivial=2e-3 * t.bound, detect=2e-2 * t.bound,
-                 signature="a term no library effect holds") for t in TERMS)
+                 signature="a term no library effect holds") for t in TERMS) + (
+    # outside the library in the current loop and a sensor (appended after the dictionary:
+    # every earlier slot keeps its place)
+    Effect("dead_time", "V", 0.0, 10.0,
+           "inverter dead time and switch drops: each switching leg's voltage "
+           "-V tanh(i_x / 0.5)", library=False, kind="outside", trivial=0.5,
+           detect=math.inf,
+           signature="none while the hysteresis current loop has voltage headroom: 8 V per "
+                     "leg moves the recorded current by 3.6 noise sigma at most"),
+    Effect("resolver_harmonic", "rad", 0.0, 0.005,
+           "resolver second-harmonic error: measured motor angle th_m + a sin(2 th_m), its "
+           "rate the speed feedback", library=False, kind="outside", trivial=2e-5,
+           detect=2e-4,
+           signature="twice-per-revolution ripple of the measured speed and the current"),
+)
 EFFECT_NAMES: tuple[str, ...] = tuple(e.name for e in EFFECTS)
 EFFECT_INDEX: dict[str, int] = {n: i for i, n in enumerate(EFFECT_NAMES)}
 # positions in an effects vector, by name (numba folds the module-level ints as constants)
@@ -107,8 +121,10 @@ EFFECT_INDEX: dict[str, int] = {n: i for i, n in enumerate(EFFECT_NAMES)}
 LIBRARY: tuple[str, ...] = tuple(e.name for e in EFFECTS if e.library)
 DECOYS: tuple[str, ...] = tuple(e.name for e in EFFECTS if not e.library and not e.kind)
 OUTSIDE: tuple[str, ...] = tuple(e.name for e in EFFECTS if e.kind == "outside")
-E_STRIBECK, E_KPOS, E_KTSAT = (EFFECT_INDEX[n] for n in OUTSIDE)
-#: the first dictionary term's slot: the terms are the effects vector's last N_TERMS entries
+E_STRIBECK, E_KPOS, E_KTSAT, E_DEADTIME, E_RESOLVER2 = (EFFECT_INDEX[n] for n in (
+    "stribeck_friction", "stiffness_position", "torque_saturation", "dead_time",
+    "resolver_harmonic"))
+#: the first dictionary term's slot: the terms are N_TERMS entries from there
 E_TERM0 = EFFECT_INDEX[TERM_NAMES[0]]
 N_EFFECTS = len(EFFECTS)
 MAX_DELAY_SAMPLES = 64  # controller samples kept for the delay effect (3.2 ms at 20 kHz)

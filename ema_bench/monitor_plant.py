@@ -14,7 +14,7 @@ from .faults import F_BLK, F_FST, F_NA
 from .params import P_PP
 from .physics.averaged_drive import drive_consts, drive_step, sector_index
 from .physics.effect_terms import cogging_torque, plant_terms
-from .physics.extra_terms import extra_torques, term_consts
+from .physics.extra_terms import extra_torques, loop_voltage, term_consts
 from .physics.load import hinge_extra
 from .physics.mechanics import mech_consts, mech_step
 
@@ -25,8 +25,8 @@ def monitor_consts(p, x, e, dt):
     zeta, v_dc, r_scale, ks_scale, c_visc, k_aero, cog, quad, hfric = plant_terms(e, p)
     dc = drive_consts(p, x[F_NA], zeta, r_scale, v_dc, dt)
     mc = mech_consts(p, x[F_FST], x[F_BLK], c_visc, k_aero, ks_scale, dt)
-    on, c, inv_kt = term_consts(e, p)
-    return dc, mc, cog, p[P_PP], quad, hfric, on, c, inv_kt
+    on, c, inv_kt, v_on = term_consts(e, p)
+    return dc, mc, cog, p[P_PP], quad, hfric, on, c, inv_kt, v_on
 
 
 @njit(cache=True, error_model="numpy")
@@ -38,10 +38,13 @@ def monitor_init(pc):
 @njit(cache=True, inline="always", error_model="numpy")
 def monitor_step(th_m, w_m, th_u, w_u, ps, i_ref, pc):
     """One 50 microsecond step of the monitor plant (see :mod:`ema_bench.physics.integrator`)."""
-    dc, mc, cog, pp, quad, hfric, on, c, inv_kt = pc
+    dc, mc, cog, pp, quad, hfric, on, c, inv_kt, v_on = pc
     cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr = ps
+    # the current loop's dictionary terms at the step start's pair current (0 V: off)
+    v_x = loop_voltage(cur, w_m, th_m, pp, c) if v_on else 0.0
     (cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr, t_mean, t_start, t_end, t_rip,
-     i_eq) = drive_step(cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr, i_ref, th_m, w_m, dc)
+     i_eq) = drive_step(cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr, i_ref, th_m, w_m, dc,
+                        v_x)
     t_cog = cogging_torque(cog, th_m + 0.5 * dc.h * w_m, pp, dc.libm)
     t_ext = hinge_extra(w_u, quad, hfric)
     if on:   # dictionary terms (diagnosis only): nothing changes without them

@@ -17,11 +17,13 @@ from numba import njit
 from .effects import N_EFFECTS, effects_to_dict, effects_vector
 from .faults import F_BLK, F_FST, F_NA, check_faults, faults_to_dict
 from .params import DEFAULT_PARAMS, P_LIBM, P_PP, EMAParams
-from .physics.bldc import bldc_consts, bldc_step
+from .physics.bldc import bldc_consts, bldc_step, commutation
 from .physics.effect_terms import cogging_torque, plant_terms
 from .physics.extra_terms import (
     extra_torques,
+    loop_voltage,
     outside_consts,
+    outside_loop_consts,
     stiffness_level,
     stribeck,
     term_consts,
@@ -42,12 +44,13 @@ def reference_consts(p, x, e, dt):
     zeta, v_dc, r_scale, ks_scale, c_visc, k_aero, cog, quad, hfric = plant_terms(e, p)
     bc = bldc_consts(p, x[F_NA], zeta, r_scale, v_dc)
     mc = mech_consts(p, x[F_FST], x[F_BLK], c_visc, k_aero, ks_scale, dt)
-    on, c, inv_kt = term_consts(e, p)
+    on, c, inv_kt, v_on = term_consts(e, p)
     # the outside-library physics (the monitor has none of it) and what a position-dependent
     # transmission stiffness recomputes the mechanics' constants from
     out = outside_consts(e)
+    v_dt, _ = outside_loop_consts(e)   # (the resolver's error is a sensor's: integrator)
     return (bc, mc, cog, p[P_PP], quad, hfric, dt, on, c, inv_kt, out,
-            (p, x[F_FST], x[F_BLK], c_visc, k_aero, ks_scale), p[P_LIBM] != 0.0)
+            (p, x[F_FST], x[F_BLK], c_visc, k_aero, ks_scale), p[P_LIBM] != 0.0, v_on, v_dt)
 
 
 @njit(cache=True, error_model="numpy")
@@ -61,10 +64,15 @@ def reference_init(pc):
 def reference_step(th_m, w_m, th_u, w_u, ps, i_ref, pc):
     """One 1 microsecond step of the reference plant (see
     :mod:`ema_bench.physics.integrator`)."""
-    bc, _, cog, pp, quad, hfric, dt, on, c, inv_kt, (f_s, k_pos, k_sat), mk, libm = pc
+    bc, _, cog, pp, quad, hfric, dt, on, c, inv_kt, (f_s, k_pos, k_sat), mk, libm, v_on, \
+        v_dt = pc
     ia, ib, ic, sa, sb, sc, mc, level = ps
-    ia, ib, ic, sa, sb, sc, t_mean, t_start, t_end, i_eq = bldc_step(ia, ib, ic, sa, sb, sc,
-                                                                     i_ref, th_m, w_m, bc, dt)
+    v_pair = 0.0
+    if v_on:   # the current loop's dictionary terms at the pair current
+        ca, cb, cc = commutation(pp * th_m)
+        v_pair = loop_voltage(0.5 * (ca * ia + cb * ib + cc * ic), w_m, th_m, pp, c)
+    ia, ib, ic, sa, sb, sc, t_mean, t_start, t_end, i_eq = bldc_step(
+        ia, ib, ic, sa, sb, sc, i_ref, th_m, w_m, bc, dt, v_pair, v_dt)
     if k_sat != 0.0:   # torque constant K_t (1 - k_sat |i|)
         f = 1.0 - k_sat * abs(i_eq)
         t_mean, t_start, t_end = t_mean * f, t_start * f, t_end * f

@@ -31,14 +31,31 @@ SIGN_SPEED_MOTOR = 3.0      # rad/s
 STRIBECK_SPEED = 30.0       # rad/s (0.1 rad/s at the surface)
 STIFFNESS_ANGLE = 0.2       # rad at the surface
 
+# the current loop's terms: the sign's smoothing current (the hysteresis band) and the
+# order of the back-EMF harmonic (the six-step ripple of the conducting pair)
+SIGN_CURRENT = 0.5          # A
+EMF_ORDER = 6
+
 EQUATIONS: dict[str, str] = {"motor": "motor torque balance",
-                             "surface": "surface torque balance"}
-_REF_TORQUE = {"motor": 0.5, "surface": 300.0}   # N m
+                             "surface": "surface torque balance",
+                             "current": "current loop",
+                             "motor_angle": "motor-angle sensor",
+                             "surface_position": "surface-position sensor",
+                             "current_sensor": "current sensor"}
+#: Each equation's reference size of a term (its unit): the torque balances' torques (N m),
+#: the current loop's voltage (V: a PWM inverter's dead-time error is a few volts of the
+#: 270 V bus) and the sensors' errors (rad, rad, A: a resolver's few arc-minutes, 0.4 % of a
+#: position sensor's span, 2.5 % of the current channel's full scale).
+REF_SIZE = {"motor": 0.5, "surface": 300.0, "current": 10.0, "motor_angle": 0.01,
+            "surface_position": 2e-3, "current_sensor": 0.5}
+#: The equations whose terms are torques (:func:`~ema_bench.physics.extra_terms.extra_torques`)
+TORQUE_EQUATIONS = ("motor", "surface")
 
 
 @dataclass(frozen=True)
 class Term:
-    """One candidate term: ``c * form`` added to ``equation``'s torque balance."""
+    """One candidate term: ``c * form`` added to ``equation`` (a torque, a voltage or a
+    sensor's error: :data:`REF_SIZE`'s unit)."""
 
     name: str
     equation: str      # a key of EQUATIONS
@@ -48,8 +65,8 @@ class Term:
 
     @property
     def bound(self) -> float:
-        """Largest |coefficient| searched: the equation's reference torque at ``typical``."""
-        return _REF_TORQUE[self.equation] / self.typical
+        """Largest |coefficient| searched: the equation's reference size at ``typical``."""
+        return REF_SIZE[self.equation] / self.typical
 
 
 # order = the slots of the effects vector = the order extra_torques reads them in
@@ -78,6 +95,24 @@ TERMS: tuple[Term, ...] = (
     # Fst fault's constant dynamic level nor tanh(w_m / 3) has
     Term("motor_stribeck", "motor",
          f"exp(-(w_m / {STRIBECK_SPEED:g})^2) tanh(w_m / {SIGN_SPEED_MOTOR:g})", "N m", 1.0),
+    # the current loop (appended, slots 20-23): a voltage added to the conducting pair's
+    # L di/dt = v - R i - e + c phi, with i the pair current (signed): the smoothed sign of
+    # an inverter's dead time and switch drops, i |i|, and the back-EMF's six-step harmonic
+    Term("current_sign", "current", f"tanh(i / {SIGN_CURRENT:g})", "V", 1.0),
+    Term("current_i_abs", "current", "i |i|", "V/A^2", 25.0),
+    Term("current_emf_sin", "current", f"w_m sin({EMF_ORDER} p th_m)", "V s/rad", 300.0),
+    Term("current_emf_cos", "current", f"w_m cos({EMF_ORDER} p th_m)", "V s/rad", 300.0),
+    # the sensors (slots 24-30): an error added to a measured signal, in the loop (the
+    # controller's feedback, the speed it derives from the motor angle, the drive's current)
+    # and in the record: a resolver's harmonics, a position sensor's curvature, a saturating
+    # current sensor
+    Term("sensor_thm_sin", "motor_angle", "sin(th_m)", "rad", 1.0),
+    Term("sensor_thm_cos", "motor_angle", "cos(th_m)", "rad", 1.0),
+    Term("sensor_thm_sin2", "motor_angle", "sin(2 th_m)", "rad", 1.0),
+    Term("sensor_thm_cos2", "motor_angle", "cos(2 th_m)", "rad", 1.0),
+    Term("sensor_thu2", "surface_position", "th_u^2", "1/rad", 0.04),
+    Term("sensor_thu_abs", "surface_position", "th_u |th_u|", "1/rad", 0.04),
+    Term("sensor_i_abs", "current_sensor", "i |i|", "1/A", 25.0),
 )
 TERM_NAMES: tuple[str, ...] = tuple(t.name for t in TERMS)
 #: Kinematic twins: a speed term at the motor and the same term at the surface (``w_m = w_u
@@ -90,6 +125,9 @@ TWINS: dict[str, str] = {a: b for p in (("motor_wm2", "surface_wu2"),
                          for a, b in (p, p[::-1])}
 TERM_INDEX: dict[str, int] = {n: i for i, n in enumerate(TERM_NAMES)}
 N_TERMS = len(TERMS)
+#: The first slot of the current loop's terms and of the sensors' (torque terms before them)
+T_CURRENT0 = TERM_INDEX["current_sign"]
+T_SENSOR0 = TERM_INDEX["sensor_thm_sin"]
 
 
 def term(name: str) -> Term:

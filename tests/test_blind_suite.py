@@ -805,9 +805,17 @@ def test_outside_cases_leave_the_suite_drawn_before_and_cycle_every_physics():
     before = draw_cases(64, 0, extra=2, fourth=2)
     drawn = draw_cases(64, 0, extra=2, fourth=2, outside=5)
     assert drawn[:len(before)] == before
-    new = drawn[len(before):]
+    new, loop = drawn[len(before):len(before) + 15], drawn[len(before) + 15:]
     assert [c.index for c in new] == list(range(72, 87))
     assert Counter(c.category for c in new) == {c: 5 for c in blind.OUTSIDE_CATEGORIES}
+    # the current loop's and the sensor's categories follow, from a plan stream of their
+    # own: the dead time at its bound (no size of it is visible), the resolver at 1-4x
+    assert [c.index for c in loop] == list(range(87, 97))
+    assert Counter(c.category for c in loop) == {c: 5 for c in blind.LOOP_CATEGORIES}
+    for c in loop:
+        (n, v), = c.effects.items()
+        assert c.kind == "outside" and n == blind.LOOP_CATEGORIES[c.category]
+        assert v == 10.0 if n == "dead_time" else 1.0 - 1e-9 <= detects(n, v) <= 4.0 + 1e-9
     phys = [c for c in new if c.category == "outside_library"]
     assert sorted(next(iter(c.effects)) for c in phys) == sorted(blind.OUTSIDE_PHYSICS)
     for c in phys:
@@ -861,6 +869,15 @@ def test_summary_of_the_outside_categories_by_hand():
     assert block["right_by_physics"] == {"quadratic_damping": "1/1", "torque_saturation": "0/1"}
     assert _BLOCKS["outside_null"](recs[2:3])["discoveries"] == 0
     assert _BLOCKS["outside_monitor_null"](recs[3:])["discoveries"] == 1
+    # the current loop's and the sensor's categories are summed and written alike
+    sensor = [{**recs[0], "category": "outside_sensor",
+               "effects": {"resolver_harmonic": 3e-4}, "wall_s": 1.0}]
+    from ema_bench.cli.blind import _category_line
+
+    b = summarise(sensor)["per_category"]["outside_sensor"]
+    assert b["right_by_physics"] == {"resolver_harmonic": "1/1"}
+    assert _category_line("outside_sensor", b).startswith(
+        "right term (equation and form) 1/1 (100%)")
 
 
 def test_cli_runs_an_outside_null_case_and_prints_its_discoveries(tmp_path, capsys):

@@ -18,7 +18,15 @@ from ema_bench.monitor import simulate_monitor
 from ema_bench.objective import KNOWN_TESTS
 from ema_bench.physics.extra_terms import extra_torques
 from ema_bench.reference import simulate_reference
-from ema_bench.terms import EQUATIONS, N_TERMS, TERM_NAMES, TERMS, term
+from ema_bench.terms import (
+    EQUATIONS,
+    N_TERMS,
+    T_CURRENT0,
+    TERM_NAMES,
+    TERMS,
+    TORQUE_EQUATIONS,
+    term,
+)
 
 
 def _basis(th_m, w_m, th_u, w_u, i, pp):
@@ -39,8 +47,15 @@ def test_each_term_enters_its_equation_with_its_form():
     """A unit coefficient of each term gives its basis function, in its equation only."""
     state = (7.3, -212.0, -0.137, 0.61, -4.2, 2.0)
     want = _basis(*state)
-    assert list(want) == list(TERM_NAMES) and N_TERMS == len(TERMS)
+    torques = [t for t in TERMS if t.equation in TORQUE_EQUATIONS]
+    assert list(want) == [t.name for t in torques] == list(TERM_NAMES[:T_CURRENT0])
+    assert N_TERMS == len(TERMS)
     for k, t in enumerate(TERMS):
+        if t.equation not in TORQUE_EQUATIONS:   # (tests/test_loop_sensor_terms.py)
+            c = np.zeros(N_TERMS)
+            c[k] = 1.0
+            assert extra_torques(*state, c) == (0.0, 0.0), t.name
+            continue
         c = np.zeros(N_TERMS)
         c[k] = 1.0
         motor, surface = extra_torques(*state, c)
@@ -190,14 +205,18 @@ def test_a_term_the_selection_misses_is_found_among_the_rest():
 
     a, tr, search = _outside_search(11, "torque_saturation")
     s = search.settings
-    selected = stlsq(*sensitivities(tr, search.base), TERM_NAMES, s.term_threshold,
+    from ema_bench.diagnosis.discovery import visible
+
+    r, J, S = sensitivities(tr, search.base)
+    pool = visible(S)   # as the workflow: the current loop's terms are not (4 fits fewer)
+    selected = stlsq(r, J, S[:, [TERM_NAMES.index(n) for n in pool]], pool, s.term_threshold,
                      s.term_top_k).names
     assert "motor_i_abs" not in selected
     # only the best fit is judged (keep=1, the workflow's default judges two): ``_rest``
     # sorts the fits by training fitness and judges them in that order, each judgement on
     # its own stream (``search.n_trials``), so the first trial is the same with either
     # ``keep``; the second judgement (a fit and an assessment, about 8 CPU-s) is not asserted
-    trials = _rest(search, selected, keep=1)
+    trials = _rest(search, selected, pool, keep=1)
     best = trials[0]
     assert best.name == "motor_i_abs" and best.accepted
     kt = 2 * DEFAULT_PARAMS.Ke
@@ -222,3 +241,15 @@ def test_a_partial_term_does_not_stop_the_search_for_the_right_one():
     assert best is not None and best.name == "surface_sign" and not best.still_detected
     assert best.closed_total >= 0.9
     assert best.values["surface_sign"] == pytest.approx(-friction, rel=0.15)
+
+
+def test_terms_invisible_at_their_bounds_leave_the_selection():
+    """A column whose output change at the term's bound is under ``VISIBLE_NORM`` noise
+    units is dropped, one over it kept, whatever its norm per unit coefficient."""
+    from ema_bench.diagnosis.discovery import VISIBLE_NORM, visible
+
+    names = ("current_sign", "sensor_thm_sin2", "motor_i_abs")
+    S = np.zeros((50, 3))
+    for k, (n, f) in enumerate(zip(names, (0.9, 1.1, 50.0))):
+        S[k, k] = f * VISIBLE_NORM / term(n).bound
+    assert visible(S, names) == ("sensor_thm_sin2", "motor_i_abs")

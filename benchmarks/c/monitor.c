@@ -25,15 +25,20 @@ enum {
     IDX_CM, IDX_CU, IDX_KAERO, IDX_THSTOP, IDX_KSTOP, IDX_CSTOP, IDX_FDYN, IDX_WSTICK, IDX_KGP,
     IDX_WMAX, IDX_KPV, IDX_KIV, IDX_TMAX, IDX_DTC, IDX_KTF, IDX_LOCATE, IDX_LIBM,
     IDX_E_ECC, IDX_E_OFFSET, IDX_E_VISC, IDX_E_AERO, IDX_E_DELAY, IDX_E_IGAIN, IDX_E_RRISE,
-    IDX_E_COG, IDX_E_VSAG, IDX_E_GEAR, IDX_E_QDAMP, IDX_E_HFRIC, IDX_E_TERM0, IDX_N
+    IDX_E_COG, IDX_E_VSAG, IDX_E_GEAR, IDX_E_QDAMP, IDX_E_HFRIC, IDX_E_TERM0, IDX_E_RESOLVER2, IDX_N
 };
 #define MAX_DELAY_SAMPLES 64
 #define HINGE_FRICTION_SPEED 0.01
-/* ema_bench.terms: the dictionary's size and its sign terms' smoothing speeds */
-#define N_TERMS 20
+/* ema_bench.terms: the dictionary's size, its current-loop and sensor slots, its sign terms'
+   smoothing speeds and current, the back-EMF harmonic's order */
+#define N_TERMS 31
+#define T_CURRENT0 20
+#define T_SENSOR0 24
 #define SIGN_SPEED_MOTOR 3.0
 #define STRIBECK_SPEED 30.0
 #define SIGN_SPEED_SURFACE 0.01
+#define SIGN_CURRENT 0.5
+#define EMF_ORDER 6
 
 static const double SIXTH = M_PI / 6.0;
 
@@ -220,7 +225,7 @@ static inline void transfer(int64_t sec, bool up, double th_b, double i_tr, doub
 /* kt_hint: NULL, or the torque constants of sector s->m at th_m and mid-step that the caller
    already computed (the lanes), used while the step stays in that sector */
 static void drive_step_general(DState *s, double i_ref, double th_m, double w_m, const Drive *dc,
-                               const double *kt_hint, DOut *o) {
+                               const double *kt_hint, double v_x, DOut *o) {
     double h = dc->h, pp = dc->pp;
     int64_t m = s->m, m_in = s->m;
     double tr_t0 = s->tr_t0, tr_len = s->tr_len, kt_from = s->kt_from, kt_to = s->kt_to,
@@ -246,7 +251,8 @@ static void drive_step_general(DState *s, double i_ref, double th_m, double w_m,
     double kt0 = kt_hint && m == m_in ? kt_hint[0] : kt_at(sec, th_m, dc);
     double r_pair = with_a ? dc->r_a : dc->r_n, il = with_a ? dc->il_a : dc->il_n;
     double cur = s->cur, cur1, f, i_mean, i_eq;
-    ramp(cur, i_ref, kt0 * w_m + r_pair * cur, il, dc->v_dc, h, &cur1, &f, &i_mean, &i_eq);
+    ramp(cur, i_ref, kt0 * w_m + r_pair * cur - v_x, il, dc->v_dc, h, &cur1, &f, &i_mean,
+         &i_eq);
     double th_end = th_m + h * w_m;
     if (th_end >= th_hi || th_end < th_lo) {
         bool up = th_end >= th_hi;
@@ -284,7 +290,7 @@ static void drive_step_general(DState *s, double i_ref, double th_m, double w_m,
 }
 
 static inline void drive_step(DState *s, double i_ref, double th_m, double w_m, const Drive *dc,
-                              DOut *o) {
+                              double v_x, DOut *o) {
     double h = dc->h;
     double th_lo = dc->th_0 + dc->sector_width * s->m, th_hi = th_lo + dc->sector_width;
     double th_end = th_m + h * w_m;
@@ -300,14 +306,15 @@ static inline void drive_step(DState *s, double i_ref, double th_m, double w_m, 
             kt_mid = kt_eccentric_of((double)sec, th_m + 0.5 * h * w_m, dc);
         }
         double cur = s->cur, cur1, f, i_mean, i_eq;
-        ramp(cur, i_ref, kt * w_m + r_pair * cur, il, dc->v_dc, h, &cur1, &f, &i_mean, &i_eq);
+        ramp(cur, i_ref, kt * w_m + r_pair * cur - v_x, il, dc->v_dc, h, &cur1, &f, &i_mean,
+             &i_eq);
         double kf = dc->ktf * kt, km = dc->ktf * kt_mid;
         s->cur = cur1; s->tr_t0 = s->tr_t0 - h;
         o->t_mean = km * i_mean; o->t_start = kf * cur; o->t_end = km * cur1;
         o->t_rip = fabs(km) * dc->half_band; o->i_eq = i_eq;
         return;
     }
-    drive_step_general(s, i_ref, th_m, w_m, dc, NULL, o);
+    drive_step_general(s, i_ref, th_m, w_m, dc, NULL, v_x, o);
 }
 
 /* ---- mechanics.py --------------------------------------------------------------------------- */
@@ -557,6 +564,38 @@ static inline void extra_torques(double th_m, double w_m, double th_u, double w_
                + c[18] * tanh(w_u / SIGN_SPEED_SURFACE);
 }
 
+/* extra_terms.py: the current loop's voltage and the sensors' errors */
+static inline bool any_on(const double *c, int lo, int hi) {
+    for (int k = lo; k < hi; k++) if (c[k] != 0.0) return true;
+    return false;
+}
+
+static inline double loop_voltage(double i, double w_m, double th_m, double pp, const double *c) {
+    double s6, c6;
+    poly_sincos(EMF_ORDER * pp * th_m, &s6, &c6);
+    const int k = T_CURRENT0;
+    return c[k] * tanh(i / SIGN_CURRENT) + c[k + 1] * (i * fabs(i)) + c[k + 2] * (w_m * s6)
+           + c[k + 3] * (w_m * c6);
+}
+
+static inline void angle_error(double th_m, const double *c, double *err, double *slope) {
+    double s1, c1, s2, c2;
+    poly_sincos(th_m, &s1, &c1);
+    poly_sincos(2.0 * th_m, &s2, &c2);
+    const int k = T_SENSOR0;
+    *err = c[k] * s1 + c[k + 1] * c1 + c[k + 2] * s2 + c[k + 3] * c2;
+    *slope = c[k] * c1 - c[k + 1] * s1 + 2.0 * (c[k + 2] * c2 - c[k + 3] * s2);
+}
+
+static inline double position_error(double th_u, const double *c) {
+    const int k = T_SENSOR0 + 4;
+    return c[k] * (th_u * th_u) + c[k + 1] * (th_u * fabs(th_u));
+}
+
+static inline double current_error(double i, const double *c) {
+    return c[T_SENSOR0 + 6] * (i * fabs(i));
+}
+
 /* one candidate, one test (integrator.integrate with the monitor plant) */
 static bool integrate(const double *p, const int64_t *ix, const double *x, const double *e,
                       const double *cmd, int64_t n_out, int64_t ticks_out, int64_t steps_tick,
@@ -568,8 +607,14 @@ static bool integrate(const double *p, const int64_t *ix, const double *x, const
     double quad = e[ix[IDX_E_QDAMP]], hfric = e[ix[IDX_E_HFRIC]];
     const double *tc = e + ix[IDX_E_TERM0];   /* term_consts */
     double inv_kt = 1.0 / (2.0 * p[ix[IDX_KE]]);
-    bool on = false;
-    for (int j = 0; j < N_TERMS; j++) if (tc[j] != 0.0) on = true;
+    bool on = any_on(tc, 0, T_CURRENT0), v_on = any_on(tc, T_CURRENT0, T_SENSOR0);
+    /* sensor_consts: the outside-library resolver harmonic adds to the sin(2 th_m) slot */
+    double sc[N_TERMS];
+    memcpy(sc, tc, sizeof sc);
+    sc[T_SENSOR0 + 2] += e[ix[IDX_E_RESOLVER2]];
+    bool s_ang = any_on(sc, T_SENSOR0, T_SENSOR0 + 4);
+    bool s_pos = any_on(sc, T_SENSOR0 + 4, T_SENSOR0 + 6);
+    bool s_cur = any_on(sc, T_SENSOR0 + 6, T_SENSOR0 + 7);
     Drive dc = drive_consts(p, ix, x[0], zeta, r_scale, v_dc, dt);
     Mech mc = mech_consts(p, ix, x[1], x[2], c_visc, k_aero, ks_scale, dt);
     double pp = p[ix[IDX_PP]];
@@ -586,12 +631,21 @@ static bool integrate(const double *p, const int64_t *ix, const double *x, const
         double a0 = 0.0, a1 = 0.0, a2 = 0.0, a3 = 0.0;
         for (int64_t t = 0; t < ticks_out; t++) {
             double fb = th_u + offset;
+            if (s_pos) fb += position_error(th_u, sc);
             if (delay > 0.0) fb = delayed_feedback(buf, k_ctrl, fb, delay);
-            double i_ref = ace_update(cmd[k_ctrl], fb, w_m, &integ, &cc);
+            double w_fb = w_m;
+            if (s_ang) {
+                double err, slope;
+                angle_error(th_m, sc, &err, &slope);
+                w_fb = w_m * (1.0 + slope);
+            }
+            double i_ref = ace_update(cmd[k_ctrl], fb, w_fb, &integ, &cc);
+            if (s_cur) i_ref -= current_error(i_ref, sc);
             k_ctrl += 1;
             for (int64_t s = 0; s < steps_tick; s++) {
                 DOut d;
-                drive_step(&ps, i_ref, th_m, w_m, &dc, &d);
+                double v_x = v_on ? loop_voltage(ps.cur, w_m, th_m, pp, tc) : 0.0;
+                drive_step(&ps, i_ref, th_m, w_m, &dc, v_x, &d);
                 double t_cog = cogging_torque(cog, th_m + 0.5 * dc.h * w_m, pp, dc.libm);
                 double t_ext = hinge_extra(w_u, quad, hfric);
                 if (on) {
@@ -605,12 +659,20 @@ static bool integrate(const double *p, const int64_t *ix, const double *x, const
                           d.t_end + t_cog, d.t_rip, t_ext, &mc, &m);
                 th_m = m.th_m; w_m = m.w_m; th_u = m.th_u; w_u = m.w_u;
                 a0 += m.m_th_u; a1 += m.m_th_m; a2 += m.m_w_m; a3 += d.i_eq;
+                if (s_ang) {
+                    double err, slope;
+                    angle_error(m.m_th_m, sc, &err, &slope);
+                    a1 += err;
+                    a2 += m.m_w_m * slope;
+                }
             }
         }
         out[4 * k + 0] = a0 * scale + offset;
         out[4 * k + 1] = a1 * scale;
         out[4 * k + 2] = a2 * scale;
         out[4 * k + 3] = gain * a3 * scale;
+        if (s_pos) out[4 * k + 0] += position_error(a0 * scale, sc);
+        if (s_cur) out[4 * k + 3] += gain * current_error(a3 * scale, sc);
         if (!(isfinite(a0) && isfinite(a1) && isfinite(a2) && isfinite(a3))) return false;
     }
     return true;
@@ -767,7 +829,7 @@ static inline void lane_step(Lanes *restrict L, const Drive *dcs, const Mech *mc
         DOut o;
         bool ecc = L->ecc[q] != 0.0;
         double kt_hint[2] = {ecc ? L->kte[q] : L->kt[q], ecc ? L->ktm[q] : L->kt[q]};
-        drive_step_general(&s, L->iref[q], L->thm[q], L->wm[q], &dcs[q], kt_hint, &o);
+        drive_step_general(&s, L->iref[q], L->thm[q], L->wm[q], &dcs[q], kt_hint, 0.0, &o);
         L->cur[q] = s.cur; L->m[q] = s.m; L->trt0[q] = s.tr_t0; L->trlen[q] = s.tr_len;
         L->ktf[q] = s.kt_from; L->ktt[q] = s.kt_to; L->trcr[q] = s.tr_cr;
         L->tm[q] = o.t_mean + L->tcog[q];

@@ -22,7 +22,9 @@ channel) after those.  --outside K adds K cases of each outside-library category
 those: physics of a known form no library effect holds (the two decoys, a Stribeck
 friction peak, a position-dependent transmission stiffness, a saturating torque constant),
 judged on the dictionary term the diagnosis names (its equation and form), and nulls made by
-the reference and by the monitor, on which no term may be discovered.
+the reference and by the monitor, on which no term may be discovered; then K of each of the
+current loop's and a sensor's (an inverter's dead-time voltage, a resolver's second harmonic),
+judged alike.
 
 --calibrate fits the true effect sets of the effect cases of the suite of root seed 1 (never
 a reported seed) and writes the nonconformity scores of their intervals to
@@ -197,7 +199,9 @@ def _category_line(name: str, b: dict) -> str:
                 f"  {b['per_acquisition']}")
     if name in ("null", "monitor_null"):
         return f"false alarms {b['false_alarms']}/{n}  {b['by_verdict']}"
-    if name == "outside_library":
+    from ..diagnosis.blind_categories import OUTSIDE_KINDS
+
+    if name in OUTSIDE_KINDS:
         return (f"right term (equation and form) {b['right_term']}/{n} "
                 f"({_pct(b['right_term_rate'])}), a term named {b['term_named']}/{n}, gap "
                 f"closed when right {_pct(b['median_gap_closed_when_named'])}, median "

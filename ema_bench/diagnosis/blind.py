@@ -107,6 +107,7 @@ from .blind_categories import (
     EXTRA_CATEGORIES,
     FOURTH_CATEGORIES,
     KINDS,
+    LOOP_CATEGORIES,
     MAGNITUDES,
     OUTSIDE_CATEGORIES,
     OUTSIDE_PHYSICS,
@@ -179,12 +180,15 @@ def category_counts(n: int) -> dict[str, int]:
 
 def _magnitude(rng: np.random.Generator, name: str, lo: float, hi: float) -> float:
     """A value of effect ``name`` log-uniform in ``[lo, hi]`` times its ``detect``, capped
-    at its upper bound; negative half the time when the effect is two-sided and the
+    at its upper bound (an effect no size of which is detected, ``detect`` infinite: at its
+    bound); negative half the time when the effect is two-sided and the
     negative value is within bounds."""
     spec = EFFECTS[EFFECT_INDEX[name]]
     top = min(hi * spec.detect, spec.upper)
     bottom = min(lo * spec.detect, top)
-    value = float(math.exp(rng.uniform(math.log(bottom), math.log(top))))
+    # (capped at the bound again: exp(log(upper)) may round above it; no draw that was
+    # within the bounds changes)
+    value = min(float(math.exp(rng.uniform(math.log(bottom), math.log(top)))), spec.upper)
     if spec.lower < 0.0 and rng.random() < 0.5 and -value >= spec.lower:
         value = -value
     return value
@@ -230,6 +234,11 @@ def _outside_orders(rng: np.random.Generator) -> dict[str, list[tuple[str, ...]]
     return {"outside_library": [(n,) for n in _perm(rng, OUTSIDE_PHYSICS)]}
 
 
+def _loop_orders(rng: np.random.Generator) -> dict[str, list[tuple[str, ...]]]:
+    """The current loop's and the sensor's outside-library categories: one physics each."""
+    return {c: [(n,)] for c, n in LOOP_CATEGORIES.items()}
+
+
 def draw_cases(n: int, seed: int, extra: int = 0, fourth: int = 0,
                chain: int = 0, outside: int = 0) -> list[BlindCase]:
     """``n`` hidden cases of the suite of root seed ``seed``, laid out in the fixed shares of
@@ -244,7 +253,8 @@ def draw_cases(n: int, seed: int, extra: int = 0, fourth: int = 0,
     ``acquisition`` stream.  ``fourth`` cases of each of :data:`FOURTH_CATEGORIES` follow
     (indices ``n + 2 extra`` on; their layout from ``plan`` stream number 2), then
     ``chain`` cases of each of :data:`CHAIN_CATEGORIES` (``plan`` stream number 3), then
-    ``outside`` cases of each of :data:`OUTSIDE_CATEGORIES` (``plan`` stream number 4)."""
+    ``outside`` cases of each of :data:`OUTSIDE_CATEGORIES` (``plan`` stream number 4) and
+    as many of each of :data:`LOOP_CATEGORIES` (``plan`` stream number 5)."""
     if min(n, extra, fourth, chain, outside) < 0:
         raise ValueError(f"cases, extra, fourth-round, chain and outside cases must be >= 0, "
                          f"got {n}, {extra}, {fourth}, {chain} and {outside}")
@@ -257,7 +267,8 @@ def draw_cases(n: int, seed: int, extra: int = 0, fourth: int = 0,
     # adding one leaves every case drawn before as it was
     rounds = ((extra, EXTRA_CATEGORIES, _extra_orders), (fourth, FOURTH_CATEGORIES,
               _fourth_orders), (chain, CHAIN_CATEGORIES, _chain_orders),
-              (outside, OUTSIDE_CATEGORIES, _outside_orders))
+              (outside, OUTSIDE_CATEGORIES, _outside_orders),
+              (outside, tuple(LOOP_CATEGORIES), _loop_orders))
     first = n
     for k, (count, categories, order) in enumerate(rounds, start=1):
         if count:

@@ -59,6 +59,15 @@ EXPECTED_TERMS: dict[str, str | None] = {
     "quadratic_damping": "surface_wu_abs", "hinge_friction": "surface_sign",
     "stribeck_friction": "motor_stribeck", "stiffness_position": None,
     "torque_saturation": "motor_i_abs"}
+#: Outside-library physics in the current loop and a sensor (``outside`` cases of each after
+#: the outside-library ones, their own plan stream: the cases drawn before stay as drawn):
+#: an inverter's dead-time voltage and a resolver's second harmonic, built as reference-model
+#: effects, each category one physics.
+LOOP_CATEGORIES: dict[str, str] = {"outside_current_loop": "dead_time",
+                                   "outside_sensor": "resolver_harmonic"}
+EXPECTED_TERMS.update({"dead_time": "current_sign", "resolver_harmonic": "sensor_thm_sin2"})
+#: Every category judged on the dictionary term it names.
+OUTSIDE_KINDS: tuple[str, ...] = ("outside_library", *LOOP_CATEGORIES)
 KINDS.update({"outside_library": "outside", "outside_null": "null",
-              "outside_monitor_null": "null"})
-MAGNITUDES["outside_library"] = (1.0, 4.0)
+              "outside_monitor_null": "null", **{c: "outside" for c in LOOP_CATEGORIES}})
+MAGNITUDES.update({c: (1.0, 4.0) for c in OUTSIDE_KINDS})

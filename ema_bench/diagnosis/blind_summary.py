@@ -15,7 +15,9 @@ from .blind_categories import (
     EFFECT_ACQUISITION,
     EXTRA_CATEGORIES,
     FOURTH_CATEGORIES,
+    LOOP_CATEGORIES,
     OUTSIDE_CATEGORIES,
+    OUTSIDE_KINDS,
 )
 
 
@@ -155,7 +157,7 @@ _BLOCKS: dict[str, Callable[[list[dict]], dict[str, object]]] = {
     "acquisition_decoy": _decoy_block, "effect_acquisition": _effect_acquisition_block,
     "three_effect": _triple_block,
     **{c: _effect_acquisition_block for c in FOURTH_CATEGORIES + CHAIN_CATEGORIES},
-    "outside_library": _outside_block, "outside_null": _outside_null_block,
+    **{c: _outside_block for c in OUTSIDE_KINDS}, "outside_null": _outside_null_block,
     "outside_monitor_null": _outside_null_block,
 }
 
@@ -185,8 +187,9 @@ def summarise(records: list[dict]) -> dict[str, object]:
     # the third round's categories appear when the suite has them
     present = {r["category"] for r in records}
     by = {c: [r for r in records if r["category"] == c]
-          for c in (*CATEGORIES, *(c for c in EXTRA_CATEGORIES + FOURTH_CATEGORIES
-                                   + CHAIN_CATEGORIES + OUTSIDE_CATEGORIES if c in present))}
+          for c in (*CATEGORIES, *(c for c in (*EXTRA_CATEGORIES, *FOURTH_CATEGORIES,
+                                                *CHAIN_CATEGORIES, *OUTSIDE_CATEGORIES,
+                                                *LOOP_CATEGORIES) if c in present))}
     named = by["single"] + by["near_threshold"]
     effect = named + by["two_effect"] + by.get("three_effect", []) + [
         r for c in EFFECT_ACQUISITION for r in by.get(c, [])]

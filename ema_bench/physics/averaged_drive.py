@@ -187,7 +187,7 @@ def _ramp(cur, i_ref, back, il, v_dc, h, one_division):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def drive_step(cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr, i_ref, th_m, w_m, dc):
+def drive_step(cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr, i_ref, th_m, w_m, dc, v_x=0.0):
     """Advance the averaged drive by one step ``dc.h``.
 
     Parameters
@@ -205,6 +205,9 @@ def drive_step(cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr, i_ref, th_m, w_m, d
     th_m, w_m : float
         rad, rad/s: rotor angle and speed at the step start.
     dc : DriveConsts
+    v_x : float
+        V, a voltage added to the pair's loop ``L di/dt = v - R i - e + v_x`` (the
+        dictionary's current-loop terms; 0 leaves every operation's result as it was).
 
     Returns
     -------
@@ -225,12 +228,12 @@ def drive_step(cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr, i_ref, th_m, w_m, d
         kt = kt_eccentric_of(m % 6, th_m, dc)
         kt_mid = kt_eccentric_of(m % 6, th_m + 0.5 * dc.h * w_m, dc)
     fast, cur1, t_mean, t_start, t_end, t_rip, i_eq = drive_fast(
-        cur, tr_t0, tr_len, th_lo, kt, kt_mid, r_pair, il, i_ref, th_m, w_m, dc, False)
+        cur, tr_t0, tr_len, th_lo, kt, kt_mid, r_pair, il, i_ref, th_m, w_m, dc, False, v_x)
     if fast:
         return (cur1, m, tr_t0 - dc.h, tr_len, kt_from, kt_to, tr_cr, t_mean, t_start,
                 t_end, t_rip, i_eq)
     return drive_step_general(cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr, i_ref, th_m, w_m,
-                              dc, kt, kt_mid)
+                              dc, kt, kt_mid, v_x)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -246,7 +249,7 @@ def sector_consts(m, dc):
 
 @njit(cache=True, inline="always", error_model="numpy")
 def drive_fast(cur, tr_t0, tr_len, th_lo, kt, kt_mid, r_pair, il, i_ref, th_m, w_m, dc,
-               one_division):
+               one_division, v_x=0.0):
     """The short path of :func:`drive_step`: a step inside one sector (lower boundary ``th_lo``,
     pair constants ``kt``, ``r_pair``, ``il``) with no commutation in progress.
 
@@ -261,13 +264,13 @@ def drive_fast(cur, tr_t0, tr_len, th_lo, kt, kt_mid, r_pair, il, i_ref, th_m, w
     branches that the compiler cannot turn into selects, so the lock-step lanes of
     :mod:`ema_bench.monitor_lanes` run it vectorised; ``dc`` supplies only fault-independent
     constants (step, sector width, bus voltage, torque factor, hysteresis band);
-    ``one_division`` as :func:`_ramp`."""
+    ``one_division`` as :func:`_ramp`; ``v_x`` (V) as :func:`drive_step`."""
     h = dc.h
     th_hi = th_lo + dc.sector_width
     th_end = th_m + h * w_m
     fast = ((tr_t0 + tr_len <= 0.0) & (th_lo <= th_m) & (th_m < th_hi) & (th_lo <= th_end)
             & (th_end < th_hi))
-    cur1, f, i_mean, i_eq = _ramp(cur, i_ref, kt * w_m + r_pair * cur, il, dc.v_dc, h,
+    cur1, f, i_mean, i_eq = _ramp(cur, i_ref, kt * w_m + r_pair * cur - v_x, il, dc.v_dc, h,
                                   one_division)
     kf = dc.ktf * kt
     km = dc.ktf * kt_mid
@@ -295,7 +298,7 @@ def _transfer(sec, up, th_b, i_tr, w_m, dc):
 
 @njit(cache=True, error_model="numpy")
 def drive_step_general(cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr, i_ref, th_m, w_m, dc,
-                       kt_m0, kt_mid_m0):
+                       kt_m0, kt_mid_m0, v_x=0.0):
     """:func:`drive_step` for every case: sector crossings, commutation transfers,
     eccentricity (not inlined: the hot loop stays small).
 
@@ -331,7 +334,7 @@ def drive_step_general(cur, m, tr_t0, tr_len, kt_from, kt_to, tr_cr, i_ref, th_m
     kt0 = kt_m0 if m == m_in else kt_at(sec, th_m, dc)
     r_pair = dc.r_a if with_a else dc.r_n
     il = dc.il_a if with_a else dc.il_n
-    cur1, f, i_mean, i_eq = _ramp(cur, i_ref, kt0 * w_m + r_pair * cur, il, dc.v_dc, h,
+    cur1, f, i_mean, i_eq = _ramp(cur, i_ref, kt0 * w_m + r_pair * cur - v_x, il, dc.v_dc, h,
                                   False)
     # a sector crossing inside the step starts a commutation transfer
     th_end = th_m + h * w_m

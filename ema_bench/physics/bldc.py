@@ -17,6 +17,7 @@ from collections import namedtuple
 from numba import njit
 
 from ..params import P_HYST, P_KE, P_L, P_PP, P_R
+from .extra_terms import dead_time_voltage
 
 TWO_PI = 2.0 * math.pi
 SIXTH = math.pi / 6.0
@@ -130,11 +131,15 @@ def bldc_consts(p, na, zeta, r_scale, v_dc):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _phase_rates(ia, ib, ic, sa, sb, sc, ka, kb, kc, w_m, bc):
-    """di/dt of the three phases (A/s) with the floating neutral, and which phases conduct."""
+def _phase_rates(ia, ib, ic, sa, sb, sc, ka, kb, kc, w_m, bc, ua, ub, uc):
+    """di/dt of the three phases (A/s) with the floating neutral, and which phases conduct;
+    ``ua``, ``ub``, ``uc`` (V) are added to the legs' voltages (0: exactly the leg's)."""
     va, on_a = terminal_voltage(sa, ia, bc.v_dc)
     vb, on_b = terminal_voltage(sb, ib, bc.v_dc)
     vc, on_c = terminal_voltage(sc, ic, bc.v_dc)
+    va += ua
+    vb += ub
+    vc += uc
     if int(on_a) + int(on_b) + int(on_c) < 2:
         return 0.0, 0.0, 0.0, False
     num = 0.0
@@ -172,8 +177,20 @@ def _time_to_event(i, di, s, i_ref_phase, half_band):
     return math.inf
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def leg_voltages(ia, ib, ic, ca, cb, cc, v_pair, v_dt):
+    """The legs' extra voltages (V): ``v_pair`` split half and half on the conducting pair
+    with its commutation signs ``ca``, ``cb``, ``cc`` (so the pair's loop sees ``v_pair``),
+    plus each switching leg's dead-time voltage at its current (a leg the commutation keeps
+    off has no dead time: its diodes alone clamp it)."""
+    h = 0.5 * v_pair
+    return (h * ca + (dead_time_voltage(v_dt, ia) if ca != 0 else 0.0),
+            h * cb + (dead_time_voltage(v_dt, ib) if cb != 0 else 0.0),
+            h * cc + (dead_time_voltage(v_dt, ic) if cc != 0 else 0.0))
+
+
 @njit(cache=True, error_model="numpy")
-def bldc_step(ia, ib, ic, sa, sb, sc, i_ref, th_m, w_m, bc, dt):
+def bldc_step(ia, ib, ic, sa, sb, sc, i_ref, th_m, w_m, bc, dt, v_pair=0.0, v_dt=0.0):
     """Advance the three phase currents by one step, switching each leg at the instant its
     current crosses the comparator threshold (the analog hysteresis controller).
 
@@ -197,6 +214,14 @@ def bldc_step(ia, ib, ic, sa, sb, sc, i_ref, th_m, w_m, bc, dt):
     bc : BLDCConsts
     dt : float
         s, step.
+    v_pair : float
+        V, a voltage added to the conducting pair's loop (the dictionary's current-loop
+        terms, :func:`~ema_bench.physics.extra_terms.loop_voltage`): half on each conducting
+        leg, with its commutation sign.
+    v_dt : float
+        V, the inverter's dead-time voltage
+        (:func:`~ema_bench.physics.extra_terms.dead_time_voltage` on each leg, at the step
+        start's currents).
 
     Returns
     -------
@@ -216,11 +241,15 @@ def bldc_step(ia, ib, ic, sa, sb, sc, i_ref, th_m, w_m, bc, dt):
     sb = hysteresis_leg(sb, ib, cb * i_ref, cb, band)
     sc = hysteresis_leg(sc, ic, cc * i_ref, cc, band)
     t_start = ka * ia + kb * ib + kc * ic
+    ua = ub = uc = 0.0
+    if v_pair != 0.0 or v_dt != 0.0:
+        ua, ub, uc = leg_voltages(ia, ib, ic, ca, cb, cc, v_pair, v_dt)
     left = dt
     t_int = 0.0
     i_int = 0.0
     for _ in range(8):   # at most a few events per microsecond
-        da, db, dc, ok = _phase_rates(ia, ib, ic, sa, sb, sc, ka, kb, kc, w_m, bc)
+        da, db, dc, ok = _phase_rates(ia, ib, ic, sa, sb, sc, ka, kb, kc, w_m, bc, ua, ub,
+                                    uc)
         if not ok:
             ia = ib = ic = 0.0
             break

@@ -32,6 +32,7 @@ from ..effects import MAX_DELAY_SAMPLES
 from ..faults import F_GPROP
 from .ace import ace_consts, ace_update, delayed_feedback
 from .effect_terms import sensor_terms
+from .extra_terms import angle_error, current_error, position_error, sensor_consts
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -69,6 +70,9 @@ def integrate(plant_consts, plant_init, plant_step, p, x, e, cmd, n_out, ticks_o
     pc = plant_consts(p, x, e, dt)
     cc = ace_consts(p, x[F_GPROP])
     offset, gain, delay = sensor_terms(e, p)
+    # the sensors' dictionary terms (and the resolver's outside-library harmonic): each
+    # branch is taken only when one is on, so without them nothing changes
+    s_ang, s_pos, s_cur, sc = sensor_consts(e)
     buf = np.empty(MAX_DELAY_SAMPLES + 1)
     ps = plant_init(pc)
     th_m = w_m = th_u = w_u = 0.0
@@ -79,9 +83,16 @@ def integrate(plant_consts, plant_init, plant_step, p, x, e, cmd, n_out, ticks_o
         a0 = a1 = a2 = a3 = 0.0
         for _ in range(ticks_out):
             fb = th_u + offset   # the loop sees the same (offset) position sensor
+            if s_pos:
+                fb += position_error(th_u, sc)
             if delay > 0.0:
                 fb = delayed_feedback(buf, k_ctrl, fb, delay)
-            i_ref, integ = ace_update(cmd[k_ctrl], fb, w_m, integ, cc)
+            w_fb = w_m
+            if s_ang:   # the speed feedback is the measured angle's rate
+                w_fb = w_m * (1.0 + angle_error(th_m, sc)[1])
+            i_ref, integ = ace_update(cmd[k_ctrl], fb, w_fb, integ, cc)
+            if s_cur:   # the drive holds its sensor's reading at i_ref: i + err(i) = i_ref
+                i_ref -= current_error(i_ref, sc)
             k_ctrl += 1
             for _ in range(steps_tick):
                 th_m, w_m, th_u, w_u, ps, m0, m1, m2, m3 = plant_step(th_m, w_m, th_u, w_u,
@@ -90,10 +101,18 @@ def integrate(plant_consts, plant_init, plant_step, p, x, e, cmd, n_out, ticks_o
                 a1 += m1
                 a2 += m2
                 a3 += m3
+                if s_ang:   # the recorded angle and speed: the resolver's, step by step
+                    err, slope = angle_error(m1, sc)
+                    a1 += err
+                    a2 += m2 * slope
         out[k, 0] = a0 * scale + offset
         out[k, 1] = a1 * scale
         out[k, 2] = a2 * scale
         out[k, 3] = gain * a3 * scale
+        if s_pos:   # on the window mean (the surface moves < 3 mrad in a window)
+            out[k, 0] += position_error(a0 * scale, sc)
+        if s_cur:
+            out[k, 3] += gain * current_error(a3 * scale, sc)
         if not (math.isfinite(a0) and math.isfinite(a1) and math.isfinite(a2)
                 and math.isfinite(a3)):
             return False
