@@ -892,3 +892,23 @@ def test_cli_runs_an_outside_null_case_and_prints_its_discoveries(tmp_path, caps
     (rec,) = map(json.loads, (tmp_path / "blind.jsonl").read_text().splitlines())
     (case,) = [c for c in draw_cases(0, 3, outside=1) if c.category == "outside_monitor_null"]
     assert rec["terms_named"] == [] and rec["discoveries"] == 0 and rec["seed"] == case.index
+
+
+def test_the_committed_fifth_round_suite_is_every_category_drawn_and_summed():
+    """``blind_r5/``: the whole suite of root seed 3200 (``--cases 60 --extra 10 --fourth 6
+    --chain 6 --outside 5``), every case of every category present, each the case the seed
+    draws, and the committed summary :func:`summarise` of the records: a dropped, duplicated
+    or edited case, or a summary written from another run, fails."""
+    path = COMMITTED_R3.parent / "blind_r5"
+    records = sorted(read_records(path / "blind.jsonl"), key=lambda r: r["index"])
+    drawn = draw_cases(60, 3200, extra=10, fourth=6, chain=6, outside=5)
+    assert [r["index"] for r in records] == [c.index for c in drawn]
+    for r, c in zip(records, drawn):
+        assert r["root_seed"] == 3200 and r["key"] == f"case{c.index}"
+        assert (r["category"], r["effects"], r["faults"], r["decoy"], r["decoy_params"]) == \
+            (c.category, c.effects, c.faults, c.decoy, c.decoy_params)
+    assert {r["category"] for r in records} == set(blind.KINDS)
+    summary = json.loads((path / "summary.json").read_text())
+    assert "--seed 3200 --out leaderboards/blind_r5" in summary["command"]
+    assert {k: v for k, v in summary.items() if k not in ("command", "interval_calibration")} \
+        == json.loads(dumps(summarise(records)))
