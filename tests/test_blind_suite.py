@@ -912,3 +912,26 @@ def test_the_committed_fifth_round_suite_is_every_category_drawn_and_summed():
     assert "--seed 3200 --out leaderboards/blind_r5" in summary["command"]
     assert {k: v for k, v in summary.items() if k not in ("command", "interval_calibration")} \
         == json.loads(dumps(summarise(records)))
+
+
+# slow (about 10 CPU-s with the numba start-up)
+@pytest.mark.slow
+def test_two_committed_fifth_round_cases_rerun_to_their_committed_verdicts():
+    """A spot check that ``blind_r5/``'s verdicts were earned, not written: its cheapest
+    acquisition decoy (case 49, outliers on ``theta_u``, about 6 CPU-s) and a dead-time case
+    (case 124, the current loop's outside physics at its 10 V bound, about 2 CPU-s), run blind
+    again: the same verdict, names, terms and acquisition faults as committed.  Case 124 is
+    also the claim that the dead time is invisible in this drive: detected, it fails."""
+    from ema_bench.diagnosis.results import Settings
+
+    path = COMMITTED_R3.parent / "blind_r5"
+    committed = {r["index"]: r for r in read_records(path / "blind.jsonl")}
+    drawn = {c.index: c for c in draw_cases(60, 3200, extra=10, fourth=6, chain=6, outside=5)}
+    def outcome(x: dict) -> tuple:
+        return (x["verdict"], sorted(x["named"]), x["named_acquisition"], x["terms_named"],
+                x["partial"])
+
+    for i in (49, 124):
+        assert outcome(run_case(drawn[i], 3200, Settings())) == outcome(committed[i])
+    assert committed[49]["named_acquisition"] == ["outliers(theta_u)"]
+    assert committed[124]["verdict"] == "none"
