@@ -1,0 +1,96 @@
+"""The emafdi-v3 board is the one ``leaderboards/README.md`` describes, while it runs and once
+it is complete.
+
+Its documented sweep command is docs/suite-v3.md's and ``--report-only`` is that command's
+report; every record in the committed store is one of that command's runs (its budget and
+root seed, once each: a smoke run written into the folder by mistake, or a run appended
+twice, fails); and once the store holds every planned run and the tables are written, no
+``<!-- v3-board: ... -->`` placeholder survives and every table names the documented report
+command in its header.  About 3 CPU-s (the zoo's imports and reading the store).
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+BOARD = ROOT / "leaderboards" / "v3"
+README = ROOT / "leaderboards" / "README.md"
+MARKER = re.compile(r"<!-- v3-board: (.*?) -->", re.S)
+
+
+def _commands(text: str) -> list[str]:
+    """The ``ema-bench leaderboard --suite emafdi-v3`` commands of indented code blocks,
+    their continuation lines joined."""
+    joined = re.sub(r"\\\n\s*", "", text)
+    return [" ".join(line.split()) for line in joined.splitlines()
+            if line.strip().startswith(("ema-bench leaderboard --suite emafdi-v3",
+                                        "nice ema-bench leaderboard --suite emafdi-v3"))]
+
+
+def _section(text: str, title: str) -> str:
+    return text.split(title, 1)[1].split("\n## ", 1)[0]
+
+
+@pytest.fixture(scope="module")
+def plan() -> dict:
+    from ema_bench.leaderboard.tasks import make_tasks
+    from ema_bench.suites import SUITES
+    from ema_bench.suites.base import Selection
+
+    sweep, = [c for c in _commands(_section(README.read_text(), "## The emafdi-v3 board"))
+              if "--report-only" not in c]
+    args = dict(re.findall(r"--(\S+) (\S+)", sweep))
+    suite = SUITES["emafdi-v3"]
+    cases = suite.sweep_cases(Selection(None, args["tiers"].split(","),
+                                        args["conditions"].split(","), None, False))
+    budget = suite.sweep_budget(cases, None, None, False)
+    tasks = make_tasks(args["solvers"].split(","), cases, args["tracks"].split(","),
+                       int(args["seeds"]), budget)
+    return {"sweep": sweep, "tasks": {t.key: t for t in tasks}}
+
+
+def test_the_readme_commands_are_the_documented_plans(plan):
+    readme = _section(README.read_text(), "## The emafdi-v3 board")
+    report, = [c for c in _commands(readme) if "--report-only" in c]
+    assert report == plan["sweep"] + " --report-only"
+    docs = [c.removeprefix("nice ") for c in
+            _commands((ROOT / "docs" / "suite-v3.md").read_text()) if "--solvers cmaes," in c]
+    assert docs and all(c == plan["sweep"] for c in docs)
+    assert len(plan["tasks"]) == 5936
+
+
+def test_every_committed_record_is_a_run_of_the_plan_once(plan):
+    lines = (BOARD / "runs.jsonl").read_text().splitlines()
+    keys = []
+    for ln in lines:
+        r = json.loads(ln)
+        t = plan["tasks"].get(r["key"])
+        assert t is not None, f"{r['key']}: not a run of the documented sweep"
+        assert (r["solver"], r["case"], r["track"], r["seed"], r["budget"],
+                r.get("root_seed", 0), r["suite"]) == (t.solver, t.case, t.track, t.seed,
+                                                       t.budget, t.root_seed, "emafdi-v3")
+        keys.append(r["key"])
+    assert len(set(keys)) == len(keys)
+
+
+def test_a_complete_board_has_its_figures_and_its_tables_name_the_command(plan):
+    n = len((BOARD / "runs.jsonl").read_text().splitlines())
+    table = BOARD / "leaderboard_reference.md"
+    complete = n == len(plan["tasks"]) and table.is_file() \
+        and "PARTIAL" not in table.read_text().splitlines()[2]
+    left = [(p.relative_to(ROOT), m.group(1)[:60])
+            for p in [README, *(ROOT / "docs").glob("*.md")]
+            for m in MARKER.finditer(p.read_text())]
+    if not complete:
+        # running: the placeholders are there to be filled, and no table is published
+        assert left and not table.is_file()
+        return
+    assert not left, f"unfilled v3-board placeholders: {left}"
+    for t in [*BOARD.glob("leaderboard_*.md"), BOARD / "paper_tables.md"]:
+        header = t.read_text().splitlines()[2]
+        assert header.startswith(f"Produced by `{plan['sweep']} --report-only`: "), t.name
