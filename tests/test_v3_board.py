@@ -94,3 +94,31 @@ def test_a_complete_board_has_its_figures_and_its_tables_name_the_command(plan):
     for t in [*BOARD.glob("leaderboard_*.md"), BOARD / "paper_tables.md"]:
         header = t.read_text().splitlines()[2]
         assert header.startswith(f"Produced by `{plan['sweep']} --report-only`: "), t.name
+
+
+def _claim_row(c: dict) -> str:
+    """The README's row of one claim of ``summary.json``'s ``claims_by_instance``."""
+    d, w = c["diff"], c.get("without_diff")
+    side = lambda names: ", ".join(names)          # noqa: E731
+    left = (f"without {c['without']}: {side(c['without_a'])} vs {side(c['without_b'])} "
+            f"{d_fmt(w)}" if w else "-")
+    return (f"| {c['track']} | {c['tier']} | {c['claim']} | {side(c['a'])} vs {side(c['b'])} "
+            f"| {c['instances']} | {d_fmt(d)} | {left} | {c['verdict']} |")
+
+
+def d_fmt(d: list[float]) -> str:
+    return f"{d[0]:+.3f} [{d[1]:+.3f}, {d[2]:+.3f}]"
+
+
+def test_a_complete_boards_answers_quote_its_claims_by_instance(plan):
+    """Once complete, the README's v3 answers hold one row per claim of ``summary.json``
+    (track, tier, claim, sides, instances, the interval over instances, the leave-one-out
+    line, the verdict): an answer written from another store, or from a partial one, fails."""
+    summary = BOARD / "summary.json"
+    if not summary.is_file() or json.loads(summary.read_text())["runs"] != len(plan["tasks"]):
+        pytest.skip("the v3 board is not complete: its answers are not written yet")
+    readme = _section(README.read_text(), "## The emafdi-v3 board")
+    claims = json.loads(summary.read_text())["claims_by_instance"]
+    assert claims
+    missing = [_claim_row(c) for c in claims if _claim_row(c) not in readme]
+    assert not missing, "\n".join(missing)
