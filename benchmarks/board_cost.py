@@ -63,12 +63,11 @@ def plan_tasks() -> list:
 
 
 def stratum(case: str, track: str, solver: str) -> str:
-    """``tier|condition|track|solver`` of a run (``v3-t12-s06@prior`` is tier 12; the
-    paper cases and ``v3-sNN`` are tier 4)."""
-    inst, _, cond = case.partition("@")
-    parts = inst.split("-")
-    tier = parts[1][1:] if len(parts) > 2 and parts[1].startswith("t") else "4"
-    return f"{tier}|{cond}|{track}|{solver}"
+    """``tier|condition|track|solver`` of a run (the tier is the instance's dimension:
+    ``v3-t12-s06@prior`` is tier 12, the paper cases and ``v3-sNN`` tier 4)."""
+    from ema_bench.suites import find
+
+    return f"{find(case).dim}|{case.partition('@')[2]}|{track}|{solver}"
 
 
 def draw(keys_by_stratum: dict[str, list[str]], k: int, seed: int) -> dict[str, list[str]]:
