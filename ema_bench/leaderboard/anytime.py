@@ -103,7 +103,7 @@ def _resamples(n: int, seed: int) -> np.ndarray:
     """The indices of ``N_RESAMPLES`` bootstrap resamples of ``n`` observations: the draw
     ``scipy.stats.bootstrap`` makes with ``rng=np.random.default_rng(seed)``.  Cached
     (read-only): a board asks for the same ``n`` tens of thousands of times, and scipy's
-    per-call validation was 85 % of a v3 report's CPU."""
+    per-call validation was over half of the v3 tables' CPU."""
     i = np.random.default_rng(seed).integers(0, n, (N_RESAMPLES, n))
     i.flags.writeable = False
     return i
