@@ -15,8 +15,12 @@ values, the final vector and, for schema-2 records, every trajectory vector.
 Bit-for-bit replay needs the BLAS kernel the record was made with: OpenBLAS dispatches on the
 CPU (SkylakeX kernels with AVX-512, Haswell ones without), and the finite-difference solvers
 (lbfgsb, least-squares) amplify the last-bit differences into another path.  The manifest
-records the kernel (``blas``); replay under another one names both in its finding, and
-``OPENBLAS_CORETYPE=Haswell`` (or ``Zen``, ``SkylakeX``) replays under the record's.
+records the kernel (``blas``), and each record is replayed under its own: the records made
+under this process's kernel here, those of another OpenBLAS kernel in a child process started
+with ``OPENBLAS_CORETYPE`` set to it (OpenBLAS picks its kernel once, when it loads, and the
+workers are forked from a server that loaded it), where the CPU can run that kernel (the
+AVX-512 ones need ``avx512f``).  A record whose kernel cannot be had here is still replayed,
+and a finding names both kernels.
 
 The solver never runs in this process: each sampled record's run goes to a fresh worker
 process (:mod:`.replay_worker`, the sweep engine's ``isolated`` executor, forked from a server
@@ -30,9 +34,13 @@ can tell beforehand which records will be replayed.
 
 from __future__ import annotations
 
+import json
 import math
 import os
-from dataclasses import dataclass
+import subprocess
+import sys
+from dataclasses import asdict, dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -120,15 +128,65 @@ def _finding(r: dict, out: dict) -> str | None:
     return finding
 
 
+#: OpenBLAS kernels that need AVX-512 (the others in the manifests need AVX2 at most).
+AVX512_KERNELS = frozenset({"SkylakeX", "Cooperlake", "SapphireRapids"})
+
+
+def _cpu_runs(kernel: str) -> bool:
+    """Whether this CPU can run OpenBLAS ``kernel`` (forcing one it cannot is a crash)."""
+    if kernel not in AVX512_KERNELS:
+        return True
+    try:
+        return "avx512f" in Path("/proc/cpuinfo").read_text().split()
+    except OSError:
+        return False
+
+
+def _elsewhere(r: dict) -> str | None:
+    """The OpenBLAS kernel ``r`` was made under, where it is not this process's and this
+    CPU can run it (the record is then replayed in a child process under it), else None."""
+    made = str((r.get("manifest") or {}).get("blas") or "")
+    lib, _, kernel = made.partition(" ")
+    here = blas_kernel()
+    if lib != "openblas" or not kernel or made == here or not (here or "").startswith(
+            "openblas ") or not kernel.isalnum() or not _cpu_runs(kernel):
+        return None
+    return kernel
+
+
+def _replay_under(kernel: str, picked: list[dict], workers: int | None
+                  ) -> list[ReplayResult]:
+    """Replay ``picked`` in a child process whose OpenBLAS loads ``kernel``."""
+    env = {**os.environ, "OPENBLAS_CORETYPE": kernel}
+    proc = subprocess.run([sys.executable, "-m", "ema_bench.leaderboard.replay", str(workers or 0)],
+                          input=json.dumps(picked), capture_output=True, text=True, env=env)
+    if proc.returncode:
+        tail = terminal(proc.stderr.strip().splitlines()[-1] if proc.stderr.strip() else "")
+        return [ReplayResult(_name(r), f"replay failed under BLAS kernel {kernel}: {tail}", 0.0)
+                for r in picked]
+    return [ReplayResult(**d) for d in json.loads(proc.stdout.strip().splitlines()[-1])]
+
+
 def replay(records: list[dict], k: int | None, seed: int, keys: set[str] | None = None,
-           workers: int | None = None) -> list[ReplayResult]:
+           workers: int | None = None, *, kernels: bool = True) -> list[ReplayResult]:
     """Replay ``k`` records sampled with ``seed`` (all for None; only those named ``keys``),
-    each in a fresh worker process (at most ``workers`` at a time); one result each, in
-    sample order."""
+    each in a fresh worker process (at most ``workers`` at a time), each under the BLAS
+    kernel it was made with where this CPU has it (``kernels``; module docstring); one
+    result each, in sample order."""
     picked = sample(records, k, seed, keys)
     found: dict[int, ReplayResult] = {}
+    if kernels:
+        away: dict[str, list[int]] = {}
+        for i, r in enumerate(picked):
+            if (kernel := _elsewhere(r)) is not None:
+                away.setdefault(kernel, []).append(i)
+        for kernel, idx in away.items():
+            for i, res in zip(idx, _replay_under(kernel, [picked[i] for i in idx], workers)):
+                found[i] = res
     jobs = []
     for i, r in enumerate(picked):
+        if i in found:
+            continue
         if not _installed(str(r["solver"])):
             found[i] = ReplayResult(_name(r), f"not replayable: solver {_name(r['solver'])!r} "
                                     "is not an installed plugin (an adapter's run, e.g. SciPy "
@@ -141,7 +199,8 @@ def replay(records: list[dict], k: int | None, seed: int, keys: set[str] | None 
             found[i] = ReplayResult(_name(r), f"replay failed: {type(exc).__name__}: {exc}",
                                     0.0)
     workers = workers or max(1, min(len(jobs), os.cpu_count() or 1))
-    for o in execute(jobs, replay_job, "isolated", workers, preload=SERVER_PRELOAD):
+    for o in execute(jobs, replay_job, "isolated", workers, preload=SERVER_PRELOAD) \
+            if jobs else ():
         i = o.task.identity
         r = picked[i]
         if o.failure is not None:
@@ -168,3 +227,11 @@ def _installed(solver: str) -> bool:
     from ..registry import ENTRY_POINT_GROUP
 
     return bool(importlib.metadata.entry_points(group=ENTRY_POINT_GROUP, name=solver))
+
+
+if __name__ == "__main__":
+    # the child of _replay_under: records on stdin, results on stdout, under the kernel its
+    # OPENBLAS_CORETYPE chose (never forwarded again: kernels=False)
+    _out = replay(json.loads(sys.stdin.read()), None, 0, workers=int(sys.argv[1]) or None,
+                  kernels=False)
+    print(json.dumps([asdict(x) for x in _out]))
