@@ -70,3 +70,40 @@ def cli():
     code, stdout and stderr a subprocess would (tests/inprocess.py says when a real subprocess
     is still needed)."""
     return run_cli
+
+
+#: Set in the child that :func:`made_under` starts, so the child runs the test itself.
+_KERNEL_CHILD = "EMA_BENCH_TEST_KERNEL_CHILD"
+
+
+@pytest.fixture
+def made_under(request):
+    """``made_under("openblas SkylakeX")``: the test compares bit for bit with results made
+    under that OpenBLAS kernel.  Under it, the test runs here; under another, it runs again
+    in a child pytest started with ``OPENBLAS_CORETYPE`` set to it (OpenBLAS picks its kernel
+    once, when it loads) and this one ends there; where this CPU cannot run that kernel
+    (SkylakeX needs AVX-512), the test is skipped with both kernels named."""
+    import subprocess
+
+    from ema_bench.leaderboard.replay import _cpu_runs
+    from ema_bench.manifest import blas_kernel
+
+    def check(made: str) -> bool:
+        """True: run the test body here; False: it ran (and passed) in the child."""
+        here = blas_kernel()
+        if here is None or made == here or os.environ.get(_KERNEL_CHILD):
+            return True
+        kernel = made.partition(" ")[2]
+        if not _cpu_runs(kernel):
+            pytest.skip(f"made under BLAS kernel {made}, this machine's is {here} and its CPU "
+                        "cannot run the other")
+        env = {**os.environ, "OPENBLAS_CORETYPE": kernel, _KERNEL_CHILD: "1"}
+        proc = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:randomly",
+                               "-p", "no:cacheprovider", request.node.nodeid],
+                              cwd=request.config.rootpath, env=env, capture_output=True,
+                              text=True)
+        assert proc.returncode == 0, (f"under OPENBLAS_CORETYPE={kernel}:\n"
+                                      + proc.stdout[-3000:] + proc.stderr[-2000:])
+        return False
+
+    return check
