@@ -142,16 +142,15 @@ def _cpu_runs(kernel: str) -> bool:
         return False
 
 
-def _elsewhere(r: dict) -> str | None:
-    """The OpenBLAS kernel ``r`` was made under, where it is not this process's and this
-    CPU can run it (the record is then replayed in a child process under it), else None."""
+def _elsewhere(r: dict, here: str | None) -> str | None:
+    """The OpenBLAS kernel ``r`` was made under, where this process (kernel ``here``) also
+    runs OpenBLAS, under another kernel that this CPU can run (the record is then replayed
+    in a child process under it), else None."""
     made = str((r.get("manifest") or {}).get("blas") or "")
     lib, _, kernel = made.partition(" ")
-    here = blas_kernel()
-    if lib != "openblas" or not kernel or made == here or not (here or "").startswith(
-            "openblas ") or not kernel.isalnum() or not _cpu_runs(kernel):
-        return None
-    return kernel
+    mine = lib == "openblas" and (here or "").startswith("openblas ")
+    # isalnum: the label goes into the child's environment, so nothing but a name
+    return kernel if mine and made != here and kernel.isalnum() and _cpu_runs(kernel) else None
 
 
 def _replay_under(kernel: str, picked: list[dict], workers: int | None
@@ -177,8 +176,9 @@ def replay(records: list[dict], k: int | None, seed: int, keys: set[str] | None 
     found: dict[int, ReplayResult] = {}
     if kernels:
         away: dict[str, list[int]] = {}
+        here = blas_kernel()
         for i, r in enumerate(picked):
-            if (kernel := _elsewhere(r)) is not None:
+            if (kernel := _elsewhere(r, here)) is not None:
                 away.setdefault(kernel, []).append(i)
         for kernel, idx in away.items():
             for i, res in zip(idx, _replay_under(kernel, [picked[i] for i in idx], workers)):
