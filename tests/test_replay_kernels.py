@@ -90,3 +90,19 @@ def test_a_skylake_record_replays_from_a_haswell_process_and_its_relabel_does_no
     assert "1/1 records reproduced" in made.stdout
     assert relabelled.returncode == 1
     assert "trace at evaluation 986" in relabelled.stdout
+
+
+def test_a_kernel_label_cannot_excuse_a_record(monkeypatch):
+    """A forger who labels a record with a kernel whose child process then dies (a kernel
+    the CPU mis-runs, a label OpenBLAS rejects) gets a finding for it, never a pass; a label
+    that is not a plain name never reaches the child's environment."""
+    r = _record(SKYLAKE_RUN)
+    monkeypatch.setattr(rp, "blas_kernel", lambda: "openblas Haswell")
+    monkeypatch.setattr(rp, "_cpu_runs", lambda kernel: True)
+    monkeypatch.setattr(rp.subprocess, "run", lambda *a, **k: subprocess.CompletedProcess(
+        a, -4, "", "Illegal instruction"))
+    out = rp.replay([_labelled(r, "openblas Zen", "forged")], None, 0)
+    assert [(o.key, o.finding) for o in out] == [
+        ("forged", "replay failed under BLAS kernel Zen: Illegal instruction")]
+    assert rp._elsewhere(_labelled(r, "openblas Zen;rm", "x"), "openblas Haswell") is None
+    assert rp._elsewhere(_labelled(r, "openblas Zen", "x"), "openblas Haswell") == "Zen"

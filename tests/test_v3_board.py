@@ -16,6 +16,7 @@ import re
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -120,3 +121,23 @@ def test_a_complete_boards_answers_quote_its_claims_by_instance(plan):
     assert claims
     missing = [_claim_row(c) for c in claims if _claim_row(c) not in readme]
     assert not missing, "\n".join(missing)
+
+
+def test_a_sample_of_the_committed_records_has_the_fitness_it_claims():
+    """A record of the store edited to a better fitness than its vectors have is refused:
+    a sample drawn from fresh entropy each run (its seed in the message) is re-evaluated
+    (``check_record``, the same check as ``ema-bench validate``, about 25 ms a record; the
+    whole store, 144 CPU-s, is README step 2's), and one of them edited is refused."""
+    import secrets
+
+    from ema_bench.leaderboard.validate import check_record
+
+    lines = (BOARD / "runs.jsonl").read_text().splitlines()
+    seed = secrets.randbits(32)
+    picked = [json.loads(lines[i]) for i in
+              np.random.default_rng(seed).choice(len(lines), 24, replace=False)]
+    bad = {r["key"]: m for r in picked if (m := check_record(r))}
+    assert not bad, f"sample seed {seed}: {bad}"
+    r = picked[0]
+    forged = {**r, "fitness": r["fitness"] * 0.5}
+    assert check_record(forged), f"sample seed {seed}: a halved fitness passed"
